@@ -1,0 +1,51 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occgeo/client/connection.h"
+#include "occgeo/geometry/pose.h"
+#include "occgeo/sim/presets.h"
+
+namespace occgeo::sim {
+
+// Everything occgeo-sim is told on its command line.
+struct SimOptions {
+  std::filesystem::path world_file;     // --world FILE.yaml: the ROS map_server world (required)
+  std::string robot = "bearcat";        // --robot NAME: a robot preset
+  std::string robot_id = "bearcat-1";   // --id ID: the robot id sent in the hello
+  std::string world_name = "default";   // --world-name NAME: the server world the robot maps into
+  client::Endpoint server;              // --server HOST:PORT
+  bool lockstep = false;                // --lockstep: wait for each scan's command, run as fast as possible
+  std::optional<double> duration_s;     // --duration S: sim seconds to run; unset runs until a signal
+  geometry::Pose2 start;                // --start X,Y,THETA: base_link start pose, metres and radians
+  std::optional<double> laser_range_m;  // --laser-range M: overrides the preset laser's range_max, metres
+  std::optional<double> noise_sigma_m;  // --noise SIGMA: overrides the preset's range noise, metres
+  std::uint64_t seed = 1;               // --seed N: seeds the range noise
+  bool json = false;                    // --json: print the summary as one JSON object
+  std::optional<std::filesystem::path> visible_out;  // --visible-out FILE: obstacle pixels the beams hit
+  std::optional<std::filesystem::path> trace_out;    // --trace-out FILE: CSV of t,x,y,theta at each scan
+  bool help = false;                                 // --help, -h: print usage and exit
+};
+
+// A command-line mistake; the message starts with the flag at fault, e.g. "--duration: ...".
+class ArgsError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Parses the arguments after the program name ("--flag value" or "--flag=value"); throws ArgsError.
+SimOptions parse_args(const std::vector<std::string_view>& args);
+
+// The text --help prints.
+std::string usage();
+
+// The preset the options name, with --laser-range and --noise applied.
+RobotPreset configured_preset(const SimOptions& options);
+
+}  // namespace occgeo::sim

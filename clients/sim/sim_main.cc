@@ -1,0 +1,210 @@
+// occgeo-sim: a simulated robot that connects to occgeod as a driver. This file is the protocol loop only; the
+// simulation itself lives in the occgeo_sim library.
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "occgeo/client/connection.h"
+#include "occgeo/sim/args.h"
+#include "occgeo/sim/messages.h"
+#include "occgeo/sim/report.h"
+#include "occgeo/sim/simulation.h"
+
+namespace {
+
+using occgeo::client::ClientError;
+using occgeo::client::Connection;
+using occgeo::sim::SimOptions;
+using occgeo::sim::Simulation;
+using SteadyClock = std::chrono::steady_clock;
+
+// Exit codes: 0 after a clean run, 1 for connection, server and lockstep failures, 2 for bad arguments or inputs.
+constexpr int kExitFailure = 1;
+constexpr int kExitUsage = 2;
+
+// Longest wall time a lockstep run waits for the command answering a scan.
+constexpr std::chrono::seconds kLockstepAnswerTimeout{10};
+// Longest single wait on the socket, so a signal is noticed promptly.
+constexpr std::chrono::milliseconds kReceiveSlice{100};
+// Progress lines go to stderr once per this many physics steps (10 sim seconds).
+constexpr std::int64_t kProgressEverySteps = 1000;
+
+volatile std::sig_atomic_t g_stop_requested = 0;
+
+extern "C" void request_stop(int /*signal*/) { g_stop_requested = 1; }
+
+// A failure that ends the run with exit code kExitFailure; the message is printed to stderr as it is.
+class RunError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Where the per-scan and end-of-run files go; opened before connecting so a bad path fails early.
+struct OutputFiles {
+  std::optional<std::ofstream> trace;
+  std::optional<std::ofstream> visible;
+};
+
+std::ofstream open_output(const std::filesystem::path& path, const char* flag) {
+  std::ofstream out(path);
+  if (!out) throw occgeo::sim::ArgsError(std::string(flag) + ": cannot open '" + path.string() + "' for writing");
+  return out;
+}
+
+// Sends the scan due now (odometry first) and appends the pose to the trace; returns the scan's seq.
+std::uint64_t send_scan(Connection& connection, Simulation& simulation, OutputFiles& files) {
+  const occgeo::sim::ScanMessages scan = simulation.take_scan();
+  connection.send(scan.odometry);
+  connection.send(scan.laser_scan);
+  if (files.trace) {
+    *files.trace << occgeo::sim::trace_csv_row(simulation.robot().time_s(), simulation.robot().pose()) << '\n';
+  }
+  return scan.seq;
+}
+
+// Throws RunError for a server Error; returns the motion command the message carries, if any.
+std::optional<occgeo::v1::MotionCommand> motion_command_in(const occgeo::v1::ServerMessage& message) {
+  if (message.has_error()) {
+    const occgeo::v1::Error& error = message.error();
+    const std::string field = error.field().empty() ? occgeo::v1::ErrorCode_Name(error.code()) : error.field();
+    throw RunError("server error: " + field + ": " + error.message());
+  }
+  if (message.has_motion_command()) return message.motion_command();
+  return std::nullopt;
+}
+
+// Waits for the command answering scan `seq` and applies it; older commands and other messages are skipped.
+void await_answer(Connection& connection, Simulation& simulation, std::uint64_t seq) {
+  const auto deadline = SteadyClock::now() + kLockstepAnswerTimeout;
+  while (g_stop_requested == 0) {
+    const auto now = SteadyClock::now();
+    if (now >= deadline) {
+      throw RunError("occgeo-sim: lockstep: no motion command answered scan " + std::to_string(seq) + " within " +
+                     std::to_string(kLockstepAnswerTimeout.count()) + " s");
+    }
+    const auto wait = std::min(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now), kReceiveSlice);
+    const auto message = connection.receive(wait);
+    if (!message) continue;
+    const auto command = motion_command_in(*message);
+    if (command && command->answers_scan_seq() == seq) {
+      simulation.apply_command(*command);
+      return;
+    }
+  }
+}
+
+// Applies every command that arrives until the wall-clock deadline of the current physics step.
+void receive_until(Connection& connection, Simulation& simulation, SteadyClock::time_point deadline) {
+  do {
+    const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - SteadyClock::now());
+    const auto message = connection.receive(std::max(wait, std::chrono::milliseconds(0)));
+    if (!message) break;
+    if (const auto command = motion_command_in(*message)) simulation.apply_command(*command);
+  } while (SteadyClock::now() < deadline);
+  std::this_thread::sleep_until(deadline);
+}
+
+void log_progress(const Simulation& simulation) {
+  const occgeo::sim::SimulatedRobot& robot = simulation.robot();
+  std::fprintf(stderr,
+               "occgeo-sim: t=%.0f s pose=(%.2f, %.2f, %.3f) distance=%.1f m collisions=%llu scans=%llu "
+               "commands=%llu state=%s\n",
+               robot.time_s(), robot.pose().x, robot.pose().y, robot.pose().theta, robot.distance_m(),
+               static_cast<unsigned long long>(robot.collisions()),
+               static_cast<unsigned long long>(simulation.scan_count()),
+               static_cast<unsigned long long>(simulation.command_count()),
+               simulation.last_state().empty() ? "-" : simulation.last_state().c_str());
+}
+
+// Connects, introduces the robot, then scans, listens and steps until the duration is reached or a signal arrives.
+void run(const SimOptions& options, const occgeo::sim::RobotPreset& preset, Simulation& simulation,
+         OutputFiles& files) {
+  Connection connection = Connection::open(options.server);
+  connection.hello(occgeo::sim::make_driver_hello(options.robot_id, options.world_name));
+  occgeo::v1::ClientMessage spec;
+  *spec.mutable_robot_spec() = occgeo::sim::make_robot_spec(preset);
+  connection.send(spec);
+
+  const std::optional<std::int64_t> last_step =
+      options.duration_s ? std::optional(std::llround(*options.duration_s / occgeo::sim::kPhysicsStep_s))
+                         : std::nullopt;
+  const auto wall_start = SteadyClock::now();
+  const auto step_wall = std::chrono::duration<double>(occgeo::sim::kPhysicsStep_s);
+  while (g_stop_requested == 0 && (!last_step || simulation.robot().step_count() < *last_step)) {
+    if (simulation.scan_due()) {
+      const std::uint64_t seq = send_scan(connection, simulation, files);
+      if (options.lockstep) await_answer(connection, simulation, seq);
+    }
+    if (g_stop_requested != 0) break;
+    if (!options.lockstep) {
+      const auto step_end = static_cast<double>(simulation.robot().step_count() + 1) * step_wall;
+      receive_until(connection, simulation, wall_start + std::chrono::duration_cast<SteadyClock::duration>(step_end));
+    }
+    simulation.step();
+    if (simulation.robot().step_count() % kProgressEverySteps == 0) log_progress(simulation);
+  }
+  connection.close();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::vector<std::string_view> args(argv + 1, argv + argc);
+  SimOptions options;
+  OutputFiles files;
+  std::optional<Simulation> simulation;
+  occgeo::sim::RobotPreset preset;
+  try {
+    options = occgeo::sim::parse_args(args);
+    if (options.help) {
+      std::cout << occgeo::sim::usage();
+      return 0;
+    }
+    preset = occgeo::sim::configured_preset(options);
+    occgeo::sim::World world = [&] {
+      try {
+        return occgeo::sim::load_world(options.world_file);
+      } catch (const occgeo::sim::WorldError& error) {
+        throw occgeo::sim::ArgsError(std::string("--world: ") + error.what());
+      }
+    }();
+    try {
+      simulation.emplace(std::move(world), preset, options.start, options.seed);
+    } catch (const std::invalid_argument& error) {
+      throw occgeo::sim::ArgsError(std::string("--start: ") + error.what());
+    }
+    if (options.trace_out) {
+      files.trace = open_output(*options.trace_out, "--trace-out");
+      *files.trace << occgeo::sim::kTraceCsvHeader << '\n';
+    }
+    if (options.visible_out) files.visible = open_output(*options.visible_out, "--visible-out");
+  } catch (const occgeo::sim::ArgsError& error) {
+    std::cerr << "occgeo-sim: " << error.what() << "\n(see occgeo-sim --help)\n";
+    return kExitUsage;
+  }
+
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  try {
+    run(options, preset, *simulation, files);
+  } catch (const RunError& error) {
+    std::cerr << error.what() << '\n';
+    return kExitFailure;
+  } catch (const ClientError& error) {
+    std::cerr << "occgeo-sim: " << error.what() << '\n';
+    return kExitFailure;
+  }
+
+  if (files.visible) occgeo::sim::write_visible_pixels(*files.visible, simulation->visible_pixels());
+  const auto summary = occgeo::sim::summarize(*simulation, options.robot_id, options.world_file.string());
+  std::cout << (options.json ? occgeo::sim::to_json(summary) + "\n" : occgeo::sim::to_text(summary));
+  return 0;
+}

@@ -1,0 +1,172 @@
+#include "occgeo/sim/args.h"
+
+#include <charconv>
+#include <cmath>
+#include <set>
+
+namespace occgeo::sim {
+
+namespace {
+
+// Flags that take no value.
+const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", "-h"};
+
+// Flags that take one value.
+const std::set<std::string_view> kValueFlags = {"--world",  "--robot",    "--id",          "--world-name",
+                                                "--server", "--duration", "--start",       "--laser-range",
+                                                "--noise",  "--seed",     "--visible-out", "--trace-out"};
+
+[[noreturn]] void fail(std::string_view flag, const std::string& problem) {
+  throw ArgsError(std::string(flag) + ": " + problem);
+}
+
+double parse_number(std::string_view flag, std::string_view text, const std::string& what) {
+  double value = 0.0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error != std::errc() || end != text.data() + text.size() || !std::isfinite(value)) {
+    fail(flag, "expected " + what + ", got '" + std::string(text) + "'");
+  }
+  return value;
+}
+
+double parse_positive(std::string_view flag, std::string_view text, const std::string& what) {
+  const double value = parse_number(flag, text, what);
+  if (value <= 0.0) fail(flag, "must be greater than 0, got '" + std::string(text) + "'");
+  return value;
+}
+
+std::uint64_t parse_seed(std::string_view flag, std::string_view text) {
+  std::uint64_t value = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error != std::errc() || end != text.data() + text.size()) {
+    fail(flag, "expected a non-negative integer, got '" + std::string(text) + "'");
+  }
+  return value;
+}
+
+geometry::Pose2 parse_pose(std::string_view flag, std::string_view text) {
+  const std::string expected = "X,Y,THETA (metres, metres, radians)";
+  std::vector<double> values;
+  std::size_t begin = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', begin);
+    const std::string_view part = text.substr(begin, comma == std::string_view::npos ? comma : comma - begin);
+    values.push_back(parse_number(flag, part, expected + " in '" + std::string(text) + "', a number"));
+    if (comma == std::string_view::npos) break;
+    begin = comma + 1;
+  }
+  if (values.size() != 3) fail(flag, "expected " + expected + ", got '" + std::string(text) + "'");
+  return {values[0], values[1], values[2]};
+}
+
+std::string parse_name(std::string_view flag, std::string_view text) {
+  if (text.empty()) fail(flag, "must not be empty");
+  return std::string(text);
+}
+
+void apply(SimOptions& options, std::string_view flag, std::string_view value) {
+  if (flag == "--world") {
+    options.world_file = parse_name(flag, value);
+  } else if (flag == "--robot") {
+    if (find_robot_preset(value) == nullptr) {
+      fail(flag, "unknown robot '" + std::string(value) + "' (known: " + robot_preset_names() + ")");
+    }
+    options.robot = std::string(value);
+  } else if (flag == "--id") {
+    options.robot_id = parse_name(flag, value);
+  } else if (flag == "--world-name") {
+    options.world_name = parse_name(flag, value);
+  } else if (flag == "--server") {
+    try {
+      options.server = client::Endpoint::parse(value);
+    } catch (const client::ClientError& error) {
+      fail(flag, error.what());
+    }
+  } else if (flag == "--duration") {
+    options.duration_s = parse_positive(flag, value, "a duration in seconds");
+  } else if (flag == "--start") {
+    options.start = parse_pose(flag, value);
+  } else if (flag == "--laser-range") {
+    options.laser_range_m = parse_positive(flag, value, "a range in metres");
+  } else if (flag == "--noise") {
+    options.noise_sigma_m = parse_number(flag, value, "a standard deviation in metres");
+    if (*options.noise_sigma_m < 0.0) fail(flag, "must not be negative, got '" + std::string(value) + "'");
+  } else if (flag == "--seed") {
+    options.seed = parse_seed(flag, value);
+  } else if (flag == "--visible-out") {
+    options.visible_out = parse_name(flag, value);
+  } else if (flag == "--trace-out") {
+    options.trace_out = parse_name(flag, value);
+  }
+}
+
+}  // namespace
+
+SimOptions parse_args(const std::vector<std::string_view>& args) {
+  SimOptions options;
+  std::set<std::string_view> seen;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string_view arg = args[i];
+    const std::size_t equals = arg.find('=');
+    const std::string_view flag = arg.substr(0, equals);
+    if (!kSwitches.contains(flag) && !kValueFlags.contains(flag)) {
+      if (flag.starts_with("-")) fail(flag, "unknown flag (see --help)");
+      throw ArgsError("unexpected argument '" + std::string(arg) + "' (see --help)");
+    }
+    if (!seen.insert(flag).second) fail(flag, "given more than once");
+    if (kSwitches.contains(flag)) {
+      if (equals != std::string_view::npos) fail(flag, "takes no value");
+      if (flag == "--lockstep") options.lockstep = true;
+      if (flag == "--json") options.json = true;
+      if (flag == "--help" || flag == "-h") options.help = true;
+      continue;
+    }
+    std::string_view value;
+    if (equals != std::string_view::npos) {
+      value = arg.substr(equals + 1);
+    } else if (i + 1 < args.size() && !args[i + 1].starts_with("--")) {
+      value = args[++i];
+    } else {
+      fail(flag, "needs a value");
+    }
+    apply(options, flag, value);
+  }
+  if (!options.help && options.world_file.empty()) fail("--world", "required: a ROS map_server YAML file");
+  return options;
+}
+
+std::string usage() {
+  return "usage: occgeo-sim --world FILE.yaml [options]\n"
+         "\n"
+         "A simulated robot that connects to occgeod as a driver: it streams odometry and laser scans and\n"
+         "drives by the motion commands it receives.\n"
+         "\n"
+         "  --world FILE.yaml     ROS map_server world; occupied pixels are obstacles (required)\n"
+         "  --robot NAME          robot preset: " +
+         robot_preset_names() +
+         " (default bearcat)\n"
+         "  --id ID               robot id (default bearcat-1)\n"
+         "  --world-name NAME     server world to map into (default \"default\")\n"
+         "  --server HOST:PORT    server address (default 127.0.0.1:7700)\n"
+         "  --start X,Y,THETA     start pose in metres and radians (default 0,0,0)\n"
+         "  --duration S          sim seconds to run (default: until SIGINT or SIGTERM)\n"
+         "  --lockstep            wait for the command answering each scan; run as fast as possible\n"
+         "  --laser-range M       laser maximum range in metres (default: the preset's, 8 for bearcat)\n"
+         "  --noise SIGMA         range noise standard deviation in metres (default: the preset's, 0.01)\n"
+         "  --seed N              noise seed (default 1)\n"
+         "  --json                print the summary as one JSON object on stdout\n"
+         "  --visible-out FILE    write the obstacle pixels the laser hit, one \"col row\" line each\n"
+         "  --trace-out FILE      write the pose at each scan as CSV t,x,y,theta\n"
+         "  --help                print this help\n";
+}
+
+RobotPreset configured_preset(const SimOptions& options) {
+  const RobotPreset* named = find_robot_preset(options.robot);
+  if (named == nullptr) throw ArgsError("--robot: unknown robot '" + options.robot + "'");
+  RobotPreset preset = *named;
+  if (options.laser_range_m) preset.laser.range_max_m = *options.laser_range_m;
+  if (options.noise_sigma_m) preset.laser.range_noise_sigma_m = *options.noise_sigma_m;
+  return preset;
+}
+
+}  // namespace occgeo::sim

@@ -1,0 +1,119 @@
+#include "occgeo/sim/report.h"
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <sstream>
+
+namespace occgeo::sim {
+
+namespace {
+
+// The shortest decimal text that reads back as the same double; JSON has no NaN or infinity, so those become null.
+std::string number_text(double value) {
+  if (!std::isfinite(value)) return "null";
+  std::array<char, 32> buffer{};
+  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
+  return std::string(buffer.data(), result.ptr);
+}
+
+std::string json_string(const std::string& text) {
+  std::string quoted = "\"";
+  for (const char c : text) {
+    switch (c) {
+      case '"':
+        quoted += "\\\"";
+        break;
+      case '\\':
+        quoted += "\\\\";
+        break;
+      case '\n':
+        quoted += "\\n";
+        break;
+      case '\t':
+        quoted += "\\t";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          std::array<char, 8> escaped{};
+          std::snprintf(escaped.data(), escaped.size(), "\\u%04x", static_cast<unsigned>(c));
+          quoted += escaped.data();
+        } else {
+          quoted += c;
+        }
+    }
+  }
+  return quoted + "\"";
+}
+
+}  // namespace
+
+RunSummary summarize(const Simulation& simulation, const std::string& robot_id, const std::string& world_file) {
+  const SimulatedRobot& robot = simulation.robot();
+  return RunSummary{.robot_id = robot_id,
+                    .world_file = world_file,
+                    .distance_m = robot.distance_m(),
+                    .collisions = robot.collisions(),
+                    .sim_time_s = robot.time_s(),
+                    .scans_sent = simulation.scan_count(),
+                    .commands_received = simulation.command_count(),
+                    .final_pose = robot.pose(),
+                    .deadlock_reported = simulation.deadlock_reported(),
+                    .last_state = simulation.last_state(),
+                    .state_counts = simulation.state_counts()};
+}
+
+namespace {
+
+// "state": count pairs for the JSON summary.
+std::string state_counts_json(const RunSummary& summary) {
+  std::string out;
+  for (const auto& [state, count] : summary.state_counts) {
+    if (!out.empty()) out += ", ";
+    out += json_string(state.empty() ? "-" : state) + ": " + std::to_string(count);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string to_json(const RunSummary& summary) {
+  return "{\"robot\": " + json_string(summary.robot_id) + ", \"world\": " + json_string(summary.world_file) +
+         ", \"distance_m\": " + number_text(summary.distance_m) +
+         ", \"collisions\": " + std::to_string(summary.collisions) +
+         ", \"sim_time_s\": " + number_text(summary.sim_time_s) +
+         ", \"scans_sent\": " + std::to_string(summary.scans_sent) +
+         ", \"commands_received\": " + std::to_string(summary.commands_received) +
+         ", \"final_pose\": {\"x\": " + number_text(summary.final_pose.x) +
+         ", \"y\": " + number_text(summary.final_pose.y) + ", \"theta\": " + number_text(summary.final_pose.theta) +
+         "}, \"deadlock_reported\": " + (summary.deadlock_reported ? "true" : "false") +
+         ", \"last_state\": " + json_string(summary.last_state) + ", \"state_counts\": {" + state_counts_json(summary) +
+         "}}";
+}
+
+std::string to_text(const RunSummary& summary) {
+  std::ostringstream text;
+  text << std::fixed << "robot " << summary.robot_id << " in " << summary.world_file << '\n'
+       << std::setprecision(2) << "  sim time    " << summary.sim_time_s << " s\n"
+       << std::setprecision(3) << "  distance    " << summary.distance_m << " m\n"
+       << "  collisions  " << summary.collisions << '\n'
+       << "  scans sent  " << summary.scans_sent << '\n'
+       << "  commands    " << summary.commands_received
+       << " (last state: " << (summary.last_state.empty() ? "-" : summary.last_state)
+       << ", deadlock reported: " << (summary.deadlock_reported ? "yes" : "no") << ")\n"
+       << "  final pose  x " << summary.final_pose.x << " m, y " << summary.final_pose.y << " m, theta "
+       << std::setprecision(4) << summary.final_pose.theta << " rad\n";
+  return text.str();
+}
+
+void write_visible_pixels(std::ostream& out, const std::set<Pixel>& pixels) {
+  for (const Pixel& pixel : pixels) out << pixel.col << ' ' << pixel.row << '\n';
+}
+
+std::string trace_csv_row(double time_s, const geometry::Pose2& X_WB) {
+  return number_text(time_s) + "," + number_text(X_WB.x) + "," + number_text(X_WB.y) + "," + number_text(X_WB.theta);
+}
+
+}  // namespace occgeo::sim

@@ -1,0 +1,133 @@
+#include "occgeo/mapping/himm_grid.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "format_number.h"
+#include "himm_tile_writer.h"
+#include "occgeo/geometry/grid_ray.h"
+
+namespace occgeo::mapping {
+
+namespace {
+
+const HimmParams& validated(const HimmParams& params) {
+  params.validate();
+  return params;
+}
+
+bool is_finite(const geometry::Pose2& pose) {
+  return std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.theta);
+}
+
+}  // namespace
+
+HimmGrid::HimmGrid(const HimmParams& params)
+    : params_(validated(params)), geometry_(params.cell_size_m), layout_(params.tile_cells) {}
+
+void HimmGrid::insert_ray(const Eigen::Vector2d& sensor_origin_W, const Eigen::Vector2d& hit_point_W, bool is_hit) {
+  if (!geometry::is_traversable_point(geometry_, sensor_origin_W)) {
+    throw std::invalid_argument("insert_ray: sensor_origin_W is not finite or too far from the origin");
+  }
+  if (!geometry::is_traversable_point(geometry_, hit_point_W)) {
+    throw std::invalid_argument("insert_ray: hit_point_W is not finite or too far from the origin");
+  }
+  ++version_;
+  TileWriter writer(*this);
+  writer.trace_beam(sensor_origin_W, hit_point_W, is_hit);
+}
+
+void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float angle_increment,
+                           std::span<const float> ranges, float range_max) {
+  if (!is_finite(X_WS)) throw std::invalid_argument("insert_scan: X_WS is not finite");
+  if (!std::isfinite(angle_min)) throw std::invalid_argument("insert_scan: angle_min is not finite");
+  if (!std::isfinite(angle_increment)) throw std::invalid_argument("insert_scan: angle_increment is not finite");
+  if (!std::isfinite(range_max) || range_max <= 0.0F) {
+    throw std::invalid_argument("insert_scan: range_max must be finite and > 0, got " +
+                                format_number(static_cast<double>(range_max)));
+  }
+  const double max_range = static_cast<double>(range_max);
+  // Every beam end lies within max_range of the sensor on both axes.
+  if (!geometry::is_traversable_point(geometry_, {std::abs(X_WS.x) + max_range, std::abs(X_WS.y) + max_range})) {
+    throw std::invalid_argument("insert_scan: X_WS is too far from the origin");
+  }
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    if (std::isnan(ranges[i]) || ranges[i] < 0.0F) {
+      throw std::invalid_argument("insert_scan: ranges[" + std::to_string(i) + "] is NaN or negative (" +
+                                  format_number(static_cast<double>(ranges[i])) + ")");
+    }
+  }
+
+  ++version_;
+  TileWriter writer(*this);
+  const Eigen::Vector2d p_WS = X_WS.position();
+  const double first_angle = X_WS.theta + static_cast<double>(angle_min);
+  // Beam directions by successive rotations: cheaper than a sine and cosine per beam, and after n beams only about
+  // n * 1e-16 rad off.
+  Eigen::Vector2d direction(std::cos(first_angle), std::sin(first_angle));
+  const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(static_cast<double>(angle_increment)).toRotationMatrix();
+  for (const float reading : ranges) {
+    const bool is_hit = reading < range_max;
+    const double range = is_hit ? static_cast<double>(reading) : max_range;
+    writer.trace_beam(p_WS, p_WS + range * direction, is_hit);
+    direction = rotation * direction;
+  }
+}
+
+std::uint8_t HimmGrid::certainty(const geometry::CellIndex& c) const {
+  const std::uint8_t value = cell_value(c);
+  return value == kUnobserved ? 0 : value;
+}
+
+bool HimmGrid::observed(const geometry::CellIndex& c) const { return cell_value(c) != kUnobserved; }
+
+bool HimmGrid::occupied(const geometry::CellIndex& c) const { return certainty(c) >= params_.occupied_threshold; }
+
+std::shared_ptr<const GridSnapshot> HimmGrid::snapshot() const {
+  GridSnapshot::SharedTiles shared_tiles;
+  shared_tiles.reserve(tiles_.size());
+  for (const auto& [index, tile] : tiles_) shared_tiles.emplace(index, tile);
+  return std::shared_ptr<const GridSnapshot>(new GridSnapshot(std::move(shared_tiles), layout_, params_.cell_size_m,
+                                                              params_.occupied_threshold, params_.max_certainty,
+                                                              tile_bounds_, version_, occupied_cells_));
+}
+
+const Tile* HimmGrid::find_tile(const TileIndex& t) const {
+  const auto it = tiles_.find(t);
+  return it == tiles_.end() ? nullptr : it->second.get();
+}
+
+std::uint8_t HimmGrid::cell_value(const geometry::CellIndex& c) const {
+  const Tile* tile = find_tile(layout_.tile_of(c));
+  return tile == nullptr ? kUnobserved : tile->cells[static_cast<std::size_t>(layout_.offset_in_tile(c))];
+}
+
+Tile& HimmGrid::writable_tile(TileIndex t) {
+  auto it = tiles_.find(t);
+  if (it == tiles_.end()) {
+    auto tile = std::make_shared<Tile>(Tile{std::vector<std::uint8_t>(layout_.cells_per_tile(), kUnobserved), 0});
+    it = tiles_.emplace(t, std::move(tile)).first;
+    const geometry::CellIndex first = layout_.first_cell_of(t);
+    const geometry::CellIndex last = {first.ix + layout_.tile_cells() - 1, first.iy + layout_.tile_cells() - 1};
+    tile_bounds_ = tile_bounds_
+                       ? CellBox{{std::min(tile_bounds_->min.ix, first.ix), std::min(tile_bounds_->min.iy, first.iy)},
+                                 {std::max(tile_bounds_->max.ix, last.ix), std::max(tile_bounds_->max.iy, last.iy)}}
+                       : CellBox{first, last};
+  } else if (it->second.use_count() > 1) {
+    // A snapshot (or a copy of this grid) shares the tile: write to a copy of it. A count of 1, on the other hand,
+    // cannot go up meanwhile: no one else holds the tile to share it.
+    it->second = std::make_shared<Tile>(*it->second);
+    ++copied_tiles_;
+  } else {
+    // The count may have just dropped to 1 as the last snapshot holding the tile let go of it (a release operation);
+    // an acquire operation on the count then orders that snapshot's reads before our writes. Copying and dropping
+    // the pointer is one (acq_rel increment and decrement); a fence would do too, but thread sanitizers ignore fences.
+    const std::shared_ptr<Tile> acquire_count = it->second;
+  }
+  return *it->second;
+}
+
+}  // namespace occgeo::mapping

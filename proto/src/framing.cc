@@ -1,0 +1,67 @@
+#include "occgeo/proto/framing.h"
+
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+#include <google/protobuf/message_lite.h>
+#include <google/protobuf/util/delimited_message_util.h>
+
+namespace occgeo::proto {
+
+namespace {
+// A 32-bit varint takes at most five bytes.
+constexpr std::size_t kMaxPrefixBytes = 5;
+}  // namespace
+
+void FrameDecoder::append(const char* data, std::size_t size) {
+  // Drop consumed bytes before growing, so the buffer stays proportional to one frame.
+  if (start_ > 0 && start_ * 2 >= buffer_.size()) {
+    buffer_.erase(0, start_);
+    start_ = 0;
+  }
+  buffer_.append(data, size);
+}
+
+FrameStatus FrameDecoder::next(google::protobuf::MessageLite& out) {
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(buffer_.data() + start_);
+  const std::size_t available = buffer_.size() - start_;
+
+  std::size_t prefix_bytes = 0;
+  while (prefix_bytes < available && prefix_bytes < kMaxPrefixBytes && (bytes[prefix_bytes] & 0x80U) != 0) {
+    ++prefix_bytes;
+  }
+  if (prefix_bytes == kMaxPrefixBytes) return FrameStatus::malformed;
+  if (prefix_bytes == available) return FrameStatus::need_more;
+  ++prefix_bytes;  // the last prefix byte, without the continuation bit
+
+  google::protobuf::io::CodedInputStream prefix(bytes, static_cast<int>(prefix_bytes));
+  std::uint32_t length = 0;
+  if (!prefix.ReadVarint32(&length)) return FrameStatus::malformed;
+  if (length > max_frame_bytes_) {
+    rejected_frame_bytes_ = length;
+    return FrameStatus::too_large;
+  }
+  if (available < prefix_bytes + length) return FrameStatus::need_more;
+
+  google::protobuf::io::CodedInputStream frame(bytes, static_cast<int>(prefix_bytes + length));
+  bool clean_eof = false;
+  if (!google::protobuf::util::ParseDelimitedFromCodedStream(&out, &frame, &clean_eof)) {
+    return FrameStatus::malformed;
+  }
+  start_ += prefix_bytes + length;
+  if (start_ == buffer_.size()) {
+    buffer_.clear();
+    start_ = 0;
+  }
+  return FrameStatus::frame;
+}
+
+std::string encode_frame(const google::protobuf::MessageLite& message) {
+  std::string out;
+  {
+    google::protobuf::io::StringOutputStream stream(&out);
+    google::protobuf::util::SerializeDelimitedToZeroCopyStream(message, &stream);
+  }
+  return out;
+}
+
+}  // namespace occgeo::proto

@@ -1,0 +1,107 @@
+#include "core.h"
+
+#include <boost/asio/post.hpp>
+
+namespace occgeo::service {
+
+World::World(std::string name, mapping::HimmGrid grid, IngestStrand strand)
+    : name_(std::move(name)), grid_(std::move(grid)), strand_(std::move(strand)), snapshot_(grid_.snapshot()) {}
+
+void World::publish_on_strand() {
+  auto snapshot = grid_.snapshot();
+  const std::lock_guard lock(snapshot_mutex_);
+  snapshot_ = std::move(snapshot);
+}
+
+std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
+  const std::lock_guard lock(snapshot_mutex_);
+  return snapshot_;
+}
+
+const LaserModel* RobotModel::find_laser(const std::string& name) const {
+  for (const auto& laser : lasers) {
+    if (laser.name == name) return &laser;
+  }
+  return nullptr;
+}
+
+Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat)
+    : model_(std::move(model)), world_(std::move(world)), behaviour_(bearcat) {}
+
+RobotState Robot::state() const {
+  const std::lock_guard lock(mutex_);
+  return state_;
+}
+
+ServerCore::ServerCore(ServerConfig config) : config_(std::move(config)) {}
+
+ServerCore::~ServerCore() { drain(); }
+
+void ServerCore::drain() {
+  ingest_pool_.join();
+  query_pool_.join();
+}
+
+std::shared_ptr<World> ServerCore::world(const std::string& name) {
+  const std::lock_guard lock(registry_mutex_);
+  auto& slot = worlds_[name];
+  if (!slot) {
+    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), asio::make_strand(ingest_pool_.get_executor()));
+  }
+  return slot;
+}
+
+std::shared_ptr<World> ServerCore::find_world(const std::string& name) const {
+  const std::lock_guard lock(registry_mutex_);
+  const auto it = worlds_.find(name);
+  return it == worlds_.end() ? nullptr : it->second;
+}
+
+std::vector<std::shared_ptr<World>> ServerCore::worlds() const {
+  const std::lock_guard lock(registry_mutex_);
+  std::vector<std::shared_ptr<World>> all;
+  for (const auto& [name, world] : worlds_) all.push_back(world);
+  return all;
+}
+
+void ServerCore::add_world(const std::string& name, mapping::HimmGrid grid) {
+  const std::lock_guard lock(registry_mutex_);
+  auto& slot = worlds_[name];
+  if (!slot) slot = std::make_shared<World>(name, std::move(grid), asio::make_strand(ingest_pool_.get_executor()));
+}
+
+std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {
+  const std::lock_guard lock(registry_mutex_);
+  const auto it = robots_.find(id);
+  return it == robots_.end() ? nullptr : it->second;
+}
+
+std::vector<std::shared_ptr<Robot>> ServerCore::robots() const {
+  const std::lock_guard lock(registry_mutex_);
+  std::vector<std::shared_ptr<Robot>> all;
+  for (const auto& [id, robot] : robots_) all.push_back(robot);
+  return all;
+}
+
+std::shared_ptr<Robot> ServerCore::register_robot(std::shared_ptr<const RobotModel> model, const std::string& world_name,
+                                                  std::string& error) {
+  auto target_world = world(world_name);
+  const std::lock_guard lock(registry_mutex_);
+  if (const auto it = robots_.find(model->id); it != robots_.end() && it->second->state().connected) {
+    error = "robot '" + model->id + "' already has a driver connected";
+    return nullptr;
+  }
+  if (!robots_.contains(model->id) && robots_.size() >= config_.limits.max_robots) {
+    error = "the server already has its limit of " + std::to_string(config_.limits.max_robots) + " robots";
+    return nullptr;
+  }
+  auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat);
+  robots_[model->id] = robot;
+  return robot;
+}
+
+double ServerCore::uptime_s() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+}
+
+}  // namespace occgeo::service

@@ -1,0 +1,159 @@
+#pragma once
+
+#include <atomic>
+#include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
+#include <chrono>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "occgeo/geometry/footprint.h"
+#include "occgeo/geometry/kinematics.h"
+#include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/himm_grid.h"
+#include "occgeo/service/config.h"
+#include "occgeo/service/control/bearcat.h"
+#include "occgeo/v1/robot.pb.h"
+
+namespace occgeo::service {
+
+namespace asio = boost::asio;
+using IngestStrand = asio::strand<asio::thread_pool::executor_type>;
+
+// One world: the HIMM grid all its robots' sensors update. The grid is only touched on the
+// world's ingest strand; readers take the latest published immutable snapshot.
+class World {
+ public:
+  World(std::string name, mapping::HimmGrid grid, IngestStrand strand);
+
+  [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] IngestStrand& strand() { return strand_; }
+  // The mutable grid; call only from the world's strand.
+  mapping::HimmGrid& grid_on_strand() { return grid_; }
+  // Makes the grid's current state visible to readers; call only from the world's strand.
+  void publish_on_strand();
+  // The latest published state of the grid; safe from any thread.
+  [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
+
+ private:
+  std::string name_;
+  mapping::HimmGrid grid_;
+  IngestStrand strand_;
+  mutable std::mutex snapshot_mutex_;
+  std::shared_ptr<const mapping::GridSnapshot> snapshot_;
+};
+
+// A planar laser as declared in a RobotSpec, converted to SI geometry types.
+struct LaserModel {
+  std::string name;
+  geometry::Pose3 X_BS;  // sensor in base_link
+  double angle_min_rad = 0.0;
+  double angle_increment_rad = 0.0;
+  std::uint32_t beam_count = 0;
+  double range_min_m = 0.0;
+  double range_max_m = 0.0;
+};
+
+// What a robot is: fixed once its driver has sent the RobotSpec.
+struct RobotModel {
+  std::string id;
+  std::string model;
+  geometry::Footprint footprint;
+  geometry::DifferentialDriveParams drive;
+  std::vector<LaserModel> lasers;
+  v1::RobotSpec spec;
+
+  [[nodiscard]] const LaserModel* find_laser(const std::string& name) const;
+};
+
+// What a robot is doing: updated by its world's strand, read by status queries.
+struct RobotState {
+  bool connected = false;
+  std::optional<geometry::Pose2> X_WB;  // from the latest accepted odometry
+  std::optional<double> last_odometry_stamp_s;
+  std::optional<double> last_scan_stamp_s;
+  std::optional<std::uint64_t> last_scan_seq;
+  std::uint64_t scans_ingested = 0;
+  std::uint64_t scans_rejected = 0;
+  std::uint64_t commands_sent = 0;
+  std::string behaviour = "bearcat";
+  std::string behaviour_state;
+  double last_linear_mps = 0.0;
+  double last_angular_radps = 0.0;
+};
+
+class Robot {
+ public:
+  Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat);
+
+  [[nodiscard]] const RobotModel& model() const { return *model_; }
+  [[nodiscard]] std::shared_ptr<const RobotModel> model_ptr() const { return model_; }
+  [[nodiscard]] World& world() const { return *world_; }
+  [[nodiscard]] std::shared_ptr<World> world_ptr() const { return world_; }
+  // The obstacle-avoidance behaviour; used only from the world's strand.
+  control::BearcatBehaviour& behaviour_on_strand() { return behaviour_; }
+
+  [[nodiscard]] RobotState state() const;
+  template <typename Update>
+  void update_state(Update&& update) {
+    const std::lock_guard lock(mutex_);
+    update(state_);
+  }
+
+ private:
+  std::shared_ptr<const RobotModel> model_;
+  std::shared_ptr<World> world_;
+  control::BearcatBehaviour behaviour_;
+  mutable std::mutex mutex_;
+  RobotState state_;
+};
+
+// State shared by every session: configuration, worlds, robots and the worker pools. Ingest
+// runs on one pool (a strand per world) and queries on another, so neither waits for the other
+// or for the network thread.
+class ServerCore {
+ public:
+  explicit ServerCore(ServerConfig config);
+  ~ServerCore();
+  ServerCore(const ServerCore&) = delete;
+  ServerCore& operator=(const ServerCore&) = delete;
+
+  [[nodiscard]] const ServerConfig& config() const { return config_; }
+  asio::thread_pool& query_pool() { return query_pool_; }
+
+  // The world with this name, created empty on first use.
+  std::shared_ptr<World> world(const std::string& name);
+  [[nodiscard]] std::shared_ptr<World> find_world(const std::string& name) const;
+  [[nodiscard]] std::vector<std::shared_ptr<World>> worlds() const;
+  // Adds a world restored from storage; replaces nothing that exists.
+  void add_world(const std::string& name, mapping::HimmGrid grid);
+
+  [[nodiscard]] std::shared_ptr<Robot> find_robot(const std::string& id) const;
+  [[nodiscard]] std::vector<std::shared_ptr<Robot>> robots() const;
+  // Registers (or re-registers, when its driver reconnects) a robot; nullptr with `error` set
+  // when the robot limit is reached.
+  std::shared_ptr<Robot> register_robot(std::shared_ptr<const RobotModel> model, const std::string& world,
+                                        std::string& error);
+
+  std::atomic<std::uint32_t> sessions{0};
+  std::atomic<std::uint64_t> next_session_id{1};
+  [[nodiscard]] double uptime_s() const;
+
+  // Waits for queued ingest and query work to finish.
+  void drain();
+
+ private:
+  ServerConfig config_;
+  asio::thread_pool ingest_pool_{1};
+  asio::thread_pool query_pool_{2};
+  mutable std::mutex registry_mutex_;
+  std::map<std::string, std::shared_ptr<World>> worlds_;
+  std::map<std::string, std::shared_ptr<Robot>> robots_;
+  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace occgeo::service

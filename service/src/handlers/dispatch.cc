@@ -1,0 +1,87 @@
+#include "handlers.h"
+#include "occgeo/service/log.h"
+
+namespace occgeo::service {
+
+void SessionContext::send_error(v1::ErrorCode code, const std::string& field, const std::string& message,
+                                std::uint64_t request_id, std::uint64_t seq) {
+  v1::ServerMessage reply;
+  auto* error = reply.mutable_error();
+  error->set_code(code);
+  error->set_field(field);
+  error->set_message(message);
+  error->set_request_id(request_id);
+  error->set_seq(seq);
+  send(std::move(reply));
+}
+
+namespace {
+bool require_driver_with_spec(const SessionPtr& session, const char* field) {
+  const SessionInfo& info = session->info();
+  if (info.role != v1::ROLE_DRIVER) {
+    session->send_error(v1::ERROR_NOT_ALLOWED, field, "only driver sessions may send robot data");
+    return false;
+  }
+  if (!info.robot) {
+    session->send_error(v1::ERROR_OUT_OF_ORDER, field, "send the robot_spec before any sensor data");
+    return false;
+  }
+  return true;
+}
+}  // namespace
+
+void dispatch(const SessionPtr& session, v1::ClientMessage message) {
+  if (message.body_case() == v1::ClientMessage::BODY_NOT_SET) {
+    session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "",
+                        "the message has no body this server knows (protocol occgeo.v1); it was ignored");
+    return;
+  }
+  if (message.has_hello()) {
+    handle_hello(session, message.hello());
+    return;
+  }
+  if (!session->info().greeted) {
+    session->send_error(v1::ERROR_OUT_OF_ORDER, "hello", "the first message of a session must be a hello");
+    return;
+  }
+  switch (message.body_case()) {
+    case v1::ClientMessage::kRobotSpec:
+      if (session->info().role != v1::ROLE_DRIVER) {
+        session->send_error(v1::ERROR_NOT_ALLOWED, "robot_spec", "only driver sessions may send a robot_spec");
+        return;
+      }
+      handle_robot_spec(session, message.robot_spec());
+      return;
+    case v1::ClientMessage::kOdometry:
+      if (require_driver_with_spec(session, "odometry")) handle_odometry(session, message.odometry());
+      return;
+    case v1::ClientMessage::kLaserScan:
+      if (require_driver_with_spec(session, "laser_scan")) {
+        handle_laser_scan(session, std::move(*message.mutable_laser_scan()));
+      }
+      return;
+    case v1::ClientMessage::kCollision:
+      handle_collision_query(session, message.collision());
+      return;
+    case v1::ClientMessage::kClearance:
+      handle_clearance_query(session, message.clearance());
+      return;
+    case v1::ClientMessage::kStatus:
+      handle_status_request(session, message.status());
+      return;
+    case v1::ClientMessage::kGrid:
+      handle_grid_request(session, message.grid());
+      return;
+    default:
+      session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");
+  }
+}
+
+void handle_disconnect(SessionInfo& info) {
+  if (info.robot) {
+    info.robot->update_state([](RobotState& state) { state.connected = false; });
+    log::info("robot_disconnected", {{"robot", info.robot_id}, {"session", info.id}});
+  }
+}
+
+}  // namespace occgeo::service

@@ -1,0 +1,54 @@
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "../core.h"
+#include "occgeo/v1/session.pb.h"
+
+namespace occgeo::service {
+
+// What a session knows about its peer; touched only by the session's network strand.
+struct SessionInfo {
+  std::uint64_t id = 0;
+  std::string peer;
+  bool greeted = false;
+  v1::Role role = v1::ROLE_UNSPECIFIED;
+  std::string robot_id;  // drivers
+  std::string world;     // drivers
+  std::shared_ptr<Robot> robot;  // drivers, once the RobotSpec is accepted
+};
+
+// The part of a session that message handlers use. send() may be called from any thread.
+class SessionContext {
+ public:
+  virtual ~SessionContext() = default;
+  virtual ServerCore& core() = 0;
+  // Only from the session's own network strand.
+  virtual SessionInfo& info() = 0;
+  // Queues a message to the client; thread-safe, never blocks.
+  virtual void send(v1::ServerMessage message) = 0;
+
+  void send_error(v1::ErrorCode code, const std::string& field, const std::string& message,
+                  std::uint64_t request_id = 0, std::uint64_t seq = 0);
+};
+
+using SessionPtr = std::shared_ptr<SessionContext>;
+
+// Routes one decoded client message to its handler after the session checks (hello first,
+// role allowed to send it).
+void dispatch(const SessionPtr& session, v1::ClientMessage message);
+
+void handle_hello(const SessionPtr& session, const v1::Hello& hello);
+void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec);
+void handle_odometry(const SessionPtr& session, const v1::Odometry& odometry);
+void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan);
+void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query);
+void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query);
+void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request);
+void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
+
+// Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline).
+void handle_disconnect(SessionInfo& info);
+
+}  // namespace occgeo::service

@@ -1,0 +1,146 @@
+#include <boost/asio/post.hpp>
+#include <cmath>
+
+#include "../validation.h"
+#include "handlers.h"
+#include "occgeo/service/log.h"
+
+namespace occgeo::service {
+
+namespace {
+
+// The sensor's pose projected on the ground plane, and whether it is mounted upside down (its
+// beams then sweep clockwise in the world).
+struct PlanarSensorPose {
+  geometry::Pose2 X_WS;
+  bool mirrored = false;
+};
+
+PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserModel& laser) {
+  const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
+  return {X_WS.to_pose2(), X_WS.transform.linear()(2, 2) < 0.0};
+}
+
+// Inserts the scan's readings into the grid; readings below the sensor's minimum range carry no
+// information and are skipped.
+void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const LaserModel& laser,
+                 const v1::LaserScan& scan) {
+  const double sign = sensor.mirrored ? -1.0 : 1.0;
+  const auto angle_min = static_cast<float>(sign * laser.angle_min_rad);
+  const auto angle_increment = static_cast<float>(sign * laser.angle_increment_rad);
+  const std::span<const float> ranges(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size()));
+  const auto range_min = static_cast<float>(laser.range_min_m);
+  const bool all_valid = std::all_of(ranges.begin(), ranges.end(), [&](float r) { return r >= range_min; });
+  if (all_valid) {
+    grid.insert_scan(sensor.X_WS, angle_min, angle_increment, ranges, static_cast<float>(laser.range_max_m));
+    return;
+  }
+  const Eigen::Vector2d origin = sensor.X_WS.position();
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    if (ranges[i] < range_min) continue;
+    const double reading = static_cast<double>(ranges[i]);
+    const double range = std::min(reading, laser.range_max_m);
+    const double bearing = sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+    const Eigen::Vector2d end = origin + range * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+    grid.insert_ray(origin, end, reading < laser.range_max_m);
+  }
+}
+
+v1::MotionCommand command_from_decision(const control::BearcatDecision& decision, const RobotModel& model,
+                                        double expiry_s) {
+  geometry::WheelSpeeds wheels{decision.left_wheel_mps, decision.right_wheel_mps};
+  wheels = geometry::clamp_to_max_speed(wheels, model.drive);
+  const geometry::BodyVelocity body = geometry::to_body(wheels, model.drive);
+  v1::MotionCommand command;
+  command.set_left_wheel_mps(wheels.left_mps);
+  command.set_right_wheel_mps(wheels.right_mps);
+  command.set_linear_mps(body.linear_mps);
+  command.set_angular_radps(body.angular_radps);
+  command.set_expires_after_s(expiry_s);
+  command.set_behaviour("bearcat");
+  command.set_state(std::string(decision.state));
+  command.set_stop(decision.stop);
+  return command;
+}
+
+}  // namespace
+
+void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
+  auto robot = session->info().robot;
+  if (auto error = check_scan(scan, robot->model())) {
+    robot->update_state([](RobotState& state) { ++state.scans_rejected; });
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, error->field, error->message + "; the scan was discarded", 0,
+                        scan.seq());
+    return;
+  }
+  const double expiry_s = session->core().config().control.command_expiry_s;
+  asio::post(robot->world().strand(), [session, robot, scan = std::move(scan), expiry_s] {
+    const RobotState before = robot->state();
+    std::string order_error;
+    std::string order_field;
+    if (!before.X_WB) {
+      order_field = "laser_scan";
+      order_error = "no odometry received yet: the scan cannot be placed in the world";
+    } else if (before.last_scan_stamp_s && scan.stamp_s() < *before.last_scan_stamp_s) {
+      order_field = "laser_scan.stamp_s";
+      order_error = "timestamp went backwards";
+    } else if (before.last_scan_seq && scan.seq() <= *before.last_scan_seq) {
+      order_field = "laser_scan.seq";
+      order_error = "sequence number did not increase";
+    }
+    if (!order_error.empty()) {
+      robot->update_state([](RobotState& state) { ++state.scans_rejected; });
+      session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the scan was discarded", 0, scan.seq());
+      return;
+    }
+
+    const RobotModel& model = robot->model();
+    const LaserModel& laser = *model.find_laser(scan.sensor());
+    World& world = robot->world();
+    insert_scan(world.grid_on_strand(), planar_sensor_pose(*before.X_WB, laser), laser, scan);
+    world.publish_on_strand();
+
+    v1::ServerMessage ack;
+    ack.mutable_scan_ack()->set_seq(scan.seq());
+    ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
+    session->send(std::move(ack));
+
+    // The behaviour steers from the robot's first laser; other lasers only update the map.
+    const bool steering_laser = &laser == &model.lasers.front();
+    std::optional<v1::MotionCommand> command;
+    if (steering_laser) {
+      const control::ScanView view{laser.angle_min_rad, laser.angle_increment_rad,
+                                   std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())),
+                                   laser.range_max_m};
+      const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
+      command = command_from_decision(decision, model, expiry_s);
+      command->set_answers_scan_seq(scan.seq());
+    }
+
+    std::string previous_state;
+    robot->update_state([&](RobotState& state) {
+      state.last_scan_stamp_s = scan.stamp_s();
+      state.last_scan_seq = scan.seq();
+      ++state.scans_ingested;
+      if (command) {
+        command->set_seq(++state.commands_sent);
+        previous_state = state.behaviour_state;
+        state.behaviour_state = command->state();
+        state.last_linear_mps = command->linear_mps();
+        state.last_angular_radps = command->angular_radps();
+      }
+    });
+    if (!command) return;
+    if (command->state() != previous_state) {
+      const auto level = command->stop() ? log::Level::warn : log::Level::debug;
+      if (log::enabled(level)) {
+        log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
+      }
+    }
+    v1::ServerMessage reply;
+    *reply.mutable_motion_command() = std::move(*command);
+    session->send(std::move(reply));
+  });
+}
+
+}  // namespace occgeo::service

@@ -1,0 +1,173 @@
+#include <boost/asio/post.hpp>
+
+#include "../validation.h"
+#include "handlers.h"
+#include "occgeo/geometry/collision.h"
+
+namespace occgeo::service {
+
+namespace {
+
+// The robot a query names and the footprint to check: the query's override or the robot's own.
+struct QueryTarget {
+  std::shared_ptr<Robot> robot;
+  geometry::Footprint footprint;
+  geometry::Pose2 pose;
+};
+
+std::optional<QueryTarget> resolve_target(const SessionPtr& session, const char* kind, std::uint64_t request_id,
+                                          const std::string& robot_id, const v1::Pose2D& pose, bool has_footprint,
+                                          const v1::Footprint& footprint) {
+  const std::string prefix = kind;
+  auto robot = session->core().find_robot(robot_id);
+  if (!robot) {
+    session->send_error(v1::ERROR_UNKNOWN_ROBOT, prefix + ".robot_id", "no robot '" + robot_id + "' is registered",
+                        request_id);
+    return std::nullopt;
+  }
+  if (auto error = check_pose(pose, prefix + ".pose", session->core().config().limits)) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, error->field, error->message, request_id);
+    return std::nullopt;
+  }
+  QueryTarget target{robot, robot->model().footprint, {pose.x(), pose.y(), pose.theta()}};
+  if (has_footprint) {
+    FieldError error;
+    auto override_footprint = footprint_from_proto(footprint, prefix + ".footprint", error);
+    if (!override_footprint) {
+      session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message, request_id);
+      return std::nullopt;
+    }
+    target.footprint = *override_footprint;
+  }
+  return target;
+}
+
+void set_cell(const geometry::CellIndex& cell, v1::CellIndex& out) {
+  out.set_ix(cell.ix);
+  out.set_iy(cell.iy);
+}
+
+}  // namespace
+
+void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
+  auto target = resolve_target(session, "collision", query.request_id(), query.robot_id(), query.pose(),
+                               query.has_footprint(), query.footprint());
+  if (!target) return;
+  asio::post(session->core().query_pool(), [session, target = std::move(*target), request_id = query.request_id()] {
+    const auto snapshot = target.robot->world().snapshot();
+    const geometry::CollisionResult result = geometry::check_collision({target.footprint, target.pose}, *snapshot);
+    v1::ServerMessage reply;
+    auto* out = reply.mutable_collision();
+    out->set_request_id(request_id);
+    out->set_hit(result.hit);
+    out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
+    if (result.cell) {
+      set_cell(*result.cell, *out->mutable_cell());
+      const Eigen::Vector2d center = geometry::GridGeometry(snapshot->cell_size()).center_of(*result.cell);
+      out->mutable_cell_center()->set_x(center.x());
+      out->mutable_cell_center()->set_y(center.y());
+    }
+    session->send(std::move(reply));
+  });
+}
+
+void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query) {
+  auto target = resolve_target(session, "clearance", query.request_id(), query.robot_id(), query.pose(),
+                               query.has_footprint(), query.footprint());
+  if (!target) return;
+  double max_distance = query.max_distance_m();
+  if (!std::isfinite(max_distance) || max_distance < 0.0) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, "clearance.max_distance_m", "must be a non-negative length",
+                        query.request_id());
+    return;
+  }
+  if (max_distance == 0.0) max_distance = session->core().config().queries.clearance_max_distance_m;
+  asio::post(session->core().query_pool(),
+             [session, target = std::move(*target), request_id = query.request_id(), max_distance] {
+               const auto snapshot = target.robot->world().snapshot();
+               const geometry::ClearanceResult result =
+                   geometry::compute_clearance({target.footprint, target.pose, max_distance}, *snapshot);
+               v1::ServerMessage reply;
+               auto* out = reply.mutable_clearance();
+               out->set_request_id(request_id);
+               out->set_found(result.found);
+               out->set_clearance_m(result.clearance_m);
+               if (result.nearest_cell) {
+                 set_cell(*result.nearest_cell, *out->mutable_nearest_cell());
+                 out->mutable_nearest_point()->set_x(result.nearest_point_W.x());
+                 out->mutable_nearest_point()->set_y(result.nearest_point_W.y());
+               }
+               session->send(std::move(reply));
+             });
+}
+
+void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request) {
+  ServerCore& core = session->core();
+  v1::ServerMessage reply;
+  auto* status = reply.mutable_status();
+  status->set_request_id(request.request_id());
+  status->set_server_version("occgeod 0.1.0");
+  status->set_clients(core.sessions.load());
+  status->set_uptime_s(core.uptime_s());
+  for (const auto& robot : core.robots()) {
+    const RobotState state = robot->state();
+    auto* out = status->add_robots();
+    out->set_id(robot->model().id);
+    out->set_world(robot->world().name());
+    out->set_model(robot->model().model);
+    out->set_connected(state.connected);
+    if (state.X_WB) {
+      out->mutable_pose()->set_x(state.X_WB->x);
+      out->mutable_pose()->set_y(state.X_WB->y);
+      out->mutable_pose()->set_theta(state.X_WB->theta);
+    }
+    out->set_scans_ingested(state.scans_ingested);
+    out->set_scans_rejected(state.scans_rejected);
+    out->set_behaviour(state.behaviour);
+    out->set_behaviour_state(state.behaviour_state);
+    out->set_last_linear_mps(state.last_linear_mps);
+    out->set_last_angular_radps(state.last_angular_radps);
+  }
+  for (const auto& world : core.worlds()) {
+    const auto snapshot = world->snapshot();
+    auto* out = status->add_worlds();
+    out->set_name(world->name());
+    out->set_cell_size_m(snapshot->cell_size());
+    out->set_version(snapshot->version());
+    out->set_tiles(snapshot->tile_count());
+    out->set_occupied_cells(snapshot->occupied_cell_count());
+  }
+  session->send(std::move(reply));
+}
+
+void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request) {
+  const std::string name = request.world().empty() ? session->core().config().default_world : request.world();
+  auto world = session->core().find_world(name);
+  if (!world) {
+    session->send_error(v1::ERROR_UNKNOWN_WORLD, "grid.world", "no world '" + name + "' exists", request.request_id());
+    return;
+  }
+  asio::post(session->core().query_pool(), [session, world, request_id = request.request_id()] {
+    const auto snapshot = world->snapshot();
+    v1::ServerMessage reply;
+    auto* out = reply.mutable_grid();
+    out->set_request_id(request_id);
+    out->set_world(world->name());
+    out->set_cell_size_m(snapshot->cell_size());
+    out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot->occupied_threshold()));
+    out->set_max_certainty(static_cast<std::uint32_t>(snapshot->max_certainty()));
+    out->set_version(snapshot->version());
+    if (const auto box = snapshot->tile_bounds()) {
+      const int width = box->max.ix - box->min.ix + 1;
+      const int height = box->max.iy - box->min.iy + 1;
+      set_cell(box->min, *out->mutable_min_cell());
+      out->set_width(static_cast<std::uint32_t>(width));
+      out->set_height(static_cast<std::uint32_t>(height));
+      const std::vector<std::uint8_t> cells = snapshot->window(box->min, width, height);
+      out->set_cells(cells.data(), cells.size());
+    }
+    session->send(std::move(reply));
+  });
+}
+
+}  // namespace occgeo::service

@@ -1,0 +1,33 @@
+#include "../validation.h"
+#include "handlers.h"
+#include "occgeo/service/log.h"
+
+namespace occgeo::service {
+
+void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
+  SessionInfo& info = session->info();
+  if (info.robot) {
+    session->send_error(v1::ERROR_OUT_OF_ORDER, "robot_spec", "the robot_spec was already sent on this session");
+    return;
+  }
+  FieldError error;
+  auto model = robot_model_from_spec(info.robot_id, spec, session->core().config().limits, error);
+  if (!model) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message);
+    return;
+  }
+  std::string limit_error;
+  auto robot = session->core().register_robot(std::move(model), info.world, limit_error);
+  if (!robot) {
+    session->send_error(v1::ERROR_NOT_ALLOWED, "robot_spec", limit_error);
+    return;
+  }
+  robot->update_state([](RobotState& state) { state.connected = true; });
+  info.robot = std::move(robot);
+  log::info("robot_registered", {{"robot", info.robot_id},
+                                 {"world", info.world},
+                                 {"model", spec.model()},
+                                 {"sensors", spec.sensors_size()}});
+}
+
+}  // namespace occgeo::service

@@ -1,0 +1,77 @@
+// occgeod: the occgeo occupancy and geometry server.
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "occgeo/service/config.h"
+#include "occgeo/service/log.h"
+#include "occgeo/service/server.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: occgeod [options]
+  --listen HOST:PORT   address to serve (default 127.0.0.1:7700)
+  --config FILE        YAML configuration (see docs/CONFIG.md); flags override it
+  --data-dir DIR       where worlds are saved and restored (default ./occgeo-data)
+  --log-level LEVEL    debug, info, warn or error (default info)
+  --port-file FILE     write the bound port to FILE once listening (for scripts and tests)
+  --help               this text
+)";
+
+struct Flags {
+  std::string config;
+  std::string listen;
+  std::string data_dir;
+  std::string log_level;
+  std::string port_file;
+};
+
+int usage_error(const std::string& message) {
+  std::fprintf(stderr, "occgeod: %s\n%s", message.c_str(), kUsage);
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Flags flags;
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& arg = args[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    std::string* target = nullptr;
+    if (arg == "--config") target = &flags.config;
+    else if (arg == "--listen") target = &flags.listen;
+    else if (arg == "--data-dir") target = &flags.data_dir;
+    else if (arg == "--log-level") target = &flags.log_level;
+    else if (arg == "--port-file") target = &flags.port_file;
+    else return usage_error("unknown option '" + arg + "'");
+    if (i + 1 >= args.size()) return usage_error("option '" + arg + "' needs a value");
+    *target = args[++i];
+  }
+
+  try {
+    occgeo::service::ServerConfig config;
+    if (!flags.config.empty()) config = occgeo::service::load_config(flags.config);
+    if (!flags.listen.empty()) config.listen = flags.listen;
+    if (!flags.data_dir.empty()) config.data_dir = flags.data_dir;
+    if (!flags.log_level.empty()) config.log_level = flags.log_level;
+    occgeo::service::Server server(config);
+    if (!flags.port_file.empty()) {
+      std::ofstream(flags.port_file) << server.port() << "\n";
+    }
+    server.run();
+  } catch (const occgeo::service::ConfigError& e) {
+    std::fprintf(stderr, "occgeod: configuration error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    occgeo::service::log::error("fatal", {{"error", e.what()}});
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,338 @@
+// Bad input over the wire: each case gets a clear error (or, for broken framing, a closed
+// connection), the server goes on serving other clients, and the map is unchanged.
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "../support/process.h"
+#include "occgeo/proto/framing.h"
+#include "test_clients.h"
+
+namespace occgeo::testing {
+namespace {
+
+// A plain TCP socket for sending bytes no well-behaved client would send.
+class RawSocket {
+ public:
+  explicit RawSocket(std::uint16_t port) : fd_(socket(AF_INET, SOCK_STREAM, 0)) {
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(port);
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+      throw std::runtime_error("cannot connect");
+    }
+    timeval timeout{5, 0};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  }
+  ~RawSocket() { close(fd_); }
+  RawSocket(const RawSocket&) = delete;
+  RawSocket& operator=(const RawSocket&) = delete;
+
+  void send_bytes(const std::string& bytes) { ASSERT_EQ(::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size())); }
+  void send_message(const v1::ClientMessage& message) { send_bytes(proto::encode_frame(message)); }
+  void finish_sending() { shutdown(fd_, SHUT_WR); }
+
+  // Reads until the server closes the connection or 5 s pass without data; decodes the frames.
+  struct Received {
+    std::vector<v1::ServerMessage> messages;
+    bool closed = false;
+  };
+  Received read_until_closed() {
+    Received received;
+    proto::FrameDecoder decoder(64U * 1024U * 1024U);
+    char buffer[65536];
+    while (true) {
+      const ssize_t n = recv(fd_, buffer, sizeof buffer, 0);
+      if (n == 0) {
+        received.closed = true;
+        break;
+      }
+      if (n < 0) break;  // timeout
+      decoder.append(buffer, static_cast<std::size_t>(n));
+      v1::ServerMessage message;
+      while (decoder.next(message) == proto::FrameStatus::frame) received.messages.push_back(message);
+    }
+    return received;
+  }
+
+ private:
+  int fd_;
+};
+
+v1::ClientMessage hello_message(v1::Role role, const std::string& robot_id = {}) {
+  v1::ClientMessage message;
+  auto* hello = message.mutable_hello();
+  hello->set_protocol_version(1);
+  hello->set_role(role);
+  hello->set_robot_id(robot_id);
+  return message;
+}
+
+class BadInput : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server_ = std::make_unique<ServerProcess>(dir_.path());
+    driver_ = std::make_unique<client::Connection>(open_driver_session(server_->address(), "robot-a"));
+    send_odometry(1, 0.0);
+    // One good scan so the map has content, answered by a motion command.
+    const auto command = send_scan_expect_command(1, 0.1, std::vector<float>(181, 3.0F));
+    ASSERT_TRUE(command.has_value());
+    map_before_ = grid();
+  }
+
+  void send_odometry(std::uint64_t seq, double stamp, double x = 0.0) {
+    v1::ClientMessage message;
+    auto* odometry = message.mutable_odometry();
+    odometry->set_seq(seq);
+    odometry->set_stamp_s(stamp);
+    odometry->mutable_pose()->set_x(x);
+    driver_->send(message);
+  }
+
+  void send_scan(std::uint64_t seq, double stamp, const std::vector<float>& ranges) {
+    v1::ClientMessage message;
+    auto* scan = message.mutable_laser_scan();
+    scan->set_sensor("front_laser");
+    scan->set_seq(seq);
+    scan->set_stamp_s(stamp);
+    for (const float r : ranges) scan->add_ranges(r);
+    driver_->send(message);
+  }
+
+  std::optional<v1::MotionCommand> send_scan_expect_command(std::uint64_t seq, double stamp,
+                                                            const std::vector<float>& ranges) {
+    send_scan(seq, stamp, ranges);
+    for (int i = 0; i < 10; ++i) {
+      auto reply = driver_->receive(std::chrono::seconds(5));
+      if (!reply) break;
+      if (reply->has_motion_command() && reply->motion_command().answers_scan_seq() == seq) return reply->motion_command();
+    }
+    return std::nullopt;
+  }
+
+  // The next error the driver receives (skipping acks and commands).
+  v1::Error expect_driver_error() {
+    for (int i = 0; i < 10; ++i) {
+      auto reply = driver_->receive(std::chrono::seconds(5));
+      if (!reply) break;
+      if (reply->has_error()) return reply->error();
+    }
+    ADD_FAILURE() << "no error arrived";
+    return {};
+  }
+
+  v1::GridReply grid() {
+    auto query = open_query_session(server_->address());
+    v1::ClientMessage request;
+    request.mutable_grid()->set_request_id(9);
+    request.mutable_grid()->set_world("default");
+    return query.call(request, 9).grid();
+  }
+
+  // The server still answers another client, and the map is exactly as before.
+  void expect_serving_and_map_unchanged() {
+    ASSERT_TRUE(server_->running()) << server_->log();
+    const v1::GridReply now = grid();
+    EXPECT_EQ(now.version(), map_before_.version());
+    EXPECT_EQ(now.cells(), map_before_.cells());
+  }
+
+  TempDir dir_;
+  std::unique_ptr<ServerProcess> server_;
+  std::unique_ptr<client::Connection> driver_;
+  v1::GridReply map_before_;
+};
+
+TEST_F(BadInput, RandomBytesCloseTheConnection) {
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    RawSocket raw(server_->port());
+    std::mt19937 rng(seed);
+    std::string bytes(4096, '\0');
+    for (auto& b : bytes) b = static_cast<char>(rng() & 0xFFU);
+    raw.send_bytes(bytes);
+    raw.finish_sending();
+    const auto received = raw.read_until_closed();
+    EXPECT_TRUE(received.closed) << "seed " << seed;
+    for (const auto& message : received.messages) {
+      ASSERT_TRUE(message.has_error()) << "seed " << seed << ": random bytes got a non-error reply";
+    }
+  }
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, LengthPrefixOverTheLimitGetsFrameTooLargeAndClose) {
+  RawSocket raw(server_->port());
+  raw.send_bytes(std::string("\x80\x80\x80\x40", 4));  // varint 128 MiB, over the 4 MiB default limit
+  const auto received = raw.read_until_closed();
+  EXPECT_TRUE(received.closed);
+  ASSERT_EQ(received.messages.size(), 1U);
+  EXPECT_EQ(received.messages[0].error().code(), v1::ERROR_FRAME_TOO_LARGE);
+  EXPECT_NE(received.messages[0].error().message().find("134217728"), std::string::npos)
+      << received.messages[0].error().message();
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, FrameCutOffByDisconnectLeavesNoTrace) {
+  {
+    RawSocket raw(server_->port());
+    raw.send_message(hello_message(v1::ROLE_DRIVER, "robot-b"));
+    v1::ClientMessage spec;
+    *spec.mutable_robot_spec() = bearcat_spec();
+    const std::string frame = proto::encode_frame(spec);
+    raw.send_bytes(frame.substr(0, frame.size() / 2));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  auto query = open_query_session(server_->address());
+  v1::ClientMessage request;
+  request.mutable_status()->set_request_id(1);
+  const auto status = query.call(request, 1).status();
+  ASSERT_EQ(status.robots_size(), 1) << "the half-sent spec must not register robot-b";
+  EXPECT_EQ(status.robots(0).id(), "robot-a");
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, UnknownMessageGetsAnErrorAndTheSessionGoesOn) {
+  auto query = open_query_session(server_->address());
+  // A ClientMessage carrying only field 99, which occgeo.v1 does not define.
+  v1::ClientMessage unknown;
+  unknown.GetReflection()->MutableUnknownFields(&unknown)->AddLengthDelimited(99, "from the future");
+  query.send(unknown);
+  const auto reply = query.receive(std::chrono::seconds(5));
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_MESSAGE);
+  v1::ClientMessage request;
+  request.mutable_status()->set_request_id(2);
+  EXPECT_NO_THROW(query.call(request, 2));
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, NonFiniteAndNegativeRangesAreRejectedNamingTheBeam) {
+  const std::vector<std::pair<float, std::string>> cases = {
+      {std::nanf(""), "nan"}, {INFINITY, "inf"}, {-INFINITY, "-inf"}, {-0.5F, "negative"}};
+  std::uint64_t seq = 2;
+  for (const auto& [bad, name] : cases) {
+    std::vector<float> ranges(181, 2.0F);
+    ranges[17] = bad;
+    send_scan(seq++, 0.2, ranges);
+    const v1::Error error = expect_driver_error();
+    EXPECT_EQ(error.code(), v1::ERROR_INVALID_ARGUMENT) << name;
+    EXPECT_EQ(error.field(), "laser_scan.ranges[17]") << name;
+    EXPECT_NE(error.message().find("discarded"), std::string::npos) << error.message();
+  }
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, BeamCountDisagreeingWithTheSpecIsRejected) {
+  send_scan(2, 0.2, std::vector<float>(180, 2.0F));
+  const v1::Error error = expect_driver_error();
+  EXPECT_EQ(error.code(), v1::ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(error.field(), "laser_scan.ranges");
+  EXPECT_NE(error.message().find("180"), std::string::npos) << error.message();
+  EXPECT_NE(error.message().find("181"), std::string::npos) << error.message();
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, TimestampsGoingBackwardsAndFarPosesAreRejected) {
+  send_scan(2, 0.05, std::vector<float>(181, 2.0F));  // earlier than the accepted scan at 0.1 s
+  v1::Error error = expect_driver_error();
+  EXPECT_EQ(error.code(), v1::ERROR_OUT_OF_ORDER);
+  EXPECT_EQ(error.field(), "laser_scan.stamp_s");
+
+  send_odometry(2, 0.3, 1.0e9);
+  error = expect_driver_error();
+  EXPECT_EQ(error.code(), v1::ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(error.field(), "odometry.pose.x");
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, QueryForUnknownRobotNamesIt) {
+  auto query = open_query_session(server_->address());
+  v1::ClientMessage request;
+  auto* collision = request.mutable_collision();
+  collision->set_request_id(5);
+  collision->set_robot_id("ghost");
+  collision->mutable_pose();
+  query.send(request);
+  const auto reply = query.receive(std::chrono::seconds(5));
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_ROBOT);
+  EXPECT_EQ(reply->error().field(), "collision.robot_id");
+  EXPECT_EQ(reply->error().request_id(), 5U);
+  EXPECT_NE(reply->error().message().find("ghost"), std::string::npos);
+  expect_serving_and_map_unchanged();
+}
+
+TEST_F(BadInput, SessionsMustStartWithHelloOfTheRightVersion) {
+  RawSocket raw(server_->port());
+  v1::ClientMessage status;
+  status.mutable_status()->set_request_id(1);
+  raw.send_message(status);
+  auto wrong_version = hello_message(v1::ROLE_QUERY);
+  wrong_version.mutable_hello()->set_protocol_version(7);
+  raw.send_message(wrong_version);
+  raw.finish_sending();
+  const auto received = raw.read_until_closed();
+  ASSERT_EQ(received.messages.size(), 2U);
+  EXPECT_EQ(received.messages[0].error().code(), v1::ERROR_OUT_OF_ORDER);
+  EXPECT_EQ(received.messages[1].error().code(), v1::ERROR_PROTOCOL_VERSION);
+  EXPECT_EQ(received.messages[1].error().field(), "hello.protocol_version");
+}
+
+// A client that asks for much and never reads must not hold up a robot: the robot's scans keep
+// being answered and the stuck client is eventually dropped.
+TEST(SlowClient, StuckReaderIsDroppedWhileTheRobotKeepsDriving) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "limits:\n  max_send_queue_bytes: 4194304\n";
+  ServerProcess server(dir.path(), {"--config", config.string()});
+  auto driver = open_driver_session(server.address(), "robot-a");
+
+  RawSocket stuck(server.port());
+  stuck.send_message(hello_message(v1::ROLE_QUERY));
+  std::string requests;
+  for (std::uint64_t i = 1; i <= 3000; ++i) {
+    v1::ClientMessage request;
+    request.mutable_grid()->set_request_id(i);
+    requests += proto::encode_frame(request);
+  }
+  std::uint64_t answered = 0;
+  for (std::uint64_t seq = 1; seq <= 100; ++seq) {
+    if (seq == 2) stuck.send_bytes(requests);
+    v1::ClientMessage odometry;
+    odometry.mutable_odometry()->set_seq(seq);
+    odometry.mutable_odometry()->set_stamp_s(0.1 * static_cast<double>(seq));
+    odometry.mutable_odometry()->mutable_pose()->set_x(0.01 * static_cast<double>(seq));
+    driver.send(odometry);
+    v1::ClientMessage scan;
+    scan.mutable_laser_scan()->set_sensor("front_laser");
+    scan.mutable_laser_scan()->set_seq(seq);
+    scan.mutable_laser_scan()->set_stamp_s(0.1 * static_cast<double>(seq));
+    for (int beam = 0; beam < 181; ++beam) scan.mutable_laser_scan()->add_ranges(1.0F + 0.02F * static_cast<float>(beam));
+    driver.send(scan);
+    for (int i = 0; i < 10; ++i) {
+      auto reply = driver.receive(std::chrono::seconds(10));
+      ASSERT_TRUE(reply) << "scan " << seq << " was not answered within 10 s";
+      if (reply->has_motion_command() && reply->motion_command().answers_scan_seq() == seq) {
+        ++answered;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(answered, 100U);
+  const auto log = [&] { return server.log(); };
+  for (int i = 0; i < 100 && log().find("session_slow_client_dropped") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_NE(log().find("session_slow_client_dropped"), std::string::npos) << "the stuck client should be dropped";
+}
+
+}  // namespace
+}  // namespace occgeo::testing

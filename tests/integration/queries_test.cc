@@ -1,0 +1,147 @@
+// Collision and clearance queries over the protocol against the true geometry of a world whose
+// map the server restored from its data directory.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <regex>
+#include <thread>
+
+#include "../support/process.h"
+#include "../support/world_truth.h"
+#include "test_clients.h"
+
+namespace occgeo::testing {
+namespace {
+
+constexpr double kBearcatLength = 1.0;
+constexpr double kBearcatWidth = 0.8;
+
+class QueriesOnKnownWorld : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    // A data directory holding the open-field world as the default world's grid: the server
+    // restores it at start, so its occupied cells are exactly the world's obstacles.
+    const auto world_dir = dir_.path() / "worlds" / "default";
+    std::filesystem::create_directories(world_dir);
+    auto yaml = mapfile::read_map_yaml(source("clients/sim/worlds/open_field.yaml"));
+    mapfile::write_map(world_dir / "grid", yaml);
+    server_ = std::make_unique<ServerProcess>(dir_.path());
+    driver_ = std::make_unique<client::Connection>(open_driver_session(server_->address(), "probe"));
+    truth_ = std::make_unique<WorldTruth>(yaml);
+    // The spec is processed asynchronously to the hello; wait (bounded) until the robot is known.
+    auto query = open_query_session(server_->address());
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      v1::ClientMessage request;
+      request.mutable_status()->set_request_id(1);
+      if (query.call(request, 1).status().robots_size() == 1) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    FAIL() << "robot 'probe' was not registered";
+  }
+
+  TempDir dir_;
+  std::unique_ptr<ServerProcess> server_;
+  std::unique_ptr<client::Connection> driver_;
+  std::unique_ptr<WorldTruth> truth_;
+};
+
+TEST_F(QueriesOnKnownWorld, ClearanceWithinOneCellOfTrueDistanceOverThousandRandomPoses) {
+  auto query = open_query_session(server_->address());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-29.0, 29.0);
+  std::uniform_real_distribution<double> heading(-M_PI, M_PI);
+  constexpr int kPoses = 1000;
+  constexpr double kMaxDistance = 5.0;
+  int checked = 0;
+  double worst_error = 0.0;
+  for (int i = 0; i < kPoses; ++i) {
+    const double x = coordinate(rng), y = coordinate(rng), theta = heading(rng);
+    v1::ClientMessage request;
+    auto* clearance = request.mutable_clearance();
+    clearance->set_request_id(static_cast<std::uint64_t>(i + 1));
+    clearance->set_robot_id("probe");
+    clearance->mutable_pose()->set_x(x);
+    clearance->mutable_pose()->set_y(y);
+    clearance->mutable_pose()->set_theta(theta);
+    clearance->set_max_distance_m(kMaxDistance);
+    const v1::ClearanceReply reply = query.call(request, static_cast<std::uint64_t>(i + 1)).clearance();
+    const double truth = std::min(kMaxDistance, truth_->box_distance(x, y, theta, kBearcatLength, kBearcatWidth, 0.0));
+    worst_error = std::max(worst_error, std::abs(reply.clearance_m() - truth));
+    EXPECT_NEAR(reply.clearance_m(), truth, truth_->cell_size()) << "pose " << x << ", " << y << ", " << theta;
+    EXPECT_EQ(reply.found(), truth < kMaxDistance) << "pose " << x << ", " << y << ", " << theta;
+    ++checked;
+  }
+  std::cout << checked << " clearance queries, worst error " << worst_error << " m\n";
+}
+
+TEST_F(QueriesOnKnownWorld, CollisionAgreesWithTrueGeometryOverThousandRandomPoses) {
+  auto query = open_query_session(server_->address());
+  std::mt19937 rng(11);
+  // Poses near obstacles are the interesting ones: pick them around random obstacle cells.
+  const std::vector<std::pair<int, int>> obstacles(truth_->obstacles().begin(), truth_->obstacles().end());
+  std::uniform_int_distribution<std::size_t> pick(0, obstacles.size() - 1);
+  std::uniform_real_distribution<double> offset(-1.2, 1.2);
+  std::uniform_real_distribution<double> heading(-M_PI, M_PI);
+  int hits = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const auto [ix, iy] = obstacles[pick(rng)];
+    const double x = (ix + 0.5) * truth_->cell_size() + offset(rng);
+    const double y = (iy + 0.5) * truth_->cell_size() + offset(rng);
+    const double theta = heading(rng);
+    const double distance = truth_->box_distance(x, y, theta, kBearcatLength, kBearcatWidth, 0.0);
+    if (distance > 0.0 && distance < 1e-9) continue;  // touching within rounding: either answer is right
+    v1::ClientMessage request;
+    auto* collision = request.mutable_collision();
+    collision->set_request_id(static_cast<std::uint64_t>(i + 1));
+    collision->set_robot_id("probe");
+    collision->mutable_pose()->set_x(x);
+    collision->mutable_pose()->set_y(y);
+    collision->mutable_pose()->set_theta(theta);
+    const v1::CollisionReply reply = query.call(request, static_cast<std::uint64_t>(i + 1)).collision();
+    EXPECT_EQ(reply.hit(), distance == 0.0) << "pose " << x << ", " << y << ", " << theta;
+    if (reply.hit()) {
+      ++hits;
+      EXPECT_TRUE(truth_->obstacles().contains({reply.cell().ix(), reply.cell().iy()}))
+          << "the reported cell must be an obstacle";
+    }
+  }
+  std::cout << hits << " of 1000 poses in collision\n";
+  EXPECT_GT(hits, 100);
+  EXPECT_LT(hits, 900);
+}
+
+TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
+  const auto cli = [&](const std::vector<std::string>& args) {
+    std::vector<std::string> argv = {binary("clients/occgeo").string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    argv.insert(argv.end(), {"--server", server_->address(), "--json"});
+    return run_process(argv, std::chrono::seconds(30));
+  };
+  // The fence runs along x = -30..-29.7; a robot centred on it collides, one at the origin does not.
+  const ProcessResult on_fence = cli({"query", "collision", "--robot", "probe", "--x", "-29.85", "--y", "0"});
+  ASSERT_EQ(on_fence.exit_code, 0) << on_fence.err;
+  EXPECT_NE(on_fence.out.find("\"hit\":true"), std::string::npos) << on_fence.out;
+  const ProcessResult at_origin = cli({"query", "collision", "--robot", "probe", "--x", "0", "--y", "0"});
+  ASSERT_EQ(at_origin.exit_code, 0) << at_origin.err;
+  EXPECT_NE(at_origin.out.find("\"hit\":false"), std::string::npos) << at_origin.out;
+
+  const double x = -27.0, y = 0.0;
+  const ProcessResult clearance = cli({"query", "clearance", "--robot", "probe", "--x", "-27", "--y", "0"});
+  ASSERT_EQ(clearance.exit_code, 0) << clearance.err;
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(clearance.out, match, std::regex("\"clearance_m\":([0-9.eE+-]+)"))) << clearance.out;
+  EXPECT_NEAR(std::stod(match[1]), truth_->box_distance(x, y, 0.0, kBearcatLength, kBearcatWidth, 0.0),
+              truth_->cell_size());
+
+  const ProcessResult unknown = cli({"query", "collision", "--robot", "nobody", "--x", "0", "--y", "0"});
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_NE(unknown.err.find("ERROR_UNKNOWN_ROBOT"), std::string::npos) << unknown.err;
+  EXPECT_NE(unknown.err.find("nobody"), std::string::npos) << unknown.err;
+
+  const ProcessResult status = cli({"status"});
+  ASSERT_EQ(status.exit_code, 0) << status.err;
+  EXPECT_NE(status.out.find("\"id\":\"probe\""), std::string::npos) << status.out;
+}
+
+}  // namespace
+}  // namespace occgeo::testing

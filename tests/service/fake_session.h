@@ -1,0 +1,49 @@
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+
+#include "handlers/handlers.h"
+
+namespace occgeo::service {
+
+// A session without a socket: records what handlers send, for handler tests.
+class FakeSession final : public SessionContext {
+ public:
+  explicit FakeSession(ServerCore& core) : core_(core) {}
+  ServerCore& core() override { return core_; }
+  SessionInfo& info() override { return info_; }
+  void send(v1::ServerMessage message) override {
+    const std::lock_guard lock(mutex_);
+    sent_.push_back(std::move(message));
+    arrived_.notify_all();
+  }
+
+  // The next message sent, waiting up to 5 s for handlers running on worker pools.
+  std::optional<v1::ServerMessage> next() {
+    std::unique_lock lock(mutex_);
+    if (!arrived_.wait_for(lock, std::chrono::seconds(5), [&] { return !sent_.empty(); })) return std::nullopt;
+    v1::ServerMessage message = std::move(sent_.front());
+    sent_.pop_front();
+    return message;
+  }
+  // The next message of the given kind, skipping others.
+  std::optional<v1::ServerMessage> next_of(v1::ServerMessage::BodyCase kind) {
+    for (int i = 0; i < 20; ++i) {
+      auto message = next();
+      if (!message) return std::nullopt;
+      if (message->body_case() == kind) return message;
+    }
+    return std::nullopt;
+  }
+
+ private:
+  ServerCore& core_;
+  SessionInfo info_;
+  std::mutex mutex_;
+  std::condition_variable arrived_;
+  std::deque<v1::ServerMessage> sent_;
+};
+
+}  // namespace occgeo::service

@@ -1,0 +1,238 @@
+// Each protocol handler against a fake session and a real ServerCore (no sockets).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "fake_session.h"
+
+namespace occgeo::service {
+namespace {
+
+v1::Hello hello(v1::Role role, const std::string& robot_id = {}) {
+  v1::Hello message;
+  message.set_protocol_version(1);
+  message.set_role(role);
+  message.set_robot_id(robot_id);
+  return message;
+}
+
+v1::RobotSpec bearcat_spec() {
+  v1::RobotSpec spec;
+  spec.set_model("bearcat");
+  auto* drive = spec.mutable_kinematics()->mutable_differential();
+  drive->set_wheel_separation_m(0.7);
+  drive->set_wheel_radius_m(0.2);
+  drive->set_max_wheel_speed_mps(1.2);
+  auto* box = spec.mutable_footprint()->mutable_box();
+  box->set_length_m(1.0);
+  box->set_width_m(0.8);
+  box->set_height_m(1.2);
+  auto* sensor = spec.add_sensors();
+  sensor->set_name("front_laser");
+  sensor->mutable_mount()->mutable_position()->set_x(0.45);
+  auto* laser = sensor->mutable_laser();
+  laser->set_angle_min_rad(-M_PI / 2);
+  laser->set_angle_increment_rad(M_PI / 180);
+  laser->set_beam_count(181);
+  laser->set_range_max_m(8.0);
+  return spec;
+}
+
+class Handlers : public ::testing::Test {
+ protected:
+  Handlers() : core_(ServerConfig{}) {}
+
+  std::shared_ptr<FakeSession> driver(const std::string& robot_id) {
+    auto session = std::make_shared<FakeSession>(core_);
+    handle_hello(session, hello(v1::ROLE_DRIVER, robot_id));
+    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
+    handle_robot_spec(session, bearcat_spec());
+    return session;
+  }
+
+  static v1::LaserScan scan(std::uint64_t seq, double stamp, float range) {
+    v1::LaserScan message;
+    message.set_sensor("front_laser");
+    message.set_seq(seq);
+    message.set_stamp_s(stamp);
+    for (int i = 0; i < 181; ++i) message.add_ranges(range);
+    return message;
+  }
+
+  static v1::Odometry odometry(double x, double y, double theta, double stamp) {
+    v1::Odometry message;
+    message.set_stamp_s(stamp);
+    message.mutable_pose()->set_x(x);
+    message.mutable_pose()->set_y(y);
+    message.mutable_pose()->set_theta(theta);
+    return message;
+  }
+
+  ServerCore core_;
+};
+
+TEST_F(Handlers, HelloChecksVersionRoleAndRobotName) {
+  auto session = std::make_shared<FakeSession>(core_);
+  auto wrong = hello(v1::ROLE_QUERY);
+  wrong.set_protocol_version(2);
+  handle_hello(session, wrong);
+  auto reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().field(), "hello.protocol_version");
+
+  handle_hello(session, hello(v1::ROLE_DRIVER, "no spaces allowed"));
+  reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().field(), "hello.robot_id");
+
+  handle_hello(session, hello(v1::ROLE_CONTROLLER));
+  reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_NOT_ALLOWED);
+
+  handle_hello(session, hello(v1::ROLE_QUERY));
+  reply = session->next();
+  ASSERT_TRUE(reply && reply->has_welcome());
+  EXPECT_EQ(reply->welcome().protocol_version(), 1U);
+  EXPECT_TRUE(session->info().greeted);
+}
+
+TEST_F(Handlers, DispatchRequiresHelloFirstAndDriverRoleForRobotData) {
+  auto session = std::make_shared<FakeSession>(core_);
+  v1::ClientMessage status;
+  status.mutable_status()->set_request_id(1);
+  dispatch(session, status);
+  auto reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_OUT_OF_ORDER);
+
+  handle_hello(session, hello(v1::ROLE_QUERY));
+  ASSERT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
+  v1::ClientMessage data;
+  *data.mutable_laser_scan() = scan(1, 0.0, 1.0F);
+  dispatch(session, data);
+  reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_NOT_ALLOWED);
+  EXPECT_EQ(reply->error().field(), "laser_scan");
+}
+
+TEST_F(Handlers, RobotSpecErrorsNameTheField) {
+  auto session = std::make_shared<FakeSession>(core_);
+  handle_hello(session, hello(v1::ROLE_DRIVER, "r1"));
+  ASSERT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
+  struct Case {
+    std::function<void(v1::RobotSpec&)> damage;
+    std::string field;
+  };
+  const std::vector<Case> cases = {
+      {[](v1::RobotSpec& s) { s.mutable_footprint()->mutable_box()->set_width_m(-1); }, "robot_spec.footprint.box.width_m"},
+      {[](v1::RobotSpec& s) { s.clear_sensors(); }, "robot_spec.sensors"},
+      {[](v1::RobotSpec& s) { s.mutable_sensors(0)->mutable_laser()->set_beam_count(0); },
+       "robot_spec.sensors[0].laser.beam_count"},
+      {[](v1::RobotSpec& s) { s.mutable_sensors(0)->mutable_laser()->set_range_max_m(NAN); },
+       "robot_spec.sensors[0].laser.range_max_m"},
+      {[](v1::RobotSpec& s) { s.mutable_kinematics()->clear_differential(); }, "robot_spec.kinematics"},
+  };
+  for (const auto& c : cases) {
+    auto spec = bearcat_spec();
+    c.damage(spec);
+    handle_robot_spec(session, spec);
+    const auto reply = session->next();
+    ASSERT_TRUE(reply && reply->has_error()) << c.field;
+    EXPECT_EQ(reply->error().field(), c.field);
+  }
+  EXPECT_EQ(core_.find_robot("r1"), nullptr) << "a rejected spec registers nothing";
+}
+
+TEST_F(Handlers, ScanBeforeOdometryIsRejectedAndLeavesTheMapAlone) {
+  auto session = driver("r1");
+  handle_laser_scan(session, scan(1, 0.0, 2.0F));
+  const auto reply = session->next_of(v1::ServerMessage::kError);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->error().code(), v1::ERROR_OUT_OF_ORDER);
+  core_.drain();
+  EXPECT_EQ(core_.world("default")->snapshot()->version(), 0U);
+}
+
+TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {
+  auto session = driver("r1");
+  // Robot at (1, 2) facing +y; the laser sits 0.45 m ahead of base_link, at (1, 2.45).
+  handle_odometry(session, odometry(1.0, 2.0, M_PI / 2, 0.0));
+  handle_laser_scan(session, scan(7, 0.1, 2.5F));
+  const auto ack = session->next_of(v1::ServerMessage::kScanAck);
+  ASSERT_TRUE(ack);
+  EXPECT_EQ(ack->scan_ack().seq(), 7U);
+  const auto command = session->next_of(v1::ServerMessage::kMotionCommand);
+  ASSERT_TRUE(command);
+  EXPECT_EQ(command->motion_command().answers_scan_seq(), 7U);
+  EXPECT_EQ(command->motion_command().behaviour(), "bearcat");
+  // A ring of returns at 2.5 m lies outside the frontal rectangle (its far corners are 2.135 m
+  // from the sensor), so the robot drives on.
+  EXPECT_FALSE(command->motion_command().stop());
+  EXPECT_GT(command->motion_command().linear_mps(), 0.0);
+  EXPECT_NEAR(command->motion_command().expires_after_s(), 0.6, 1e-12);
+
+  const auto snapshot = core_.world("default")->snapshot();
+  const geometry::GridGeometry grid(snapshot->cell_size());
+  // The straight-ahead beam ends 2.5 m beyond the sensor, at (1, 4.95): marked occupied there.
+  EXPECT_TRUE(snapshot->occupied(grid.cell_of({1.0, 4.95})));
+  // Had the beam been traced from the robot centre it would end at (1, 4.5), which stays free.
+  EXPECT_FALSE(snapshot->occupied(grid.cell_of({1.0, 4.5})));
+  EXPECT_TRUE(snapshot->observed(grid.cell_of({1.0, 4.5})));
+}
+
+TEST_F(Handlers, WallAcrossTheFrontIsADeadlockThatStopsTheRobot) {
+  auto session = driver("r1");
+  handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+  handle_laser_scan(session, scan(1, 0.1, 1.0F));
+  const auto command = session->next_of(v1::ServerMessage::kMotionCommand);
+  ASSERT_TRUE(command);
+  EXPECT_TRUE(command->motion_command().stop());
+  EXPECT_EQ(command->motion_command().state(), "deadlock");
+  EXPECT_EQ(command->motion_command().left_wheel_mps(), 0.0);
+  EXPECT_EQ(command->motion_command().right_wheel_mps(), 0.0);
+  core_.drain();
+  EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, "deadlock");
+}
+
+TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
+  auto robot_session = driver("r1");
+  handle_odometry(robot_session, odometry(0.0, 0.0, 0.0, 0.0));
+  handle_laser_scan(robot_session, scan(1, 0.1, 3.0F));
+  ASSERT_TRUE(robot_session->next_of(v1::ServerMessage::kMotionCommand));
+
+  auto query = std::make_shared<FakeSession>(core_);
+  handle_hello(query, hello(v1::ROLE_QUERY));
+  ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
+  v1::CollisionQuery collision;
+  collision.set_request_id(3);
+  collision.set_robot_id("r1");
+  collision.mutable_pose()->set_x(3.45);  // on the arc of returns 3 m ahead of the sensor
+  handle_collision_query(query, collision);
+  auto reply = query->next_of(v1::ServerMessage::kCollision);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->collision().request_id(), 3U);
+  EXPECT_TRUE(reply->collision().hit());
+
+  v1::ClearanceQuery clearance;
+  clearance.set_request_id(4);
+  clearance.set_robot_id("r1");
+  handle_clearance_query(query, clearance);
+  reply = query->next_of(v1::ServerMessage::kClearance);
+  ASSERT_TRUE(reply);
+  EXPECT_TRUE(reply->clearance().found());
+  // The nearest returns are the ±90° beams ending at (0.45, ±3.0); their cells start at |y| = 2.9,
+  // 2.5 m from the box's sides at |y| = 0.4. One cell of tolerance for where the endpoint falls.
+  EXPECT_NEAR(reply->clearance().clearance_m(), 2.5, 0.1);
+
+  collision.set_robot_id("nobody");
+  handle_collision_query(query, collision);
+  reply = query->next_of(v1::ServerMessage::kError);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_ROBOT);
+  EXPECT_EQ(reply->error().field(), "collision.robot_id");
+}
+
+}  // namespace
+}  // namespace occgeo::service

@@ -1,0 +1,81 @@
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace occgeo::testing {
+
+// A fresh directory under the system temp dir, removed with everything in it on destruction.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Path of a built program, e.g. binary("service/occgeod").
+std::filesystem::path binary(const std::string& relative);
+// Path of a file in the source tree, e.g. source("clients/sim/worlds/open_field.yaml").
+std::filesystem::path source(const std::string& relative);
+
+struct ProcessResult {
+  int exit_code = -1;  // -1 when killed for running past its time limit
+  std::string out;     // standard output
+  std::string err;     // standard error
+  bool timed_out = false;
+};
+
+// Runs a program to completion, killing it after `limit`.
+ProcessResult run_process(const std::vector<std::string>& argv, std::chrono::seconds limit);
+
+// A child process running in the background, killed on destruction if still running.
+class BackgroundProcess {
+ public:
+  BackgroundProcess(const std::vector<std::string>& argv, const std::filesystem::path& stdout_file,
+                    const std::filesystem::path& stderr_file);
+  ~BackgroundProcess();
+  BackgroundProcess(const BackgroundProcess&) = delete;
+  BackgroundProcess& operator=(const BackgroundProcess&) = delete;
+
+  [[nodiscard]] bool running();
+  // Sends `signal` and waits up to `limit` for exit; returns the exit code, or nullopt if it did
+  // not exit in time (it is then killed).
+  std::optional<int> stop(int signal, std::chrono::seconds limit);
+
+ private:
+  pid_t pid_ = -1;
+  std::optional<int> exit_code_;
+};
+
+// occgeod on 127.0.0.1 with a port chosen by the kernel and its own data directory.
+class ServerProcess {
+ public:
+  // Starts the server and waits (bounded) until it listens. Extra flags are appended.
+  explicit ServerProcess(const std::filesystem::path& data_dir, const std::vector<std::string>& extra_flags = {});
+  [[nodiscard]] std::uint16_t port() const { return port_; }
+  [[nodiscard]] std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  [[nodiscard]] std::string log() const;
+  [[nodiscard]] bool running() { return process_->running(); }
+  // SIGTERM and wait; returns the exit code.
+  std::optional<int> stop() { return process_->stop(SIGTERM_VALUE, std::chrono::seconds(20)); }
+
+ private:
+  static constexpr int SIGTERM_VALUE = 15;
+  std::filesystem::path log_file_;
+  std::unique_ptr<BackgroundProcess> process_;
+  std::uint16_t port_ = 0;
+};
+
+}  // namespace occgeo::testing
