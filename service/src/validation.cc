@@ -120,8 +120,9 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
       error = field_error(prefix + ".laser.angle_increment_rad", "must be non-zero and span at most 2π");
       return nullptr;
     }
-    if (!finite_positive(laser.range_max_m())) {
-      error = field_error(prefix + ".laser.range_max_m", "must be a positive length");
+    if (!finite_positive(laser.range_max_m()) || laser.range_max_m() > limits.max_sensor_range_m) {
+      error = field_error(prefix + ".laser.range_max_m",
+                          "must be a positive length up to " + std::to_string(limits.max_sensor_range_m) + " m");
       return nullptr;
     }
     if (!std::isfinite(laser.range_min_m()) || laser.range_min_m() < 0 || laser.range_min_m() >= laser.range_max_m()) {

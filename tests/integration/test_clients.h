@@ -3,6 +3,8 @@
 #include <string>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/sim/messages.h"
+#include "occgeo/sim/presets.h"
 
 namespace occgeo::testing {
 
@@ -17,31 +19,8 @@ inline client::Connection open_query_session(const std::string& address) {
   return connection;
 }
 
-// The Bearcat's RobotSpec as the simulator sends it: 1.0 x 0.8 m box, LMS200 at (0.45, 0, 0.6).
-inline v1::RobotSpec bearcat_spec() {
-  v1::RobotSpec spec;
-  spec.set_model("bearcat");
-  auto* drive = spec.mutable_kinematics()->mutable_differential();
-  drive->set_wheel_separation_m(0.7);
-  drive->set_wheel_radius_m(0.2);
-  drive->set_max_wheel_speed_mps(1.2);
-  auto* box = spec.mutable_footprint()->mutable_box();
-  box->set_length_m(1.0);
-  box->set_width_m(0.8);
-  box->set_height_m(1.2);
-  auto* sensor = spec.add_sensors();
-  sensor->set_name("front_laser");
-  sensor->mutable_mount()->mutable_position()->set_x(0.45);
-  sensor->mutable_mount()->mutable_position()->set_z(0.6);
-  auto* laser = sensor->mutable_laser();
-  laser->set_angle_min_rad(-M_PI / 2);
-  laser->set_angle_increment_rad(M_PI / 180);
-  laser->set_beam_count(181);
-  laser->set_range_max_m(8.0);
-  laser->set_scan_period_s(0.1);
-  spec.set_command_timeout_s(0.5);
-  return spec;
-}
+// The Bearcat's RobotSpec exactly as the simulator sends it (its preset table is the one source).
+inline v1::RobotSpec bearcat_spec() { return sim::make_robot_spec(*sim::find_robot_preset("bearcat")); }
 
 // A driver session that has said hello and sent the Bearcat spec.
 inline client::Connection open_driver_session(const std::string& address, const std::string& robot_id) {

@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "fake_session.h"
+#include "occgeo/sim/messages.h"
+#include "occgeo/sim/presets.h"
 
 namespace occgeo::service {
 namespace {
@@ -16,27 +18,8 @@ v1::Hello hello(v1::Role role, const std::string& robot_id = {}) {
   return message;
 }
 
-v1::RobotSpec bearcat_spec() {
-  v1::RobotSpec spec;
-  spec.set_model("bearcat");
-  auto* drive = spec.mutable_kinematics()->mutable_differential();
-  drive->set_wheel_separation_m(0.7);
-  drive->set_wheel_radius_m(0.2);
-  drive->set_max_wheel_speed_mps(1.2);
-  auto* box = spec.mutable_footprint()->mutable_box();
-  box->set_length_m(1.0);
-  box->set_width_m(0.8);
-  box->set_height_m(1.2);
-  auto* sensor = spec.add_sensors();
-  sensor->set_name("front_laser");
-  sensor->mutable_mount()->mutable_position()->set_x(0.45);
-  auto* laser = sensor->mutable_laser();
-  laser->set_angle_min_rad(-M_PI / 2);
-  laser->set_angle_increment_rad(M_PI / 180);
-  laser->set_beam_count(181);
-  laser->set_range_max_m(8.0);
-  return spec;
-}
+// The Bearcat as the simulator describes it: 1.0 x 0.8 m box, LMS200 0.45 m ahead of base_link.
+v1::RobotSpec bearcat_spec() { return sim::make_robot_spec(*sim::find_robot_preset("bearcat")); }
 
 class Handlers : public ::testing::Test {
  protected:
@@ -133,6 +116,9 @@ TEST_F(Handlers, RobotSpecErrorsNameTheField) {
       {[](v1::RobotSpec& s) { s.mutable_sensors(0)->mutable_laser()->set_range_max_m(NAN); },
        "robot_spec.sensors[0].laser.range_max_m"},
       {[](v1::RobotSpec& s) { s.mutable_kinematics()->clear_differential(); }, "robot_spec.kinematics"},
+      // A kilometre-long beam would sweep (and allocate) far more map than any sensor sees.
+      {[](v1::RobotSpec& s) { s.mutable_sensors(0)->mutable_laser()->set_range_max_m(1000.0); },
+       "robot_spec.sensors[0].laser.range_max_m"},
   };
   for (const auto& c : cases) {
     auto spec = bearcat_spec();
@@ -225,6 +211,13 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   // The nearest returns are the ±90° beams ending at (0.45, ±3.0); their cells start at |y| = 2.9,
   // 2.5 m from the box's sides at |y| = 0.4. One cell of tolerance for where the endpoint falls.
   EXPECT_NEAR(reply->clearance().clearance_m(), 2.5, 0.1);
+
+  clearance.set_max_distance_m(1.0e9);
+  handle_clearance_query(query, clearance);
+  reply = query->next_of(v1::ServerMessage::kError);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->error().field(), "clearance.max_distance_m");
+  EXPECT_EQ(reply->error().request_id(), 4U);
 
   collision.set_robot_id("nobody");
   handle_collision_query(query, collision);

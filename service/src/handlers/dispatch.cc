@@ -15,6 +15,17 @@ void SessionContext::send_error(v1::ErrorCode code, const std::string& field, co
   send(std::move(reply));
 }
 
+void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t request_id,
+                 const std::function<void()>& work) {
+  try {
+    work();
+  } catch (const std::exception& e) {
+    log::error("handler_failed", {{"handler", what}, {"error", e.what()}});
+    session->send_error(v1::ERROR_INTERNAL, std::string(what), std::string("the server could not complete this: ") + e.what(),
+                        request_id);
+  }
+}
+
 namespace {
 bool require_driver_with_spec(const SessionPtr& session, const char* field) {
   const SessionInfo& info = session->info();

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -34,6 +35,11 @@ class SessionContext {
 };
 
 using SessionPtr = std::shared_ptr<SessionContext>;
+
+// Runs work on a worker pool or strand; an exception escaping it is logged and reported to the
+// client as ERROR_INTERNAL instead of taking the server down.
+void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t request_id,
+                 const std::function<void()>& work);
 
 // Routes one decoded client message to its handler after the session checks (hello first,
 // role allowed to send it).

@@ -63,6 +63,76 @@ v1::MotionCommand command_from_decision(const control::BearcatDecision& decision
   return command;
 }
 
+// Orders, maps and answers one validated scan; runs on the robot's world strand.
+void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& robot, const v1::LaserScan& scan,
+                      double expiry_s) {
+  const RobotState before = robot->state();
+  std::string order_error;
+  std::string order_field;
+  if (!before.X_WB) {
+    order_field = "laser_scan";
+    order_error = "no odometry received yet: the scan cannot be placed in the world";
+  } else if (before.last_scan_stamp_s && scan.stamp_s() < *before.last_scan_stamp_s) {
+    order_field = "laser_scan.stamp_s";
+    order_error = "timestamp went backwards";
+  } else if (before.last_scan_seq && scan.seq() <= *before.last_scan_seq) {
+    order_field = "laser_scan.seq";
+    order_error = "sequence number did not increase";
+  }
+  if (!order_error.empty()) {
+    robot->update_state([](RobotState& state) { ++state.scans_rejected; });
+    session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the scan was discarded", 0, scan.seq());
+    return;
+  }
+
+  const RobotModel& model = robot->model();
+  const LaserModel& laser = *model.find_laser(scan.sensor());
+  World& world = robot->world();
+  insert_scan(world.grid_on_strand(), planar_sensor_pose(*before.X_WB, laser), laser, scan);
+  world.publish_on_strand();
+
+  v1::ServerMessage ack;
+  ack.mutable_scan_ack()->set_seq(scan.seq());
+  ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
+  session->send(std::move(ack));
+
+  // The behaviour steers from the robot's first laser; other lasers only update the map.
+  const bool steering_laser = &laser == &model.lasers.front();
+  std::optional<v1::MotionCommand> command;
+  if (steering_laser) {
+    const control::ScanView view{laser.angle_min_rad, laser.angle_increment_rad,
+                                 std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())),
+                                 laser.range_max_m};
+    const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
+    command = command_from_decision(decision, model, expiry_s);
+    command->set_answers_scan_seq(scan.seq());
+  }
+
+  std::string previous_state;
+  robot->update_state([&](RobotState& state) {
+    state.last_scan_stamp_s = scan.stamp_s();
+    state.last_scan_seq = scan.seq();
+    ++state.scans_ingested;
+    if (command) {
+      command->set_seq(++state.commands_sent);
+      previous_state = state.behaviour_state;
+      state.behaviour_state = command->state();
+      state.last_linear_mps = command->linear_mps();
+      state.last_angular_radps = command->angular_radps();
+    }
+  });
+  if (!command) return;
+  if (command->state() != previous_state) {
+    const auto level = command->stop() ? log::Level::warn : log::Level::debug;
+    if (log::enabled(level)) {
+      log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
+    }
+  }
+  v1::ServerMessage reply;
+  *reply.mutable_motion_command() = std::move(*command);
+  session->send(std::move(reply));
+}
+
 }  // namespace
 
 void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
@@ -75,71 +145,7 @@ void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
   }
   const double expiry_s = session->core().config().control.command_expiry_s;
   asio::post(robot->world().strand(), [session, robot, scan = std::move(scan), expiry_s] {
-    const RobotState before = robot->state();
-    std::string order_error;
-    std::string order_field;
-    if (!before.X_WB) {
-      order_field = "laser_scan";
-      order_error = "no odometry received yet: the scan cannot be placed in the world";
-    } else if (before.last_scan_stamp_s && scan.stamp_s() < *before.last_scan_stamp_s) {
-      order_field = "laser_scan.stamp_s";
-      order_error = "timestamp went backwards";
-    } else if (before.last_scan_seq && scan.seq() <= *before.last_scan_seq) {
-      order_field = "laser_scan.seq";
-      order_error = "sequence number did not increase";
-    }
-    if (!order_error.empty()) {
-      robot->update_state([](RobotState& state) { ++state.scans_rejected; });
-      session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the scan was discarded", 0, scan.seq());
-      return;
-    }
-
-    const RobotModel& model = robot->model();
-    const LaserModel& laser = *model.find_laser(scan.sensor());
-    World& world = robot->world();
-    insert_scan(world.grid_on_strand(), planar_sensor_pose(*before.X_WB, laser), laser, scan);
-    world.publish_on_strand();
-
-    v1::ServerMessage ack;
-    ack.mutable_scan_ack()->set_seq(scan.seq());
-    ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-    session->send(std::move(ack));
-
-    // The behaviour steers from the robot's first laser; other lasers only update the map.
-    const bool steering_laser = &laser == &model.lasers.front();
-    std::optional<v1::MotionCommand> command;
-    if (steering_laser) {
-      const control::ScanView view{laser.angle_min_rad, laser.angle_increment_rad,
-                                   std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())),
-                                   laser.range_max_m};
-      const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
-      command = command_from_decision(decision, model, expiry_s);
-      command->set_answers_scan_seq(scan.seq());
-    }
-
-    std::string previous_state;
-    robot->update_state([&](RobotState& state) {
-      state.last_scan_stamp_s = scan.stamp_s();
-      state.last_scan_seq = scan.seq();
-      ++state.scans_ingested;
-      if (command) {
-        command->set_seq(++state.commands_sent);
-        previous_state = state.behaviour_state;
-        state.behaviour_state = command->state();
-        state.last_linear_mps = command->linear_mps();
-        state.last_angular_radps = command->angular_radps();
-      }
-    });
-    if (!command) return;
-    if (command->state() != previous_state) {
-      const auto level = command->stop() ? log::Level::warn : log::Level::debug;
-      if (log::enabled(level)) {
-        log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
-      }
-    }
-    v1::ServerMessage reply;
-    *reply.mutable_motion_command() = std::move(*command);
-    session->send(std::move(reply));
+    run_guarded(session, "laser_scan", 0, [&] { ingest_on_strand(session, robot, scan, expiry_s); });
   });
 }
 

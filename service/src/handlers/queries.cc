@@ -54,20 +54,22 @@ void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery&
                                query.has_footprint(), query.footprint());
   if (!target) return;
   asio::post(session->core().query_pool(), [session, target = std::move(*target), request_id = query.request_id()] {
-    const auto snapshot = target.robot->world().snapshot();
-    const geometry::CollisionResult result = geometry::check_collision({target.footprint, target.pose}, *snapshot);
-    v1::ServerMessage reply;
-    auto* out = reply.mutable_collision();
-    out->set_request_id(request_id);
-    out->set_hit(result.hit);
-    out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
-    if (result.cell) {
-      set_cell(*result.cell, *out->mutable_cell());
-      const Eigen::Vector2d center = geometry::GridGeometry(snapshot->cell_size()).center_of(*result.cell);
-      out->mutable_cell_center()->set_x(center.x());
-      out->mutable_cell_center()->set_y(center.y());
-    }
-    session->send(std::move(reply));
+    run_guarded(session, "collision", request_id, [&] {
+      const auto snapshot = target.robot->world().snapshot();
+      const geometry::CollisionResult result = geometry::check_collision({target.footprint, target.pose}, *snapshot);
+      v1::ServerMessage reply;
+      auto* out = reply.mutable_collision();
+      out->set_request_id(request_id);
+      out->set_hit(result.hit);
+      out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
+      if (result.cell) {
+        set_cell(*result.cell, *out->mutable_cell());
+        const Eigen::Vector2d center = geometry::GridGeometry(snapshot->cell_size()).center_of(*result.cell);
+        out->mutable_cell_center()->set_x(center.x());
+        out->mutable_cell_center()->set_y(center.y());
+      }
+      session->send(std::move(reply));
+    });
   });
 }
 
@@ -75,29 +77,33 @@ void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery&
   auto target = resolve_target(session, "clearance", query.request_id(), query.robot_id(), query.pose(),
                                query.has_footprint(), query.footprint());
   if (!target) return;
+  const LimitsConfig& limits = session->core().config().limits;
   double max_distance = query.max_distance_m();
-  if (!std::isfinite(max_distance) || max_distance < 0.0) {
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, "clearance.max_distance_m", "must be a non-negative length",
+  if (!std::isfinite(max_distance) || max_distance < 0.0 || max_distance > limits.max_query_distance_m) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, "clearance.max_distance_m",
+                        "must be between 0 and " + std::to_string(limits.max_query_distance_m) + " m",
                         query.request_id());
     return;
   }
   if (max_distance == 0.0) max_distance = session->core().config().queries.clearance_max_distance_m;
   asio::post(session->core().query_pool(),
              [session, target = std::move(*target), request_id = query.request_id(), max_distance] {
-               const auto snapshot = target.robot->world().snapshot();
-               const geometry::ClearanceResult result =
-                   geometry::compute_clearance({target.footprint, target.pose, max_distance}, *snapshot);
-               v1::ServerMessage reply;
-               auto* out = reply.mutable_clearance();
-               out->set_request_id(request_id);
-               out->set_found(result.found);
-               out->set_clearance_m(result.clearance_m);
-               if (result.nearest_cell) {
-                 set_cell(*result.nearest_cell, *out->mutable_nearest_cell());
-                 out->mutable_nearest_point()->set_x(result.nearest_point_W.x());
-                 out->mutable_nearest_point()->set_y(result.nearest_point_W.y());
-               }
-               session->send(std::move(reply));
+               run_guarded(session, "clearance", request_id, [&] {
+                 const auto snapshot = target.robot->world().snapshot();
+                 const geometry::ClearanceResult result =
+                     geometry::compute_clearance({target.footprint, target.pose, max_distance}, *snapshot);
+                 v1::ServerMessage reply;
+                 auto* out = reply.mutable_clearance();
+                 out->set_request_id(request_id);
+                 out->set_found(result.found);
+                 out->set_clearance_m(result.clearance_m);
+                 if (result.nearest_cell) {
+                   set_cell(*result.nearest_cell, *out->mutable_nearest_cell());
+                   out->mutable_nearest_point()->set_x(result.nearest_point_W.x());
+                   out->mutable_nearest_point()->set_y(result.nearest_point_W.y());
+                 }
+                 session->send(std::move(reply));
+               });
              });
 }
 
@@ -147,26 +153,38 @@ void handle_grid_request(const SessionPtr& session, const v1::GridRequest& reque
     session->send_error(v1::ERROR_UNKNOWN_WORLD, "grid.world", "no world '" + name + "' exists", request.request_id());
     return;
   }
-  asio::post(session->core().query_pool(), [session, world, request_id = request.request_id()] {
-    const auto snapshot = world->snapshot();
-    v1::ServerMessage reply;
-    auto* out = reply.mutable_grid();
-    out->set_request_id(request_id);
-    out->set_world(world->name());
-    out->set_cell_size_m(snapshot->cell_size());
-    out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot->occupied_threshold()));
-    out->set_max_certainty(static_cast<std::uint32_t>(snapshot->max_certainty()));
-    out->set_version(snapshot->version());
-    if (const auto box = snapshot->tile_bounds()) {
-      const int width = box->max.ix - box->min.ix + 1;
-      const int height = box->max.iy - box->min.iy + 1;
-      set_cell(box->min, *out->mutable_min_cell());
-      out->set_width(static_cast<std::uint32_t>(width));
-      out->set_height(static_cast<std::uint32_t>(height));
-      const std::vector<std::uint8_t> cells = snapshot->window(box->min, width, height);
-      out->set_cells(cells.data(), cells.size());
-    }
-    session->send(std::move(reply));
+  const std::size_t max_cells = session->core().config().limits.max_grid_reply_cells;
+  asio::post(session->core().query_pool(), [session, world, request_id = request.request_id(), max_cells] {
+    run_guarded(session, "grid", request_id, [&] {
+      const auto snapshot = world->snapshot();
+      v1::ServerMessage reply;
+      auto* out = reply.mutable_grid();
+      out->set_request_id(request_id);
+      out->set_world(world->name());
+      out->set_cell_size_m(snapshot->cell_size());
+      out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot->occupied_threshold()));
+      out->set_max_certainty(static_cast<std::uint32_t>(snapshot->max_certainty()));
+      out->set_version(snapshot->version());
+      if (const auto box = snapshot->tile_bounds()) {
+        const std::int64_t width = std::int64_t{box->max.ix} - box->min.ix + 1;
+        const std::int64_t height = std::int64_t{box->max.iy} - box->min.iy + 1;
+        if (static_cast<std::uint64_t>(width * height) > max_cells) {
+          session->send_error(v1::ERROR_INVALID_ARGUMENT, "grid.world",
+                              "world '" + world->name() + "' spans " + std::to_string(width) + " x " +
+                                  std::to_string(height) + " cells, over the reply limit of " +
+                                  std::to_string(max_cells),
+                              request_id);
+          return;
+        }
+        set_cell(box->min, *out->mutable_min_cell());
+        out->set_width(static_cast<std::uint32_t>(width));
+        out->set_height(static_cast<std::uint32_t>(height));
+        const std::vector<std::uint8_t> cells =
+            snapshot->window(box->min, static_cast<int>(width), static_cast<int>(height));
+        out->set_cells(cells.data(), cells.size());
+      }
+      session->send(std::move(reply));
+    });
   });
 }
 

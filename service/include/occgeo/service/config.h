@@ -25,6 +25,9 @@ struct LimitsConfig {
   std::size_t max_robots = 256;                            // registered robots
   std::uint32_t max_beams = 100000;                        // beams per laser in a RobotSpec
   double max_abs_coordinate_m = 1.0e5;                     // odometry and query poses beyond this are rejected
+  double max_sensor_range_m = 200.0;                       // a RobotSpec's range_max_m above this is rejected
+  double max_query_distance_m = 100.0;                     // clearance search radius limit
+  std::size_t max_grid_reply_cells = 16U * 1024U * 1024U;  // whole-grid replies larger than this are refused
 };
 
 // Server-side control of the robots.
