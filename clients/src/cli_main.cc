@@ -72,7 +72,8 @@ struct Options {
   }
 };
 
-Options parse_options(const std::vector<std::string>& args, std::size_t first, const std::vector<std::string>& allowed) {
+Options parse_options(const std::vector<std::string>& args, std::size_t first,
+                      const std::vector<std::string>& allowed) {
   Options options;
   for (std::size_t i = first; i < args.size(); ++i) {
     const std::string& arg = args[i];
@@ -146,8 +147,8 @@ int run_status(const Options& options) {
     for (int i = 0; i < status.worlds_size(); ++i) {
       const auto& w = status.worlds(i);
       out << (i ? "," : "") << "{\"name\":" << json_string(w.name()) << ",\"cell_size_m\":" << fmt(w.cell_size_m())
-          << ",\"version\":" << w.version() << ",\"tiles\":" << w.tiles() << ",\"occupied_cells\":" << w.occupied_cells()
-          << "}";
+          << ",\"version\":" << w.version() << ",\"tiles\":" << w.tiles()
+          << ",\"occupied_cells\":" << w.occupied_cells() << "}";
     }
     out << "]}";
     std::cout << out.str() << "\n";
@@ -182,8 +183,8 @@ int run_query_collision(const Options& options) {
     std::cout << "{\"hit\":" << (reply.hit() ? "true" : "false");
     if (reply.hit()) {
       std::cout << ",\"cell\":{\"ix\":" << reply.cell().ix() << ",\"iy\":" << reply.cell().iy()
-                << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x()) << ",\"y\":" << fmt(reply.cell_center().y())
-                << "}";
+                << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x())
+                << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
     }
     std::cout << ",\"cells_tested\":" << reply.cells_tested() << "}\n";
   } else if (reply.hit()) {
@@ -213,10 +214,11 @@ int run_query_clearance(const Options& options) {
     }
     std::cout << "}\n";
   } else if (reply.found()) {
-    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to occupied cell (" << reply.nearest_cell().ix() << ", "
-              << reply.nearest_cell().iy() << ")\n";
+    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to occupied cell (" << reply.nearest_cell().ix()
+              << ", " << reply.nearest_cell().iy() << ")\n";
   } else {
-    std::cout << "clearance at least " << fmt(reply.clearance_m()) << " m (nothing occupied within the search radius)\n";
+    std::cout << "clearance at least " << fmt(reply.clearance_m())
+              << " m (nothing occupied within the search radius)\n";
   }
   return 0;
 }

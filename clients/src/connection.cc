@@ -115,7 +115,8 @@ v1::Welcome Connection::hello(const v1::Hello& hello, std::chrono::milliseconds 
   send(message);
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
-    const auto reply = receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+    const auto reply =
+        receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
     if (!reply) break;
     if (reply->has_welcome()) return reply->welcome();
     if (reply->has_error()) throw ClientError("server refused hello: " + describe(reply->error()));

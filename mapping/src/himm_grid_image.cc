@@ -9,9 +9,9 @@
 #include <string>
 
 #include "format_number.h"
-#include "occgeo/mapfile/certainty_image.h"
 #include "himm_tile_writer.h"
 #include "occgeo/geometry/grid_ray.h"
+#include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapping/himm_grid.h"
 
 namespace occgeo::mapping {

@@ -46,7 +46,8 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), asio::make_strand(ingest_pool_.get_executor()));
+    slot =
+        std::make_shared<World>(name, mapping::HimmGrid(config_.himm), asio::make_strand(ingest_pool_.get_executor()));
   }
   return slot;
 }
@@ -83,8 +84,8 @@ std::vector<std::shared_ptr<Robot>> ServerCore::robots() const {
   return all;
 }
 
-std::shared_ptr<Robot> ServerCore::register_robot(std::shared_ptr<const RobotModel> model, const std::string& world_name,
-                                                  std::string& error) {
+std::shared_ptr<Robot> ServerCore::register_robot(std::shared_ptr<const RobotModel> model,
+                                                  const std::string& world_name, std::string& error) {
   auto target_world = world(world_name);
   const std::lock_guard lock(registry_mutex_);
   if (const auto it = robots_.find(model->id); it != robots_.end() && it->second->state().connected) {

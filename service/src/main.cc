@@ -45,12 +45,18 @@ int main(int argc, char** argv) {
       return 0;
     }
     std::string* target = nullptr;
-    if (arg == "--config") target = &flags.config;
-    else if (arg == "--listen") target = &flags.listen;
-    else if (arg == "--data-dir") target = &flags.data_dir;
-    else if (arg == "--log-level") target = &flags.log_level;
-    else if (arg == "--port-file") target = &flags.port_file;
-    else return usage_error("unknown option '" + arg + "'");
+    if (arg == "--config")
+      target = &flags.config;
+    else if (arg == "--listen")
+      target = &flags.listen;
+    else if (arg == "--data-dir")
+      target = &flags.data_dir;
+    else if (arg == "--log-level")
+      target = &flags.log_level;
+    else if (arg == "--port-file")
+      target = &flags.port_file;
+    else
+      return usage_error("unknown option '" + arg + "'");
     if (i + 1 >= args.size()) return usage_error("option '" + arg + "' needs a value");
     *target = args[++i];
   }

@@ -37,7 +37,8 @@ void restore_worlds(ServerCore& core) {
     }
     const mapfile::OccupancyImage image = mapfile::read_map_yaml(yaml);
     auto grid = mapping::HimmGrid::from_image(image, core.config().himm);
-    log::info("world_restored", {{"world", name}, {"file", yaml.string()}, {"occupied_cells", grid.occupied_cell_count()}});
+    log::info("world_restored",
+              {{"world", name}, {"file", yaml.string()}, {"occupied_cells", grid.occupied_cell_count()}});
     core.add_world(name, std::move(grid));
   }
 }

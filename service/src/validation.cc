@@ -15,8 +15,8 @@ FieldError field_error(std::string field, std::string message) { return {std::mo
 bool valid_name(const std::string& name) {
   if (name.empty() || name.size() > 64) return false;
   for (const char c : name) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-                    c == '-' || c == '.';
+    const bool ok =
+        (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.';
     if (!ok) return false;
   }
   return true;
@@ -26,11 +26,16 @@ std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& foo
                                                         FieldError& error) {
   if (footprint.has_box()) {
     const auto& box = footprint.box();
-    if (!finite_positive(box.length_m())) error = field_error(prefix + ".box.length_m", "must be a positive length");
-    else if (!finite_positive(box.width_m())) error = field_error(prefix + ".box.width_m", "must be a positive length");
-    else if (!finite_positive(box.height_m())) error = field_error(prefix + ".box.height_m", "must be a positive length");
-    else if (!std::isfinite(box.center_x_m())) error = field_error(prefix + ".box.center_x_m", "must be finite");
-    else return geometry::BoxFootprint{box.length_m(), box.width_m(), box.height_m(), box.center_x_m()};
+    if (!finite_positive(box.length_m()))
+      error = field_error(prefix + ".box.length_m", "must be a positive length");
+    else if (!finite_positive(box.width_m()))
+      error = field_error(prefix + ".box.width_m", "must be a positive length");
+    else if (!finite_positive(box.height_m()))
+      error = field_error(prefix + ".box.height_m", "must be a positive length");
+    else if (!std::isfinite(box.center_x_m()))
+      error = field_error(prefix + ".box.center_x_m", "must be finite");
+    else
+      return geometry::BoxFootprint{box.length_m(), box.width_m(), box.height_m(), box.center_x_m()};
     return std::nullopt;
   }
   if (footprint.has_cylinder()) {
@@ -98,8 +103,8 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
       return nullptr;
     }
     const auto& mount = sensor.mount();
-    for (const double v : {mount.position().x(), mount.position().y(), mount.position().z(), mount.roll(),
-                           mount.pitch(), mount.yaw()}) {
+    for (const double v :
+         {mount.position().x(), mount.position().y(), mount.position().z(), mount.roll(), mount.pitch(), mount.yaw()}) {
       if (!std::isfinite(v)) {
         error = field_error(prefix + ".mount", "must be finite");
         return nullptr;
@@ -107,8 +112,7 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
     }
     const auto& laser = sensor.laser();
     if (laser.beam_count() == 0 || laser.beam_count() > limits.max_beams) {
-      error = field_error(prefix + ".laser.beam_count",
-                          "must be between 1 and " + std::to_string(limits.max_beams));
+      error = field_error(prefix + ".laser.beam_count", "must be between 1 and " + std::to_string(limits.max_beams));
       return nullptr;
     }
     if (!std::isfinite(laser.angle_min_rad()) || std::abs(laser.angle_min_rad()) > 2 * M_PI) {
@@ -145,10 +149,12 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
 
 std::optional<FieldError> check_pose(const v1::Pose2D& pose, const std::string& field, const LimitsConfig& limits) {
   if (!std::isfinite(pose.x()) || std::abs(pose.x()) > limits.max_abs_coordinate_m) {
-    return field_error(field + ".x", "must be finite and within ±" + std::to_string(limits.max_abs_coordinate_m) + " m");
+    return field_error(field + ".x",
+                       "must be finite and within ±" + std::to_string(limits.max_abs_coordinate_m) + " m");
   }
   if (!std::isfinite(pose.y()) || std::abs(pose.y()) > limits.max_abs_coordinate_m) {
-    return field_error(field + ".y", "must be finite and within ±" + std::to_string(limits.max_abs_coordinate_m) + " m");
+    return field_error(field + ".y",
+                       "must be finite and within ±" + std::to_string(limits.max_abs_coordinate_m) + " m");
   }
   if (!std::isfinite(pose.theta())) return field_error(field + ".theta", "must be finite");
   return std::nullopt;

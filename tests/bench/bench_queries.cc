@@ -72,7 +72,9 @@ const occgeo::mapping::GridSnapshot& bench_snapshot() {
     image.pixels.assign(static_cast<std::size_t>(kCellsPerSide) * kCellsPerSide, 254);
     const DenseCellSource& dense = bench_map();
     dense.for_each_occupied({0, 0}, {kCellsPerSide - 1, kCellsPerSide - 1}, [&](const CellIndex& c) {
-      image.pixels[static_cast<std::size_t>(kCellsPerSide - 1 - c.iy) * kCellsPerSide + static_cast<std::size_t>(c.ix)] = 0;
+      image
+          .pixels[static_cast<std::size_t>(kCellsPerSide - 1 - c.iy) * kCellsPerSide + static_cast<std::size_t>(c.ix)] =
+          0;
       return true;
     });
     return occgeo::mapping::HimmGrid::from_image(image, occgeo::mapping::HimmParams{}).snapshot();

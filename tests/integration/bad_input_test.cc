@@ -36,7 +36,9 @@ class RawSocket {
   RawSocket(const RawSocket&) = delete;
   RawSocket& operator=(const RawSocket&) = delete;
 
-  void send_bytes(const std::string& bytes) { ASSERT_EQ(::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size())); }
+  void send_bytes(const std::string& bytes) {
+    ASSERT_EQ(::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size()));
+  }
   void send_message(const v1::ClientMessage& message) { send_bytes(proto::encode_frame(message)); }
   void finish_sending() { shutdown(fd_, SHUT_WR); }
 
@@ -113,7 +115,8 @@ class BadInput : public ::testing::Test {
     for (int i = 0; i < 10; ++i) {
       auto reply = driver_->receive(std::chrono::seconds(5));
       if (!reply) break;
-      if (reply->has_motion_command() && reply->motion_command().answers_scan_seq() == seq) return reply->motion_command();
+      if (reply->has_motion_command() && reply->motion_command().answers_scan_seq() == seq)
+        return reply->motion_command();
     }
     return std::nullopt;
   }
@@ -315,7 +318,8 @@ TEST(SlowClient, StuckReaderIsDroppedWhileTheRobotKeepsDriving) {
     scan.mutable_laser_scan()->set_sensor("front_laser");
     scan.mutable_laser_scan()->set_seq(seq);
     scan.mutable_laser_scan()->set_stamp_s(0.1 * static_cast<double>(seq));
-    for (int beam = 0; beam < 181; ++beam) scan.mutable_laser_scan()->add_ranges(1.0F + 0.02F * static_cast<float>(beam));
+    for (int beam = 0; beam < 181; ++beam)
+      scan.mutable_laser_scan()->add_ranges(1.0F + 0.02F * static_cast<float>(beam));
     driver.send(scan);
     for (int i = 0; i < 10; ++i) {
       auto reply = driver.receive(std::chrono::seconds(10));

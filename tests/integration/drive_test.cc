@@ -61,11 +61,11 @@ TEST(DriveOpenField, BearcatWandersTwoMinutesWithoutCollisionAndMapsWhatItSaw) {
   for (std::size_t i = 0; i < headings.size(); ++i) {
     const std::string id = "bearcat-" + std::to_string(i + 1);
     const auto visible_file = dir.path() / ("visible-" + id + ".txt");
-    const ProcessResult sim = run_process(
-        {binary("clients/sim/occgeo-sim").string(), "--server", server.address(), "--robot", "bearcat", "--world",
-         world_yaml.string(), "--start", "0,0," + headings[i], "--id", id, "--lockstep", "--duration", "120", "--json",
-         "--visible-out", visible_file.string()},
-        std::chrono::seconds(240));
+    const ProcessResult sim =
+        run_process({binary("clients/sim/occgeo-sim").string(), "--server", server.address(), "--robot", "bearcat",
+                     "--world", world_yaml.string(), "--start", "0,0," + headings[i], "--id", id, "--lockstep",
+                     "--duration", "120", "--json", "--visible-out", visible_file.string()},
+                    std::chrono::seconds(240));
     ASSERT_FALSE(sim.timed_out) << sim.err;
     ASSERT_EQ(sim.exit_code, 0) << sim.err << "\nserver log:\n" << server.log();
     std::cout << id << ": " << sim.out;
@@ -84,10 +84,10 @@ TEST(DriveOpenField, BearcatWandersTwoMinutesWithoutCollisionAndMapsWhatItSaw) {
 
   // Export the server's grid with the CLI, as a user would.
   const auto prefix = dir.path() / "exported";
-  const ProcessResult exported = run_process(
-      {binary("clients/occgeo").string(), "map", "export", "--server", server.address(), "--world", "default", "--out",
-       prefix.string(), "--json"},
-      std::chrono::seconds(60));
+  const ProcessResult exported =
+      run_process({binary("clients/occgeo").string(), "map", "export", "--server", server.address(), "--world",
+                   "default", "--out", prefix.string(), "--json"},
+                  std::chrono::seconds(60));
   ASSERT_EQ(exported.exit_code, 0) << exported.err;
   const auto map = mapfile::read_map_yaml(prefix.string() + ".yaml");
   const auto marked = occupied_cells(map);
@@ -124,10 +124,10 @@ TEST(DriveOpenField, BearcatWandersTwoMinutesWithoutCollisionAndMapsWhatItSaw) {
   ASSERT_TRUE(mapped_obstacle);
   const double cell = truth.cell_size();
   const auto query = [&](double x, double y) {
-    return run_process({binary("clients/occgeo").string(), "query", "collision", "--server", server.address(),
-                        "--robot", "bearcat-1", "--x", std::to_string(x), "--y", std::to_string(y), "--theta", "0.3",
-                        "--json"},
-                       std::chrono::seconds(30));
+    return run_process(
+        {binary("clients/occgeo").string(), "query", "collision", "--server", server.address(), "--robot", "bearcat-1",
+         "--x", std::to_string(x), "--y", std::to_string(y), "--theta", "0.3", "--json"},
+        std::chrono::seconds(30));
   };
   const ProcessResult inside = query((mapped_obstacle->first + 0.5) * cell, (mapped_obstacle->second + 0.5) * cell);
   ASSERT_EQ(inside.exit_code, 0) << inside.err;

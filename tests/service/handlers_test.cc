@@ -109,7 +109,8 @@ TEST_F(Handlers, RobotSpecErrorsNameTheField) {
     std::string field;
   };
   const std::vector<Case> cases = {
-      {[](v1::RobotSpec& s) { s.mutable_footprint()->mutable_box()->set_width_m(-1); }, "robot_spec.footprint.box.width_m"},
+      {[](v1::RobotSpec& s) { s.mutable_footprint()->mutable_box()->set_width_m(-1); },
+       "robot_spec.footprint.box.width_m"},
       {[](v1::RobotSpec& s) { s.clear_sensors(); }, "robot_spec.sensors"},
       {[](v1::RobotSpec& s) { s.mutable_sensors(0)->mutable_laser()->set_beam_count(0); },
        "robot_spec.sensors[0].laser.beam_count"},

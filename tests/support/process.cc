@@ -78,8 +78,12 @@ TempDir::~TempDir() {
   std::filesystem::remove_all(path_, ignored);
 }
 
-std::filesystem::path binary(const std::string& relative) { return std::filesystem::path(OCCGEO_BINARY_DIR) / relative; }
-std::filesystem::path source(const std::string& relative) { return std::filesystem::path(OCCGEO_SOURCE_DIR) / relative; }
+std::filesystem::path binary(const std::string& relative) {
+  return std::filesystem::path(OCCGEO_BINARY_DIR) / relative;
+}
+std::filesystem::path source(const std::string& relative) {
+  return std::filesystem::path(OCCGEO_SOURCE_DIR) / relative;
+}
 
 ProcessResult run_process(const std::vector<std::string>& argv, std::chrono::seconds limit) {
   TempDir io;
@@ -128,8 +132,13 @@ ServerProcess::ServerProcess(const std::filesystem::path& data_dir, const std::v
   const auto port_file = data_dir / "occgeod.port";
   log_file_ = data_dir / "occgeod.log";
   std::filesystem::remove(port_file);
-  std::vector<std::string> argv = {binary("service/occgeod").string(), "--listen", "127.0.0.1:0", "--data-dir",
-                                   data_dir.string(), "--port-file", port_file.string()};
+  std::vector<std::string> argv = {binary("service/occgeod").string(),
+                                   "--listen",
+                                   "127.0.0.1:0",
+                                   "--data-dir",
+                                   data_dir.string(),
+                                   "--port-file",
+                                   port_file.string()};
   argv.insert(argv.end(), extra_flags.begin(), extra_flags.end());
   process_ = std::make_unique<BackgroundProcess>(argv, data_dir / "occgeod.out", log_file_);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);

@@ -81,14 +81,16 @@ double WorldTruth::box_distance(double x, double y, double theta, double length,
   std::array<Vec, 4> box;
   const std::array<Vec, 4> local = {Vec(center_x - length / 2, -width / 2), Vec(center_x + length / 2, -width / 2),
                                     Vec(center_x + length / 2, width / 2), Vec(center_x - length / 2, width / 2)};
-  for (std::size_t i = 0; i < 4; ++i) box[i] = Vec(x + c * local[i].x() - s * local[i].y(), y + s * local[i].x() + c * local[i].y());
+  for (std::size_t i = 0; i < 4; ++i)
+    box[i] = Vec(x + c * local[i].x() - s * local[i].y(), y + s * local[i].x() + c * local[i].y());
   double best = std::numeric_limits<double>::infinity();
   for (const auto& [ix, iy] : obstacles_) {
     const Vec lo(ix * cell_size_, iy * cell_size_);
     const Vec center = lo + Vec(cell_size_ / 2, cell_size_ / 2);
     // Cheap bound: skip cells that cannot beat the best distance found so far.
     if ((center - Vec(x, y)).norm() - std::hypot(length, width) - cell_size_ > best) continue;
-    const std::array<Vec, 4> cell = {lo, lo + Vec(cell_size_, 0), lo + Vec(cell_size_, cell_size_), lo + Vec(0, cell_size_)};
+    const std::array<Vec, 4> cell = {lo, lo + Vec(cell_size_, 0), lo + Vec(cell_size_, cell_size_),
+                                     lo + Vec(0, cell_size_)};
     best = std::min(best, polygon_distance(box, cell));
     if (best == 0.0) return 0.0;
   }

@@ -56,7 +56,8 @@ OccupancyImage image_from_certainty(const CertaintyWindow& window) {
     const std::size_t window_row = window.height - 1 - row;
     for (std::uint32_t col = 0; col < window.width; ++col) {
       std::uint8_t value = window.cells[window_row * window.width + col];
-      if (value != kUnobservedCertainty && value > window.max_certainty) value = static_cast<std::uint8_t>(window.max_certainty);
+      if (value != kUnobservedCertainty && value > window.max_certainty)
+        value = static_cast<std::uint8_t>(window.max_certainty);
       image.pixels[static_cast<std::size_t>(row) * window.width + col] = grey_levels.grey_of(value);
     }
   }

@@ -21,8 +21,8 @@ void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t
     work();
   } catch (const std::exception& e) {
     log::error("handler_failed", {{"handler", what}, {"error", e.what()}});
-    session->send_error(v1::ERROR_INTERNAL, std::string(what), std::string("the server could not complete this: ") + e.what(),
-                        request_id);
+    session->send_error(v1::ERROR_INTERNAL, std::string(what),
+                        std::string("the server could not complete this: ") + e.what(), request_id);
   }
 }
 

@@ -15,8 +15,8 @@ struct SessionInfo {
   std::string peer;
   bool greeted = false;
   v1::Role role = v1::ROLE_UNSPECIFIED;
-  std::string robot_id;  // drivers
-  std::string world;     // drivers
+  std::string robot_id;          // drivers
+  std::string world;             // drivers
   std::shared_ptr<Robot> robot;  // drivers, once the RobotSpec is accepted
 };
 

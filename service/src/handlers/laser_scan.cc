@@ -40,7 +40,8 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
     if (ranges[i] < range_min) continue;
     const double reading = static_cast<double>(ranges[i]);
     const double range = std::min(reading, laser.range_max_m);
-    const double bearing = sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+    const double bearing =
+        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
     const Eigen::Vector2d end = origin + range * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
     grid.insert_ray(origin, end, reading < laser.range_max_m);
   }
@@ -100,9 +101,9 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   const bool steering_laser = &laser == &model.lasers.front();
   std::optional<v1::MotionCommand> command;
   if (steering_laser) {
-    const control::ScanView view{laser.angle_min_rad, laser.angle_increment_rad,
-                                 std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())),
-                                 laser.range_max_m};
+    const control::ScanView view{
+        laser.angle_min_rad, laser.angle_increment_rad,
+        std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
     const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
     command = command_from_decision(decision, model, expiry_s);
     command->set_answers_scan_seq(scan.seq());
@@ -125,7 +126,8 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   if (command->state() != previous_state) {
     const auto level = command->stop() ? log::Level::warn : log::Level::debug;
     if (log::enabled(level)) {
-      log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
+      log::write(level, "behaviour_state",
+                 {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
     }
   }
   v1::ServerMessage reply;

@@ -16,7 +16,8 @@ void apply_on_strand(const SessionPtr& session, Robot& robot, const v1::Odometry
       return;
     }
     state.last_odometry_stamp_s = odometry.stamp_s();
-    state.X_WB = geometry::Pose2{odometry.pose().x(), odometry.pose().y(), geometry::wrap_angle(odometry.pose().theta())};
+    state.X_WB =
+        geometry::Pose2{odometry.pose().x(), odometry.pose().y(), geometry::wrap_angle(odometry.pose().theta())};
   });
   if (went_backwards) {
     session->send_error(v1::ERROR_OUT_OF_ORDER, "odometry.stamp_s", "timestamp went backwards; odometry ignored", 0,

@@ -24,10 +24,9 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
   }
   robot->update_state([](RobotState& state) { state.connected = true; });
   info.robot = std::move(robot);
-  log::info("robot_registered", {{"robot", info.robot_id},
-                                 {"world", info.world},
-                                 {"model", spec.model()},
-                                 {"sensors", spec.sensors_size()}});
+  log::info(
+      "robot_registered",
+      {{"robot", info.robot_id}, {"world", info.world}, {"model", spec.model()}, {"sensors", spec.sensors_size()}});
 }
 
 }  // namespace occgeo::service

@@ -1,8 +1,8 @@
 #pragma once
 
 #include <cstdint>
-#include <ostream>
 #include <map>
+#include <ostream>
 #include <set>
 #include <string>
 
@@ -20,10 +20,10 @@ struct RunSummary {
   std::uint64_t collisions = 0;  // times the robot ran into an obstacle
   double sim_time_s = 0.0;       // sim time simulated, seconds
   std::uint64_t scans_sent = 0;
-  std::uint64_t commands_received = 0;  // motion commands applied
-  geometry::Pose2 final_pose;           // true base_link pose at the end
-  bool deadlock_reported = false;       // any command's behaviour state was "deadlock"
-  std::string last_state;               // behaviour state of the last command
+  std::uint64_t commands_received = 0;                // motion commands applied
+  geometry::Pose2 final_pose;                         // true base_link pose at the end
+  bool deadlock_reported = false;                     // any command's behaviour state was "deadlock"
+  std::string last_state;                             // behaviour state of the last command
   std::map<std::string, std::uint64_t> state_counts;  // applied commands per behaviour state
 };
 

@@ -1,8 +1,8 @@
 #pragma once
 
 #include <cstdint>
-#include <set>
 #include <map>
+#include <set>
 #include <string>
 
 #include "occgeo/geometry/pose.h"
