@@ -14,7 +14,7 @@ using asio::ip::tcp;
 
 namespace {
 // Replies such as whole-map windows can be large; the client accepts up to this frame size.
-constexpr std::size_t kClientMaxFrameBytes = 256U * 1024U * 1024U;
+constexpr std::size_t kClientMaxFrameBytes = std::size_t{256} * 1024 * 1024;
 }  // namespace
 
 Endpoint Endpoint::parse(std::string_view text) {
@@ -47,7 +47,7 @@ struct Connection::Impl {
   tcp::socket socket{io};
   proto::FrameDecoder decoder{kClientMaxFrameBytes};
   std::deque<v1::ServerMessage> pending;  // decoded but not yet returned
-  std::array<char, 64 * 1024> read_buffer{};
+  std::array<char, std::size_t{64} * 1024> read_buffer{};
 
   // Runs the io_context until `done` or the deadline; returns false on timeout.
   bool run_until(const bool& done, std::chrono::milliseconds timeout) {

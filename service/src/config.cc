@@ -91,8 +91,8 @@ void ServerConfig::validate() const {
     throw ConfigError(std::string("configuration 'log_level': ") + e.what());
   }
   require(!default_world.empty(), "default_world", "must not be empty");
-  require(limits.max_frame_bytes >= 1024 && limits.max_frame_bytes <= 512U * 1024U * 1024U, "limits.max_frame_bytes",
-          "must be between 1 KiB and 512 MiB");
+  require(limits.max_frame_bytes >= 1024 && limits.max_frame_bytes <= (std::size_t{512} << 20),
+          "limits.max_frame_bytes", "must be between 1 KiB and 512 MiB");
   require(limits.max_send_queue_bytes >= limits.max_frame_bytes, "limits.max_send_queue_bytes",
           "must be at least limits.max_frame_bytes");
   require(limits.max_clients > 0, "limits.max_clients", "must be positive");

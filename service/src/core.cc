@@ -84,7 +84,7 @@ std::vector<std::shared_ptr<Robot>> ServerCore::robots() const {
   return all;
 }
 
-std::shared_ptr<Robot> ServerCore::register_robot(std::shared_ptr<const RobotModel> model,
+std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const RobotModel>& model,
                                                   const std::string& world_name, std::string& error) {
   auto target_world = world(world_name);
   const std::lock_guard lock(registry_mutex_);

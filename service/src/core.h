@@ -136,7 +136,7 @@ class ServerCore {
   [[nodiscard]] std::vector<std::shared_ptr<Robot>> robots() const;
   // Registers (or re-registers, when its driver reconnects) a robot; nullptr with `error` set
   // when the robot limit is reached.
-  std::shared_ptr<Robot> register_robot(std::shared_ptr<const RobotModel> model, const std::string& world,
+  std::shared_ptr<Robot> register_robot(const std::shared_ptr<const RobotModel>& model, const std::string& world,
                                         std::string& error);
 
   std::atomic<std::uint32_t> sessions{0};

@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -44,19 +45,14 @@ int main(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    std::string* target = nullptr;
-    if (arg == "--config")
-      target = &flags.config;
-    else if (arg == "--listen")
-      target = &flags.listen;
-    else if (arg == "--data-dir")
-      target = &flags.data_dir;
-    else if (arg == "--log-level")
-      target = &flags.log_level;
-    else if (arg == "--port-file")
-      target = &flags.port_file;
-    else
-      return usage_error("unknown option '" + arg + "'");
+    const std::map<std::string, std::string*> options = {{"--config", &flags.config},
+                                                         {"--listen", &flags.listen},
+                                                         {"--data-dir", &flags.data_dir},
+                                                         {"--log-level", &flags.log_level},
+                                                         {"--port-file", &flags.port_file}};
+    const auto option = options.find(arg);
+    if (option == options.end()) return usage_error("unknown option '" + arg + "'");
+    std::string* target = option->second;
     if (i + 1 >= args.size()) return usage_error("option '" + arg + "' needs a value");
     *target = args[++i];
   }

@@ -40,7 +40,7 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   asio::ip::tcp::socket socket_;
   SessionInfo info_;
   proto::FrameDecoder decoder_;
-  std::array<char, 64 * 1024> read_buffer_{};
+  std::array<char, std::size_t{64} * 1024> read_buffer_{};
   std::deque<std::string> outbox_;
   std::size_t outbox_bytes_ = 0;
   bool writing_ = false;

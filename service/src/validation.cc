@@ -26,17 +26,19 @@ std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& foo
                                                         FieldError& error) {
   if (footprint.has_box()) {
     const auto& box = footprint.box();
-    if (!finite_positive(box.length_m()))
-      error = field_error(prefix + ".box.length_m", "must be a positive length");
-    else if (!finite_positive(box.width_m()))
-      error = field_error(prefix + ".box.width_m", "must be a positive length");
-    else if (!finite_positive(box.height_m()))
-      error = field_error(prefix + ".box.height_m", "must be a positive length");
-    else if (!std::isfinite(box.center_x_m()))
+    const std::pair<const char*, double> lengths[] = {
+        {".box.length_m", box.length_m()}, {".box.width_m", box.width_m()}, {".box.height_m", box.height_m()}};
+    for (const auto& [name, value] : lengths) {
+      if (!finite_positive(value)) {
+        error = field_error(prefix + name, "must be a positive length");
+        return std::nullopt;
+      }
+    }
+    if (!std::isfinite(box.center_x_m())) {
       error = field_error(prefix + ".box.center_x_m", "must be finite");
-    else
-      return geometry::BoxFootprint{box.length_m(), box.width_m(), box.height_m(), box.center_x_m()};
-    return std::nullopt;
+      return std::nullopt;
+    }
+    return geometry::BoxFootprint{box.length_m(), box.width_m(), box.height_m(), box.center_x_m()};
   }
   if (footprint.has_cylinder()) {
     const auto& cylinder = footprint.cylinder();

@@ -17,7 +17,7 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
     return;
   }
   std::string limit_error;
-  auto robot = session->core().register_robot(std::move(model), info.world, limit_error);
+  auto robot = session->core().register_robot(model, info.world, limit_error);
   if (!robot) {
     session->send_error(v1::ERROR_NOT_ALLOWED, "robot_spec", limit_error);
     return;

@@ -19,15 +19,15 @@ class ConfigError : public std::runtime_error {
 
 // Resource limits that protect the server from bad or slow clients.
 struct LimitsConfig {
-  std::size_t max_frame_bytes = 4U * 1024U * 1024U;        // larger frames close the connection
-  std::size_t max_send_queue_bytes = 32U * 1024U * 1024U;  // a client whose unread replies exceed this is dropped
-  std::size_t max_clients = 1024;                          // concurrent sessions of any role
-  std::size_t max_robots = 256;                            // registered robots
-  std::uint32_t max_beams = 100000;                        // beams per laser in a RobotSpec
-  double max_abs_coordinate_m = 1.0e5;                     // odometry and query poses beyond this are rejected
-  double max_sensor_range_m = 200.0;                       // a RobotSpec's range_max_m above this is rejected
-  double max_query_distance_m = 100.0;                     // clearance search radius limit
-  std::size_t max_grid_reply_cells = 16U * 1024U * 1024U;  // whole-grid replies larger than this are refused
+  std::size_t max_frame_bytes = std::size_t{4} << 20;        // larger frames close the connection
+  std::size_t max_send_queue_bytes = std::size_t{32} << 20;  // a client whose unread replies exceed this is dropped
+  std::size_t max_clients = 1024;                            // concurrent sessions of any role
+  std::size_t max_robots = 256;                              // registered robots
+  std::uint32_t max_beams = 100000;                          // beams per laser in a RobotSpec
+  double max_abs_coordinate_m = 1.0e5;                       // odometry and query poses beyond this are rejected
+  double max_sensor_range_m = 200.0;                         // a RobotSpec's range_max_m above this is rejected
+  double max_query_distance_m = 100.0;                       // clearance search radius limit
+  std::size_t max_grid_reply_cells = std::size_t{16} << 20;  // whole-grid replies larger than this are refused
 };
 
 // Server-side control of the robots.
