@@ -9,6 +9,7 @@
 
 #include "occgeo/client/connection.h"
 #include "occgeo/mapfile/certainty_image.h"
+#include "occgeo/replay/replay.h"
 
 namespace {
 
@@ -26,6 +27,8 @@ commands:
                                              distance from the footprint to the nearest obstacle
   map export --world W --out PREFIX          write the world's grid as PREFIX.pgm + PREFIX.yaml
                                              (ROS map_server format)
+  replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
+                                             stream a recorded laser log as a driver (occgeo replay --help)
 common options:
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print the reply as one JSON object
@@ -263,6 +266,13 @@ int main(int argc, char** argv) {
     if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
       std::fputs(kUsage, args.empty() ? stderr : stdout);
       return args.empty() ? 2 : 0;
+    }
+    if (args[0] == "replay") {
+      if (args.size() >= 2 && (args[1] == "--help" || args[1] == "-h")) {
+        std::fputs(occgeo::replay::kReplayUsage, stdout);
+        return 0;
+      }
+      return occgeo::replay::run_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}));
     if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {

@@ -24,6 +24,11 @@ struct Pose2 {
     const double c = std::cos(theta), s = std::sin(theta);
     return {x + c * X_BC.x - s * X_BC.y, y + s * X_BC.x + c * X_BC.y, wrap_angle(theta + X_BC.theta)};
   }
+  // The pose of A in B, given this = X_AB.
+  [[nodiscard]] Pose2 inverse() const {
+    const double c = std::cos(theta), s = std::sin(theta);
+    return {-c * x - s * y, s * x - c * y, wrap_angle(-theta)};
+  }
   // Maps a point given in this pose's frame into the parent frame.
   [[nodiscard]] Eigen::Vector2d transform(const Eigen::Vector2d& p) const {
     const double c = std::cos(theta), s = std::sin(theta);

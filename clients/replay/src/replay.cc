@@ -1,0 +1,411 @@
+#include "occgeo/replay/replay.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "occgeo/client/connection.h"
+#include "occgeo/mapfile/certainty_image.h"
+#include "occgeo/mapfile/map_file.h"
+#include "occgeo/replay/line_source.h"
+#include "occgeo/replay/png.h"
+
+namespace occgeo::replay {
+namespace {
+
+namespace v1 = occgeo::v1;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+std::string fmt(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", v);
+  return buffer;
+}
+
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buffer[8];
+      std::snprintf(buffer, sizeof buffer, "\\u%04x", static_cast<unsigned>(c));
+      out += buffer;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string json_counts(const std::map<std::string, std::uint64_t>& counts) {
+  std::string out = "{";
+  bool first = true;
+  for (const auto& [kind, count] : counts) {
+    out += (first ? "" : ",") + json_string(kind) + ":" + std::to_string(count);
+    first = false;
+  }
+  return out + "}";
+}
+
+// Progress on stderr: a bar redrawn at most 4 times a second on a terminal, otherwise a line every 10 %.
+class Progress {
+ public:
+  Progress(std::ostream& err, bool tty, std::string label) : err_(err), tty_(tty), label_(std::move(label)) {}
+
+  void update(double fraction, std::uint64_t scans, double elapsed_s) {
+    const double rate = elapsed_s > 0.0 ? static_cast<double>(scans) / elapsed_s : 0.0;
+    if (tty_) {
+      const auto now = Clock::now();
+      if (drawn_ && now - last_draw_ < std::chrono::milliseconds(250)) return;
+      last_draw_ = now;
+      drawn_ = true;
+      constexpr int kWidth = 30;
+      const int filled = static_cast<int>(fraction * kWidth);
+      char line[160];
+      std::snprintf(line, sizeof line, "\r%s [%-*s] %3.0f%% %llu scans %.0f scans/s", label_.c_str(), kWidth,
+                    std::string(static_cast<std::size_t>(std::max(0, filled)), '#').c_str(), fraction * 100.0,
+                    static_cast<unsigned long long>(scans), rate);
+      err_ << line << std::flush;
+    } else {
+      const int decile = static_cast<int>(fraction * 10.0);
+      if (decile <= last_decile_ || decile >= 10) return;
+      last_decile_ = decile;
+      err_ << label_ << ": " << decile * 10 << "% (" << scans << " scans, " << fmt(rate) << " scans/s)\n";
+    }
+  }
+
+  void finish(std::uint64_t scans, double elapsed_s) {
+    if (tty_ && drawn_) {
+      drawn_ = false;  // draw the final state regardless of the rate limit
+      update(1.0, scans, elapsed_s);
+      err_ << "\n";
+    }
+    err_ << label_ << ": done, " << scans << " scans in " << fmt(elapsed_s) << " s ("
+         << fmt(elapsed_s > 0.0 ? static_cast<double>(scans) / elapsed_s : 0.0) << " scans/s)\n";
+  }
+
+ private:
+  std::ostream& err_;
+  bool tty_;
+  std::string label_;
+  Clock::time_point last_draw_;
+  bool drawn_ = false;
+  int last_decile_ = 0;
+};
+
+v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_max_m) {
+  v1::RobotSpec spec;
+  spec.set_model("replay-" + format_name(format));
+  const bool urg = format == LogFormat::urg;
+  auto& drive = *spec.mutable_kinematics()->mutable_differential();
+  drive.set_wheel_separation_m(urg ? 0.33 : 0.5);
+  drive.set_wheel_radius_m(urg ? 0.077 : 0.1);
+  drive.set_max_wheel_speed_mps(1.0);
+  auto& box = *spec.mutable_footprint()->mutable_box();
+  box.set_length_m(0.5);
+  box.set_width_m(urg ? 0.4 : 0.5);
+  box.set_height_m(0.4);
+  box.set_center_x_m(0.0);
+  auto& sensor = *spec.add_sensors();
+  sensor.set_name(traits.sensor_name);
+  auto& mount = *sensor.mutable_mount();
+  mount.mutable_position()->set_x(first.X_BS.x);
+  mount.mutable_position()->set_y(first.X_BS.y);
+  mount.mutable_position()->set_z(traits.sensor_height_m);
+  mount.set_yaw(first.X_BS.theta);
+  auto& laser = *sensor.mutable_laser();
+  laser.set_angle_min_rad(first.angle_min_rad);
+  laser.set_angle_increment_rad(first.angle_increment_rad);
+  laser.set_beam_count(static_cast<std::uint32_t>(first.ranges_m.size()));
+  laser.set_range_min_m(traits.range_min_m);
+  laser.set_range_max_m(range_max_m);
+  laser.set_scan_period_s(traits.nominal_period_s);
+  spec.set_command_timeout_s(1.0);
+  return spec;
+}
+
+bool same_geometry(const ScanRecord& a, const ScanRecord& b) {
+  return a.ranges_m.size() == b.ranges_m.size() && std::abs(a.angle_min_rad - b.angle_min_rad) < 1e-6 &&
+         std::abs(a.angle_increment_rad - b.angle_increment_rad) < 1e-9 && std::abs(a.X_BS.x - b.X_BS.x) < 1e-3 &&
+         std::abs(a.X_BS.y - b.X_BS.y) < 1e-3 && std::abs(a.X_BS.theta - b.X_BS.theta) < 1e-3;
+}
+
+// One pass over the log into one world.
+struct PassConfig {
+  std::string world;
+  std::string robot_id;
+  bool even_only = false;
+  std::string label;
+  const OccupancyWindow* consistency_grid = nullptr;  // count odd scans' endpoints against this grid
+};
+
+struct PassResult {
+  std::uint64_t scans = 0;
+  std::uint64_t acked = 0;
+  std::uint64_t errors = 0;
+  double duration_s = 0.0;
+  ConsistencyCounter consistency;
+  std::optional<v1::GridReply> grid;
+};
+
+class Pass {
+ public:
+  Pass(const ReplayOptions& options, const PassConfig& config, Diagnostics& diagnostics, std::ostream& err)
+      : options_(options),
+        config_(config),
+        diagnostics_(diagnostics),
+        err_(err),
+        traits_(traits_of(options.format)),
+        range_max_m_(options.max_range_m.value_or(traits_.default_range_max_m)),
+        stamps_(traits_.nominal_period_s, traits_.wrap_period_s) {}
+
+  PassResult run() {
+    LineSource source(options_.file);
+    auto parser = make_parser(options_.format, diagnostics_);
+    std::optional<ScanRecord> spec_scan;
+    std::optional<client::Connection> connection;
+    Progress progress(err_, ::isatty(STDERR_FILENO) == 1 && &err_ == &std::cerr, config_.label);
+    const auto start = Clock::now();
+    std::optional<double> first_stamp;
+    std::uint64_t index = 0;  // scan number in the log, 0-based
+    while (const auto line = source.next()) {
+      auto scan = parser->parse_line(*line, source.line_number());
+      if (!scan) continue;
+      if (!spec_scan) {
+        spec_scan = *scan;
+        connection.emplace(connect(*spec_scan));
+      } else if (!same_geometry(*spec_scan, *scan)) {
+        diagnostics_.warn("scan_geometry_mismatch", scan->line_number,
+                          "beam count, angles or laser mount differ from the first scan's; scan skipped");
+        continue;
+      }
+      const double stamp = stamps_.sanitize(scan->stamp_s, diagnostics_, scan->line_number);
+      const std::uint64_t this_index = index++;
+      const bool even = this_index % 2 == 0;
+      if (config_.consistency_grid != nullptr && !even) {
+        result_.consistency.add_scan(*config_.consistency_grid, *scan, traits_.range_min_m, range_max_m_);
+      }
+      if (config_.even_only && !even) continue;
+      if (!first_stamp) first_stamp = stamp;
+      if (!options_.as_fast_as_possible) {
+        const auto due = start + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>((stamp - *first_stamp) / options_.speed));
+        std::this_thread::sleep_until(due);
+      }
+      send_scan(*connection, this_index + 1, stamp, *scan);
+      ++result_.scans;
+      progress.update(source.progress(), result_.scans, seconds_since(start));
+    }
+    result_.duration_s = seconds_since(start);
+    progress.finish(result_.scans, result_.duration_s);
+    if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
+    v1::ClientMessage request;
+    request.mutable_grid()->set_request_id(1);
+    request.mutable_grid()->set_world(config_.world);
+    result_.grid = connection->call(request, 1, std::chrono::seconds(60)).grid();
+    return std::move(result_);
+  }
+
+ private:
+  client::Connection connect(const ScanRecord& first) {
+    auto connection = client::Connection::open(client::Endpoint::parse(options_.server));
+    v1::Hello hello;
+    hello.set_protocol_version(1);
+    hello.set_role(v1::ROLE_DRIVER);
+    hello.set_robot_id(config_.robot_id);
+    hello.set_world(config_.world);
+    hello.set_client_name("occgeo-replay");
+    connection.hello(hello);
+    v1::ClientMessage spec;
+    *spec.mutable_robot_spec() = make_spec(options_.format, first, traits_, range_max_m_);
+    connection.send(spec);
+    return connection;
+  }
+
+  void send_scan(client::Connection& connection, std::uint64_t seq, double stamp, const ScanRecord& scan) {
+    v1::ClientMessage odometry;
+    auto& odom = *odometry.mutable_odometry();
+    odom.set_seq(seq);
+    odom.set_stamp_s(stamp);
+    odom.mutable_pose()->set_x(scan.X_WB.x);
+    odom.mutable_pose()->set_y(scan.X_WB.y);
+    odom.mutable_pose()->set_theta(scan.X_WB.theta);
+    connection.send(odometry);
+    v1::ClientMessage message;
+    auto& laser = *message.mutable_laser_scan();
+    laser.set_sensor(traits_.sensor_name);
+    laser.set_seq(seq);
+    laser.set_stamp_s(stamp);
+    auto& ranges = *laser.mutable_ranges();
+    ranges.Reserve(static_cast<int>(scan.ranges_m.size()));
+    const auto range_max = static_cast<float>(range_max_m_);
+    for (const float r : scan.ranges_m) ranges.Add(r >= range_max ? range_max : r);  // +inf and far: no return
+    connection.send(message);
+    await_answer(connection, seq);
+  }
+
+  // Lockstep: wait for the scan's ScanAck (or its Error) so the server is never flooded.
+  void await_answer(client::Connection& connection, std::uint64_t seq) {
+    const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                             std::chrono::duration<double>(options_.ack_timeout_s));
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      if (left.count() <= 0) {
+        throw std::runtime_error("no answer to scan " + std::to_string(seq) + " within " + fmt(options_.ack_timeout_s) +
+                                 " s");
+      }
+      const auto message = connection.receive(left);
+      if (!message) continue;
+      if (message->has_scan_ack() && message->scan_ack().seq() == seq) {
+        ++result_.acked;
+        return;
+      }
+      if (!message->has_error()) continue;  // motion commands: a log cannot obey them
+      const v1::Error& error = message->error();
+      if (error.field().rfind("robot_spec", 0) == 0 || error.field().rfind("hello", 0) == 0) {
+        throw std::runtime_error("the server refused the robot spec: " + client::describe(error));
+      }
+      ++result_.errors;
+      if (result_.errors <= 5) err_ << "occgeo replay: server error: " << client::describe(error) << "\n";
+      if (result_.errors == 5) err_ << "occgeo replay: further server errors are counted but not printed\n";
+      if (error.seq() == seq && error.field().rfind("odometry", 0) != 0) return;  // the scan itself was rejected
+    }
+  }
+
+  const ReplayOptions& options_;
+  PassConfig config_;
+  Diagnostics& diagnostics_;
+  std::ostream& err_;
+  FormatTraits traits_;
+  double range_max_m_;
+  TimestampSanitizer stamps_;
+  PassResult result_;
+};
+
+OccupancyWindow window_of(const v1::GridReply& grid) {
+  OccupancyWindow window;
+  window.cell_size_m = grid.cell_size_m();
+  window.min_ix = grid.min_cell().ix();
+  window.min_iy = grid.min_cell().iy();
+  window.width = grid.width();
+  window.height = grid.height();
+  window.occupied_threshold = static_cast<int>(grid.occupied_threshold());
+  window.cells.assign(grid.cells().begin(), grid.cells().end());
+  return window;
+}
+
+}  // namespace
+
+bool OccupancyWindow::occupied_near(double x, double y) const {
+  if (width == 0 || height == 0 || cells.size() != static_cast<std::size_t>(width) * height) return false;
+  const auto ix = static_cast<std::int64_t>(std::floor(x / cell_size_m)) - min_ix;
+  const auto iy = static_cast<std::int64_t>(std::floor(y / cell_size_m)) - min_iy;
+  for (std::int64_t dy = -1; dy <= 1; ++dy) {
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      const std::int64_t cx = ix + dx, cy = iy + dy;
+      if (cx < 0 || cy < 0 || cx >= width || cy >= height) continue;
+      const std::uint8_t value = cells[static_cast<std::size_t>(cy * width + cx)];
+      if (value != mapfile::kUnobservedCertainty && value >= occupied_threshold) return true;
+    }
+  }
+  return false;
+}
+
+void ConsistencyCounter::add_scan(const OccupancyWindow& grid, const ScanRecord& scan, double range_min_m,
+                                  double range_max_m) {
+  const LogPose X_WS = scan.X_WB.compose(scan.X_BS);
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    const double r = scan.ranges_m[i];
+    if (!(r >= range_min_m && r < range_max_m)) continue;
+    const double angle = X_WS.theta + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
+    ++endpoints_;
+    if (grid.occupied_near(X_WS.x + r * std::cos(angle), X_WS.y + r * std::sin(angle))) ++hits_;
+  }
+}
+
+ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics, std::ostream& err) {
+  ReplaySummary summary;
+  std::optional<OccupancyWindow> even_grid;
+  if (options.consistency) {
+    Diagnostics quiet;  // the full pass reports the log's quirks; do not count them twice
+    PassConfig config{.world = options.world + "-even",
+                      .robot_id = options.robot_id + "-even",
+                      .even_only = true,
+                      .label = "even scans -> " + options.world + "-even",
+                      .consistency_grid = nullptr};
+    PassResult even = Pass(options, config, quiet, err).run();
+    summary.errors += even.errors;
+    even_grid = window_of(*even.grid);
+  }
+  PassConfig config{.world = options.world,
+                    .robot_id = options.robot_id,
+                    .even_only = false,
+                    .label = "scans -> " + options.world,
+                    .consistency_grid = even_grid ? &*even_grid : nullptr};
+  PassResult full = Pass(options, config, diagnostics, err).run();
+  summary.scans = full.scans;
+  summary.scans_acked = full.acked;
+  summary.errors += full.errors;
+  summary.duration_s = full.duration_s;
+  summary.scans_per_s = full.duration_s > 0.0 ? static_cast<double>(full.scans) / full.duration_s : 0.0;
+  if (options.consistency) {
+    summary.consistency = full.consistency.fraction();
+    summary.consistency_endpoints = full.consistency.endpoints();
+  }
+  if (!options.out_prefix.empty()) {
+    const v1::GridReply& grid = *full.grid;
+    if (grid.width() == 0 || grid.height() == 0) {
+      err << "occgeo replay: world '" << options.world << "' has no observed cells; no map written\n";
+    } else {
+      mapfile::CertaintyWindow window;
+      window.cell_size_m = grid.cell_size_m();
+      window.min_ix = grid.min_cell().ix();
+      window.min_iy = grid.min_cell().iy();
+      window.width = grid.width();
+      window.height = grid.height();
+      window.occupied_threshold = static_cast<int>(grid.occupied_threshold());
+      window.max_certainty = static_cast<int>(grid.max_certainty());
+      window.cells.assign(grid.cells().begin(), grid.cells().end());
+      const mapfile::OccupancyImage image = mapfile::image_from_certainty(window);
+      mapfile::write_map(options.out_prefix, image);
+      write_png_gray8(options.out_prefix + ".png", image.width, image.height, image.pixels);
+      summary.files_written = {options.out_prefix + ".pgm", options.out_prefix + ".yaml", options.out_prefix + ".png"};
+    }
+  }
+  return summary;
+}
+
+std::string summary_json(const ReplayOptions& options, const ReplaySummary& summary, const Diagnostics& diagnostics) {
+  std::ostringstream out;
+  out << "{\"format\":" << json_string(format_name(options.format))
+      << ",\"file\":" << json_string(options.file.string()) << ",\"world\":" << json_string(options.world)
+      << ",\"scans\":" << summary.scans << ",\"scans_acked\":" << summary.scans_acked
+      << ",\"errors\":" << summary.errors << ",\"warnings\":" << diagnostics.warnings()
+      << ",\"warnings_by_kind\":" << json_counts(diagnostics.warnings_by_kind())
+      << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
+      << ",\"no_return_beams\":" << diagnostics.no_return_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
+      << ",\"scans_per_s\":" << fmt(summary.scans_per_s)
+      << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
+  if (summary.consistency) {
+    out << ",\"consistency\":" << fmt(*summary.consistency)
+        << ",\"consistency_endpoints\":" << summary.consistency_endpoints;
+  }
+  out << ",\"files\":[";
+  for (std::size_t i = 0; i < summary.files_written.size(); ++i) {
+    out << (i ? "," : "") << json_string(summary.files_written[i]);
+  }
+  out << "]}";
+  return out.str();
+}
+
+}  // namespace occgeo::replay

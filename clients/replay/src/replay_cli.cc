@@ -1,0 +1,120 @@
+#include <cmath>
+#include <stdexcept>
+
+#include "occgeo/replay/replay.h"
+
+namespace occgeo::replay {
+namespace {
+
+double positive_number(const std::string& option, const std::string& value) {
+  std::size_t used = 0;
+  double number = 0.0;
+  try {
+    number = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != value.size() || !std::isfinite(number) || number <= 0.0) {
+    throw std::invalid_argument("option " + option + " needs a positive number, not '" + value + "'");
+  }
+  return number;
+}
+
+}  // namespace
+
+const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg FILE [options]
+Streams a recorded laser log (gzip or plain text) to occgeod as a driver: a RobotSpec matching the log's laser,
+then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck). Motion commands are ignored.
+  --server HOST:PORT   server address (default 127.0.0.1:7700)
+  --world W            world to map into (default "default")
+  --id ROBOT           robot id (default "replay")
+  --speed X            replay at X times the log's speed (default 1)
+  --max                as fast as the server answers
+  --max-range M        readings at or beyond M metres are sent as "no return"
+                       (default: carmen 30, dpslam 8, urg 5.6)
+  --consistency        first map the even scans into world W-even (robot ROBOT-even), then report the fraction of
+                       the odd scans' beam endpoints within one cell of an occupied cell of that map
+  --out PREFIX         write the final map of W as PREFIX.pgm + PREFIX.yaml (ROS map_server) and PREFIX.png
+  --json               print one JSON summary object on stdout
+Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are
+synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams).
+Exit code: 0 done, 1 failure or any server error, 2 usage.
+)";
+
+ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
+  ReplayOptions options;
+  bool have_format = false;
+  bool have_speed = false;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& arg = args[i];
+    const auto value = [&]() -> const std::string& {
+      if (i + 1 >= args.size()) throw std::invalid_argument("option " + arg + " needs a value");
+      return args[++i];
+    };
+    if (arg == "--format") {
+      const std::string& name = value();
+      const auto format = parse_format(name);
+      if (!format) throw std::invalid_argument("--format must be carmen, dpslam or urg, not '" + name + "'");
+      options.format = *format;
+      have_format = true;
+    } else if (arg == "--server") {
+      options.server = value();
+    } else if (arg == "--world") {
+      options.world = value();
+    } else if (arg == "--id") {
+      options.robot_id = value();
+    } else if (arg == "--speed") {
+      options.speed = positive_number(arg, value());
+      have_speed = true;
+    } else if (arg == "--max") {
+      options.as_fast_as_possible = true;
+    } else if (arg == "--max-range") {
+      options.max_range_m = positive_number(arg, value());
+    } else if (arg == "--out") {
+      options.out_prefix = value();
+    } else if (arg == "--json") {
+      options.json = true;
+    } else if (arg == "--consistency") {
+      options.consistency = true;
+    } else if (arg.rfind("--", 0) == 0) {
+      throw std::invalid_argument("unknown option '" + arg + "'");
+    } else if (options.file.empty()) {
+      options.file = arg;
+    } else {
+      throw std::invalid_argument("unexpected argument '" + arg + "' (one log file only)");
+    }
+  }
+  if (!have_format) throw std::invalid_argument("missing required option --format");
+  if (options.file.empty()) throw std::invalid_argument("missing the log FILE");
+  if (have_speed && options.as_fast_as_possible) throw std::invalid_argument("give --speed or --max, not both");
+  return options;
+}
+
+int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ReplayOptions options;
+  try {
+    options = parse_replay_args(args);
+  } catch (const std::invalid_argument& e) {
+    err << "occgeo replay: " << e.what() << "\n" << kReplayUsage;
+    return 2;
+  }
+  Diagnostics diagnostics(&err);
+  const ReplaySummary summary = run_replay(options, diagnostics, err);
+  if (options.json) {
+    out << summary_json(options, summary, diagnostics) << "\n";
+  } else {
+    out << summary.scans << " scans (" << summary.scans_acked << " accepted) in " << summary.duration_s << " s, "
+        << summary.scans_per_s << " scans/s; " << summary.errors << " server error(s), " << diagnostics.warnings()
+        << " warning(s)";
+    for (const auto& [kind, count] : diagnostics.warnings_by_kind()) out << " " << kind << "=" << count;
+    out << "\n";
+    if (summary.consistency) {
+      out << "consistency: " << *summary.consistency << " of " << summary.consistency_endpoints
+          << " odd-scan endpoints lie within one cell of an occupied cell of the even-scan map\n";
+    }
+    for (const auto& file : summary.files_written) out << "wrote " << file << "\n";
+  }
+  return summary.errors == 0 ? 0 : 1;
+}
+
+}  // namespace occgeo::replay
