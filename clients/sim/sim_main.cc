@@ -169,9 +169,9 @@ int main(int argc, char** argv) {
       return 0;
     }
     preset = occgeo::sim::configured_preset(options);
-    occgeo::sim::World world = [&] {
+    std::unique_ptr<occgeo::sim::SimWorld> world = [&] {
       try {
-        return occgeo::sim::load_world(options.world_file);
+        return occgeo::sim::load_sim_world(options.world_file);
       } catch (const occgeo::sim::WorldError& error) {
         throw occgeo::sim::ArgsError(std::string("--world: ") + error.what());
       }

@@ -131,7 +131,8 @@ SimOptions parse_args(const std::vector<std::string_view>& args) {
     }
     apply(options, flag, value);
   }
-  if (!options.help && options.world_file.empty()) fail("--world", "required: a ROS map_server YAML file");
+  if (!options.help && options.world_file.empty())
+    fail("--world", "required: a ROS map_server or shape world YAML file");
   return options;
 }
 
@@ -141,7 +142,7 @@ std::string usage() {
          "A simulated robot that connects to occgeod as a driver: it streams odometry and laser scans and\n"
          "drives by the motion commands it receives.\n"
          "\n"
-         "  --world FILE.yaml     ROS map_server world; occupied pixels are obstacles (required)\n"
+         "  --world FILE.yaml     ROS map_server world (occupied pixels are obstacles) or shape world (required)\n"
          "  --robot NAME          robot preset: " +
          robot_preset_names() +
          " (default bearcat)\n"
@@ -156,6 +157,7 @@ std::string usage() {
          "  --seed N              noise seed (default 1)\n"
          "  --json                print the summary as one JSON object on stdout\n"
          "  --visible-out FILE    write the obstacle pixels the laser hit, one \"col row\" line each\n"
+         "                        (pixel worlds only; empty for shape worlds)\n"
          "  --trace-out FILE      write the pose at each scan as CSV t,x,y,theta\n"
          "  --help                print this help\n";
 }

@@ -5,28 +5,15 @@
 #include <array>
 #include <cmath>
 
+#include "separating_axis.h"
+
 namespace occgeo::sim {
 
 namespace {
 
-// Lowest and highest projection of a set of points on one axis.
-struct Interval {
-  double lo;
-  double hi;
-};
-
-template <std::size_t N>
-Interval project(const std::array<Eigen::Vector2d, N>& points, const Eigen::Vector2d& axis) {
-  Interval interval{points[0].dot(axis), points[0].dot(axis)};
-  for (const Eigen::Vector2d& point : points) {
-    interval.lo = std::min(interval.lo, point.dot(axis));
-    interval.hi = std::max(interval.hi, point.dot(axis));
-  }
-  return interval;
-}
-
-// True when the open intervals share a point, i.e. the closed ones overlap by more than touching.
-bool overlaps(const Interval& a, const Interval& b) { return a.lo < b.hi && b.lo < a.hi; }
+using detail::Interval;
+using detail::overlaps;
+using detail::project;
 
 }  // namespace
 

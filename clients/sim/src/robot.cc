@@ -3,8 +3,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
-
-#include "occgeo/sim/footprint_collision.h"
+#include <utility>
 
 namespace occgeo::sim {
 
@@ -16,17 +15,27 @@ std::int64_t steps_in(double duration_s) { return std::llround(duration_s / kPhy
 }  // namespace
 
 SimulatedRobot::SimulatedRobot(const World& world, const RobotPreset& preset, const geometry::Pose2& X_WB)
-    : world_(&world),
+    : SimulatedRobot(std::make_shared<const PixelWorld>(world), preset, X_WB) {}
+
+SimulatedRobot::SimulatedRobot(std::shared_ptr<const SimWorld> owned_world, const RobotPreset& preset,
+                               const geometry::Pose2& X_WB)
+    : SimulatedRobot(owned_world, *owned_world, preset, X_WB) {}
+
+SimulatedRobot::SimulatedRobot(const SimWorld& world, const RobotPreset& preset, const geometry::Pose2& X_WB)
+    : SimulatedRobot(nullptr, world, preset, X_WB) {}
+
+SimulatedRobot::SimulatedRobot(std::shared_ptr<const SimWorld> owned_world, const SimWorld& world,
+                               const RobotPreset& preset, const geometry::Pose2& X_WB)
+    : owned_world_(std::move(owned_world)),
+      world_(&world),
       drive_(preset.drive),
       footprint_(preset.footprint),
       watchdog_steps_(steps_in(preset.command_timeout_s)),
       X_WB_(X_WB) {
-  if (const auto pixel = find_collision(world, footprint_, X_WB)) {
-    const Eigen::Vector2d center = world.center_of(*pixel);
+  if (const auto obstacle = world.find_collision(footprint_, X_WB, 0.0)) {
     std::ostringstream message;
-    message << "the footprint at (" << X_WB.x << ", " << X_WB.y << ", " << X_WB.theta
-            << ") collides with the obstacle pixel (col " << pixel->col << ", row " << pixel->row << ") centred at ("
-            << center.x() << ", " << center.y() << ")";
+    message << "the footprint at (" << X_WB.x << ", " << X_WB.y << ", " << X_WB.theta << ") collides with "
+            << *obstacle;
     throw std::invalid_argument(message.str());
   }
 }
@@ -53,10 +62,18 @@ void SimulatedRobot::step() {
   const geometry::WheelSpeeds wheels = wheel_speeds();
   ++step_count_;
   velocity_ = {};
-  if (wheels.left_mps == 0.0 && wheels.right_mps == 0.0) return;
+  if (wheels.left_mps == 0.0 && wheels.right_mps == 0.0) {
+    // Standing still: only a moving obstacle can run into the robot.
+    if (world_->has_moving_obstacles()) {
+      const bool contact = world_->find_collision(footprint_, X_WB_, time_s()).has_value();
+      if (contact && !in_contact_) ++collisions_;
+      in_contact_ = contact;
+    }
+    return;
+  }
   const geometry::BodyVelocity body = geometry::to_body(wheels, drive_);
   const geometry::Pose2 X_WB_next = geometry::integrate(X_WB_, body, kPhysicsStep_s);
-  if (find_collision(*world_, footprint_, X_WB_next)) {
+  if (world_->find_collision(footprint_, X_WB_next, time_s())) {
     if (!in_contact_) ++collisions_;
     in_contact_ = true;
     return;

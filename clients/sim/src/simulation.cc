@@ -24,10 +24,14 @@ std::int64_t scan_period_steps(const LaserPreset& laser) {
 }  // namespace
 
 Simulation::Simulation(World world, const RobotPreset& preset, const geometry::Pose2& X_WB_start, std::uint64_t seed)
-    : world_(std::move(world)),
+    : Simulation(std::make_unique<PixelWorld>(std::move(world)), preset, X_WB_start, seed) {}
+
+Simulation::Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& preset, const geometry::Pose2& X_WB_start,
+                       std::uint64_t seed)
+    : world_(world ? std::move(world) : throw std::invalid_argument("Simulation: the world must not be null")),
       sensor_name_(preset.laser.name),
       scan_period_steps_(scan_period_steps(preset.laser)),
-      robot_(world_, preset, X_WB_start),
+      robot_(*world_, preset, X_WB_start),
       laser_(preset.laser, seed) {}
 
 bool Simulation::scan_due() const {
@@ -37,7 +41,7 @@ bool Simulation::scan_due() const {
 ScanMessages Simulation::take_scan() {
   last_scan_step_ = robot_.step_count();
   ++scan_count_;
-  SimulatedScan scan = laser_.scan(world_, robot_.pose());
+  SimulatedScan scan = laser_.scan(*world_, robot_.pose(), robot_.time_s());
   visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
   return ScanMessages{.seq = scan_count_,
                       .odometry = make_odometry_message(scan_count_, robot_.time_s(), robot_.pose(), robot_.velocity()),

@@ -6,6 +6,7 @@
 #include "occgeo/geometry/pose.h"
 #include "occgeo/sim/noise.h"
 #include "occgeo/sim/presets.h"
+#include "occgeo/sim/sim_world.h"
 #include "occgeo/sim/world.h"
 
 namespace occgeo::sim {
@@ -28,8 +29,15 @@ class LaserSimulator {
 
   // Sweeps once from the robot's base_link pose X_WB.
   SimulatedScan scan(const World& world, const geometry::Pose2& X_WB);
+  // Sweeps once from the robot's base_link pose X_WB at sim time time_s, in the scan plane at the preset's mount
+  // height (obstacles not spanning that height are not seen).
+  SimulatedScan scan(const SimWorld& world, const geometry::Pose2& X_WB, double time_s);
 
  private:
+  // One sweep; cast(p_W, direction_W) gives the beam's std::optional<RayHit>.
+  template <typename Cast>
+  SimulatedScan sweep(const geometry::Pose2& X_WB, const Cast& cast);
+
   LaserPreset laser_;
   GaussianNoise noise_;
 };

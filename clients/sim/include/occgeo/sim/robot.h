@@ -1,10 +1,12 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/sim/presets.h"
+#include "occgeo/sim/sim_world.h"
 #include "occgeo/sim/world.h"
 
 namespace occgeo::sim {
@@ -26,6 +28,8 @@ class SimulatedRobot {
  public:
   // Places the robot at base_link pose X_WB at sim time 0. Throws std::invalid_argument naming the pixel when the
   // footprint collides with the world there. The world must outlive the robot.
+  SimulatedRobot(const SimWorld& world, const RobotPreset& preset, const geometry::Pose2& X_WB);
+  // The same for a pixel world, which the robot copies.
   SimulatedRobot(const World& world, const RobotPreset& preset, const geometry::Pose2& X_WB);
 
   // Drives the wheels at the command's speeds from now until the watchdog period, or the command's own expiry if
@@ -33,8 +37,9 @@ class SimulatedRobot {
   // path's curvature). A stop command, or one with non-finite speeds, stops the wheels now.
   void command(const WheelCommand& command);
 
-  // Advances sim time by one physics step. The robot moves only when the footprint at the new pose is clear; otherwise
-  // it stays put, and the first blocked step after moving freely counts as one collision.
+  // Advances sim time by one physics step. The robot moves only when the footprint at the new pose is clear at the new
+  // time; otherwise it stays put, and the first blocked step after moving freely counts as one collision. In a world
+  // with moving obstacles a standing robot is tested too, so an obstacle running into it counts as a collision.
   void step();
 
   // Physics steps taken since the start.
@@ -53,7 +58,12 @@ class SimulatedRobot {
   [[nodiscard]] std::uint64_t collisions() const { return collisions_; }
 
  private:
-  const World* world_;
+  SimulatedRobot(std::shared_ptr<const SimWorld> owned_world, const RobotPreset& preset, const geometry::Pose2& X_WB);
+  SimulatedRobot(std::shared_ptr<const SimWorld> owned_world, const SimWorld& world, const RobotPreset& preset,
+                 const geometry::Pose2& X_WB);
+
+  std::shared_ptr<const SimWorld> owned_world_;  // set only when the robot copied a pixel world
+  const SimWorld* world_;
   geometry::DifferentialDriveParams drive_;
   geometry::BoxFootprint footprint_;
   std::int64_t watchdog_steps_;

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 
@@ -9,6 +10,7 @@
 #include "occgeo/sim/laser.h"
 #include "occgeo/sim/presets.h"
 #include "occgeo/sim/robot.h"
+#include "occgeo/sim/sim_world.h"
 #include "occgeo/sim/world.h"
 #include "occgeo/v1/session.pb.h"
 
@@ -28,6 +30,9 @@ class Simulation {
   // Throws std::invalid_argument when the robot collides at the start pose X_WB_start or the laser's scan period is not
   // a positive whole number of physics steps.
   Simulation(World world, const RobotPreset& preset, const geometry::Pose2& X_WB_start, std::uint64_t seed);
+  // The same for any world (pixel or shape world); throws std::invalid_argument when world is null.
+  Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& preset, const geometry::Pose2& X_WB_start,
+             std::uint64_t seed);
   Simulation(const Simulation&) = delete;
   Simulation& operator=(const Simulation&) = delete;
 
@@ -40,7 +45,7 @@ class Simulation {
   // Advances sim time by one physics step.
   void step() { robot_.step(); }
 
-  [[nodiscard]] const World& world() const { return world_; }
+  [[nodiscard]] const SimWorld& world() const { return *world_; }
   [[nodiscard]] const SimulatedRobot& robot() const { return robot_; }
   // Scans taken so far.
   [[nodiscard]] std::uint64_t scan_count() const { return scan_count_; }
@@ -52,11 +57,11 @@ class Simulation {
   [[nodiscard]] const std::map<std::string, std::uint64_t>& state_counts() const { return state_counts_; }
   // The behaviour state of the last applied command; empty before the first.
   [[nodiscard]] const std::string& last_state() const { return last_state_; }
-  // Every obstacle pixel a noise-free beam of any scan so far entered.
+  // Every obstacle pixel a noise-free beam of any scan so far entered; always empty for shape worlds.
   [[nodiscard]] const std::set<Pixel>& visible_pixels() const { return visible_pixels_; }
 
  private:
-  World world_;
+  std::unique_ptr<SimWorld> world_;
   std::string sensor_name_;
   std::int64_t scan_period_steps_;
   SimulatedRobot robot_;

@@ -1,0 +1,370 @@
+#include "occgeo/sim/shape_world.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "separating_axis.h"
+
+namespace occgeo::sim {
+
+namespace {
+
+using detail::Interval;
+using detail::overlaps;
+using detail::project;
+
+double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+// The polygon's outward edge normals (counter-clockwise winding), not normalised.
+Eigen::Vector2d outward_normal(const std::vector<Eigen::Vector2d>& points, std::size_t i) {
+  const Eigen::Vector2d edge = points[(i + 1) % points.size()] - points[i];
+  return {edge.y(), -edge.x()};
+}
+
+std::vector<Eigen::Vector2d> footprint_corners(const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB) {
+  const double half_length = footprint.length / 2.0;
+  const double half_width = footprint.width / 2.0;
+  return {X_WB.transform({footprint.center_x + half_length, half_width}),
+          X_WB.transform({footprint.center_x - half_length, half_width}),
+          X_WB.transform({footprint.center_x - half_length, -half_width}),
+          X_WB.transform({footprint.center_x + half_length, -half_width})};
+}
+
+}  // namespace
+
+Shape Shape::circle(const Eigen::Vector2d& center, double radius_m) {
+  if (!(std::isfinite(radius_m) && radius_m > 0.0)) {
+    throw WorldError("circle radius must be positive and finite, got " + std::to_string(radius_m));
+  }
+  if (!center.allFinite()) throw WorldError("circle center must be finite");
+  Shape shape;
+  shape.kind = Kind::circle;
+  shape.center = center;
+  shape.radius_m = radius_m;
+  return shape;
+}
+
+Shape Shape::box(const Eigen::Vector2d& center, double length_m, double width_m, double yaw_rad) {
+  if (!(std::isfinite(length_m) && length_m > 0.0 && std::isfinite(width_m) && width_m > 0.0)) {
+    throw WorldError("box size must be positive and finite, got [" + std::to_string(length_m) + ", " +
+                     std::to_string(width_m) + "]");
+  }
+  if (!center.allFinite() || !std::isfinite(yaw_rad)) throw WorldError("box center and yaw must be finite");
+  const geometry::Pose2 X_WO{center.x(), center.y(), yaw_rad};
+  const double hl = length_m / 2.0;
+  const double hw = width_m / 2.0;
+  Shape shape = polygon(
+      {X_WO.transform({hl, hw}), X_WO.transform({-hl, hw}), X_WO.transform({-hl, -hw}), X_WO.transform({hl, -hw})});
+  shape.center = center;
+  return shape;
+}
+
+Shape Shape::polygon(std::vector<Eigen::Vector2d> points) {
+  if (points.size() < 3) throw WorldError("polygon needs at least 3 points, got " + std::to_string(points.size()));
+  for (const Eigen::Vector2d& point : points) {
+    if (!point.allFinite()) throw WorldError("polygon points must be finite");
+  }
+  double twice_area = 0.0;
+  for (std::size_t i = 0; i < points.size(); ++i) twice_area += cross(points[i], points[(i + 1) % points.size()]);
+  if (!(std::abs(twice_area) > 0.0)) throw WorldError("polygon has zero area");
+  if (twice_area < 0.0) std::reverse(points.begin(), points.end());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector2d& a = points[i];
+    const Eigen::Vector2d& b = points[(i + 1) % points.size()];
+    const Eigen::Vector2d& c = points[(i + 2) % points.size()];
+    if (cross(b - a, c - b) < 0.0) throw WorldError("polygon is not convex (at point " + std::to_string(i + 1) + ")");
+  }
+  Shape shape;
+  shape.kind = Kind::polygon;
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& point : points) sum += point;
+  shape.center = sum / static_cast<double>(points.size());
+  shape.points = std::move(points);
+  return shape;
+}
+
+Shape Shape::translated(const Eigen::Vector2d& offset) const {
+  Shape shape = *this;
+  shape.center += offset;
+  for (Eigen::Vector2d& point : shape.points) point += offset;
+  return shape;
+}
+
+Eigen::Vector2d MovingObstacle::center_at(double time_s) const {
+  if (waypoints.size() < 2 || !(time_s > 0.0) || !(speed_mps > 0.0)) return waypoints.front();
+  const std::size_t segments = loop ? waypoints.size() : waypoints.size() - 1;
+  double total_m = 0.0;
+  for (std::size_t i = 0; i < segments; ++i) {
+    total_m += (waypoints[(i + 1) % waypoints.size()] - waypoints[i]).norm();
+  }
+  if (!(total_m > 0.0)) return waypoints.front();
+  double s = speed_mps * time_s;
+  if (loop) {
+    s = std::fmod(s, total_m);
+  } else if (s >= total_m) {
+    return waypoints.back();
+  }
+  for (std::size_t i = 0; i < segments; ++i) {
+    const Eigen::Vector2d& a = waypoints[i];
+    const Eigen::Vector2d& b = waypoints[(i + 1) % waypoints.size()];
+    const double length_m = (b - a).norm();
+    if (s <= length_m && length_m > 0.0) return a + (b - a) * (s / length_m);
+    s -= length_m;
+  }
+  return loop ? waypoints.front() : waypoints.back();
+}
+
+std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W) {
+  if (shape.kind == Shape::Kind::circle) {
+    const Eigen::Vector2d m = p_W - shape.center;
+    const double b = m.dot(direction_W);
+    const double c = m.squaredNorm() - shape.radius_m * shape.radius_m;
+    const double discriminant = b * b - c;
+    if (!(discriminant > 0.0)) return std::nullopt;  // misses or only touches
+    const double root = std::sqrt(discriminant);
+    const double exit = -b + root;
+    if (!(exit > 0.0)) return std::nullopt;
+    return std::max(-b - root, 0.0);
+  }
+  // Cyrus-Beck clipping against the open half-planes of a counter-clockwise convex polygon.
+  double enter = 0.0;
+  double exit = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < shape.points.size(); ++i) {
+    const Eigen::Vector2d normal = outward_normal(shape.points, i);
+    const double offset = normal.dot(p_W - shape.points[i]);  // < 0 inside this edge's half-plane
+    const double rate = normal.dot(direction_W);
+    if (rate == 0.0) {
+      if (offset >= 0.0) return std::nullopt;  // parallel, outside or along the edge
+    } else if (rate < 0.0) {
+      enter = std::max(enter, -offset / rate);
+    } else {
+      exit = std::min(exit, -offset / rate);
+    }
+  }
+  if (!(enter < exit)) return std::nullopt;
+  return enter;
+}
+
+bool footprint_overlaps(const Shape& shape, const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB) {
+  if (shape.kind == Shape::Kind::circle) {
+    const Eigen::Vector2d q = X_WB.inverse().transform(shape.center) - Eigen::Vector2d(footprint.center_x, 0.0);
+    const Eigen::Vector2d nearest(std::clamp(q.x(), -footprint.length / 2.0, footprint.length / 2.0),
+                                  std::clamp(q.y(), -footprint.width / 2.0, footprint.width / 2.0));
+    return (q - nearest).squaredNorm() < shape.radius_m * shape.radius_m;
+  }
+  const std::vector<Eigen::Vector2d> box = footprint_corners(footprint, X_WB);
+  std::vector<Eigen::Vector2d> axes;
+  for (std::size_t i = 0; i < 2; ++i) axes.push_back(outward_normal(box, i));
+  for (std::size_t i = 0; i < shape.points.size(); ++i) axes.push_back(outward_normal(shape.points, i));
+  return std::all_of(axes.begin(), axes.end(), [&](const Eigen::Vector2d& axis) {
+    return overlaps(project(box, axis), project(shape.points, axis));
+  });
+}
+
+std::optional<RayHit> ShapeWorld::cast(const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W,
+                                       double max_range_m, double time_s, double height_m) const {
+  if (!p_W.allFinite() || !direction_W.allFinite() || !(max_range_m >= 0.0) || !std::isfinite(time_s)) {
+    throw std::invalid_argument("cast: inputs must be finite and max_range_m >= 0");
+  }
+  std::optional<double> best;
+  const auto consider = [&](const Shape& shape) {
+    if (!shape.spans_height(height_m)) return;
+    const auto distance = ray_distance(shape, p_W, direction_W);
+    if (distance && (!best || *distance < *best)) best = distance;
+  };
+  for (const Shape& shape : shapes_) consider(shape);
+  for (const MovingObstacle& obstacle : moving_) consider(obstacle.shape_at(time_s));
+  if (!best || !(*best < max_range_m)) return std::nullopt;
+  return RayHit{.distance_m = *best, .pixels = {}};
+}
+
+std::optional<std::string> ShapeWorld::find_collision(const geometry::BoxFootprint& footprint,
+                                                      const geometry::Pose2& X_WB, double time_s) const {
+  for (const Shape& shape : shapes_) {
+    if (shape.overlaps_heights(0.0, footprint.height) && footprint_overlaps(shape, footprint, X_WB)) return shape.name;
+  }
+  for (const MovingObstacle& obstacle : moving_) {
+    const Shape shape = obstacle.shape_at(time_s);
+    if (shape.overlaps_heights(0.0, footprint.height) && footprint_overlaps(shape, footprint, X_WB)) {
+      std::ostringstream where;
+      where << shape.name << " at (" << shape.center.x() << ", " << shape.center.y() << ") at t = " << time_s << " s";
+      return where.str();
+    }
+  }
+  return std::nullopt;
+}
+
+// ---- YAML ----
+
+namespace {
+
+class Parser {
+ public:
+  explicit Parser(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const std::string& path, const std::string& message) const {
+    throw WorldError(source_ + ": " + path + ": " + message);
+  }
+
+  void check_keys(const YAML::Node& node, const std::string& path, const std::set<std::string>& allowed) const {
+    if (!node.IsMap()) fail(path, "expected a mapping");
+    for (const auto& entry : node) {
+      const std::string key = entry.first.as<std::string>();
+      if (!allowed.contains(key)) {
+        std::string names;
+        for (const std::string& name : allowed) names += (names.empty() ? "" : ", ") + name;
+        fail(path.empty() ? key : path + "." + key, "unknown key '" + key + "' (expected one of: " + names + ")");
+      }
+    }
+  }
+
+  double number(const YAML::Node& node, const std::string& path) const {
+    double value = 0.0;
+    if (!node.IsScalar() || !YAML::convert<double>::decode(node, value) || !std::isfinite(value)) {
+      fail(path, "expected a finite number");
+    }
+    return value;
+  }
+
+  Eigen::Vector2d point(const YAML::Node& node, const std::string& path) const {
+    if (!node.IsSequence() || node.size() != 2) fail(path, "expected [x, y]");
+    return {number(node[0], path + "[0]"), number(node[1], path + "[1]")};
+  }
+
+  std::vector<Eigen::Vector2d> points(const YAML::Node& node, const std::string& path) const {
+    if (!node.IsSequence() || node.size() == 0) fail(path, "expected a non-empty list of [x, y]");
+    std::vector<Eigen::Vector2d> result;
+    for (std::size_t i = 0; i < node.size(); ++i)
+      result.push_back(point(node[i], path + "[" + std::to_string(i) + "]"));
+    return result;
+  }
+
+  const YAML::Node required(const YAML::Node& node, const std::string& key, const std::string& path) const {
+    const YAML::Node value = node[key];
+    if (!value) fail(path, "missing key '" + key + "'");
+    return value;
+  }
+
+  // One shape entry: a mapping with exactly one of circle / box / polygon. center_optional for moving obstacles.
+  Shape shape(const YAML::Node& node, const std::string& path, bool moving) const {
+    if (!node.IsMap() || node.size() != 1) fail(path, "expected one of circle:, box:, polygon:");
+    const std::string kind = node.begin()->first.as<std::string>();
+    const YAML::Node params = node.begin()->second;
+    const std::string at = path + "." + kind;
+    Shape result;
+    try {
+      if (kind == "circle") {
+        check_keys(params, at, {"center", "radius", "base_height", "top_height"});
+        const Eigen::Vector2d center = moving && !params["center"]
+                                           ? Eigen::Vector2d::Zero()
+                                           : point(required(params, "center", at), at + ".center");
+        result = Shape::circle(center, number(required(params, "radius", at), at + ".radius"));
+      } else if (kind == "box") {
+        check_keys(params, at, {"center", "size", "yaw", "base_height", "top_height"});
+        const Eigen::Vector2d center = moving && !params["center"]
+                                           ? Eigen::Vector2d::Zero()
+                                           : point(required(params, "center", at), at + ".center");
+        const Eigen::Vector2d size = point(required(params, "size", at), at + ".size");
+        const double yaw = params["yaw"] ? number(params["yaw"], at + ".yaw") : 0.0;
+        result = Shape::box(center, size.x(), size.y(), yaw);
+      } else if (kind == "polygon" && !moving) {
+        check_keys(params, at, {"points", "base_height", "top_height"});
+        result = Shape::polygon(points(required(params, "points", at), at + ".points"));
+      } else {
+        fail(path + "." + kind,
+             "unknown key '" + kind + "' (expected one of: circle, box" + (moving ? "" : ", polygon") + ")");
+      }
+    } catch (const WorldError& error) {
+      const std::string message = error.what();
+      if (message.starts_with(source_ + ": ")) throw;
+      fail(at, message);
+    }
+    result.base_height_m =
+        params["base_height"] ? number(params["base_height"], at + ".base_height") : kDefaultShapeBaseHeight_m;
+    result.top_height_m =
+        params["top_height"] ? number(params["top_height"], at + ".top_height") : kDefaultShapeTopHeight_m;
+    if (!(result.base_height_m >= 0.0 && result.top_height_m > result.base_height_m)) {
+      fail(at, "need 0 <= base_height < top_height, got " + std::to_string(result.base_height_m) + " and " +
+                   std::to_string(result.top_height_m));
+    }
+    result.name = path + " (" + kind + ")";
+    return result;
+  }
+
+  ShapeWorld world(const YAML::Node& root) const {
+    if (!root.IsMap()) fail("(top level)", "expected a mapping");
+    check_keys(root, "", {"occgeo_world", "bounds", "shapes", "moving"});
+    if (!root["shapes"] && !root["occgeo_world"])
+      fail("(top level)", "a shape world needs 'shapes:' or 'occgeo_world: 1'");
+    if (root["occgeo_world"] && number(root["occgeo_world"], "occgeo_world") != 1.0) {
+      fail("occgeo_world", "only version 1 is supported");
+    }
+    std::optional<std::pair<Eigen::Vector2d, Eigen::Vector2d>> bounds;
+    if (root["bounds"]) {
+      const std::vector<Eigen::Vector2d> corners = points(root["bounds"], "bounds");
+      if (corners.size() != 2 || !(corners[0].x() < corners[1].x() && corners[0].y() < corners[1].y())) {
+        fail("bounds", "expected [[xmin, ymin], [xmax, ymax]] with min < max");
+      }
+      bounds = std::pair{corners[0], corners[1]};
+    }
+    std::vector<Shape> shapes;
+    if (const YAML::Node list = root["shapes"]; list && !list.IsNull()) {
+      if (!list.IsSequence()) fail("shapes", "expected a list");
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        shapes.push_back(shape(list[i], "shapes[" + std::to_string(i) + "]", false));
+      }
+    }
+    std::vector<MovingObstacle> moving;
+    if (const YAML::Node list = root["moving"]; list && !list.IsNull()) {
+      if (!list.IsSequence()) fail("moving", "expected a list");
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        const std::string at = "moving[" + std::to_string(i) + "]";
+        const YAML::Node entry = list[i];
+        check_keys(entry, at, {"shape", "waypoints", "speed", "loop"});
+        MovingObstacle obstacle;
+        obstacle.shape = shape(required(entry, "shape", at), at + ".shape", true);
+        obstacle.shape.name = at + " (" + entry["shape"].begin()->first.as<std::string>() + ")";
+        obstacle.waypoints = points(required(entry, "waypoints", at), at + ".waypoints");
+        obstacle.speed_mps = number(required(entry, "speed", at), at + ".speed");
+        if (!(obstacle.speed_mps >= 0.0)) fail(at + ".speed", "must be >= 0");
+        if (entry["loop"]) {
+          if (!YAML::convert<bool>::decode(entry["loop"], obstacle.loop)) fail(at + ".loop", "expected true or false");
+        }
+        moving.push_back(std::move(obstacle));
+      }
+    }
+    return ShapeWorld(std::move(shapes), std::move(moving), bounds);
+  }
+
+ private:
+  std::string source_;
+};
+
+}  // namespace
+
+ShapeWorld ShapeWorld::parse(const std::string& yaml_text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& error) {
+    throw WorldError(source + ": not valid YAML: " + error.what());
+  }
+  return Parser(source).world(root);
+}
+
+ShapeWorld ShapeWorld::load(const std::filesystem::path& yaml_path) {
+  std::ifstream in(yaml_path);
+  if (!in) throw WorldError(yaml_path.string() + ": cannot open the file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse(text.str(), yaml_path.string());
+}
+
+}  // namespace occgeo::sim
