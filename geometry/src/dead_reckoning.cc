@@ -66,7 +66,7 @@ EncoderParams activitybot_encoder_params() {
 }
 
 EncoderParams minesrover_encoder_params() {
-  // /work/shared/datasets/urg04lx-mines/SOURCE.txt: "2000 ticks per wheel revolution; wheel radius 77 mm, half axle
+  // shared/datasets/urg04lx-mines/SOURCE.txt: "2000 ticks per wheel revolution; wheel radius 77 mm, half axle
   // 165 mm, as used by BreezySLAM for this robot". The log does not state the counter width: 32 bits is the default.
   EncoderParams params;
   params.ticks_per_revolution = 2000.0;
