@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/replay/replay.h"
 
@@ -237,16 +238,7 @@ int run_map_export(const Options& options) {
     std::cerr << "occgeo: world '" << grid.world() << "' has no cells observed yet; nothing written\n";
     return 1;
   }
-  occgeo::mapfile::CertaintyWindow window;
-  window.cell_size_m = grid.cell_size_m();
-  window.min_ix = grid.min_cell().ix();
-  window.min_iy = grid.min_cell().iy();
-  window.width = grid.width();
-  window.height = grid.height();
-  window.occupied_threshold = static_cast<int>(grid.occupied_threshold());
-  window.max_certainty = static_cast<int>(grid.max_certainty());
-  window.cells.assign(grid.cells().begin(), grid.cells().end());
-  occgeo::mapfile::write_map(prefix, occgeo::mapfile::image_from_certainty(window));
+  occgeo::mapfile::write_map(prefix, occgeo::mapfile::image_from_certainty(occgeo::client::certainty_window(grid)));
   if (options.json) {
     std::cout << "{\"pgm\":" << json_string(prefix + ".pgm") << ",\"yaml\":" << json_string(prefix + ".yaml")
               << ",\"width\":" << grid.width() << ",\"height\":" << grid.height() << ",\"version\":" << grid.version()

@@ -171,7 +171,7 @@ TEST(ReplayArgs, ParsesOptionsAndNamesMistakes) {
 TEST(Consistency, CountsEndpointsWithinOneCellOfAnOccupiedCell) {
   // 5 x 5 cells of 0.1 m from (0, 0); cell (3, 2) is occupied, (1, 4) only at certainty 2 (below threshold 3), the
   // rest free; (4, 4) never observed.
-  OccupancyWindow grid;
+  mapfile::CertaintyWindow grid;
   grid.cell_size_m = 0.1;
   grid.width = 5;
   grid.height = 5;
@@ -180,11 +180,11 @@ TEST(Consistency, CountsEndpointsWithinOneCellOfAnOccupiedCell) {
   grid.cells[2 * 5 + 3] = 7;
   grid.cells[4 * 5 + 1] = 2;
   grid.cells[4 * 5 + 4] = 255;
-  EXPECT_TRUE(grid.occupied_near(0.35, 0.25));
-  EXPECT_TRUE(grid.occupied_near(0.21, 0.11));   // diagonal neighbour cell (2, 1)
-  EXPECT_FALSE(grid.occupied_near(0.15, 0.25));  // two cells away
-  EXPECT_FALSE(grid.occupied_near(0.15, 0.45));  // next to a cell below the threshold only
-  EXPECT_FALSE(grid.occupied_near(-5.0, 9.0));   // outside the window
+  EXPECT_TRUE(occupied_near(grid, 0.35, 0.25));
+  EXPECT_TRUE(occupied_near(grid, 0.21, 0.11));   // diagonal neighbour cell (2, 1)
+  EXPECT_FALSE(occupied_near(grid, 0.15, 0.25));  // two cells away
+  EXPECT_FALSE(occupied_near(grid, 0.15, 0.45));  // next to a cell below the threshold only
+  EXPECT_FALSE(occupied_near(grid, -5.0, 9.0));   // outside the window
 
   // A sensor at (0.05, 0.25) looking along +x, mounted 0.05 m ahead of base_link: beams straight ahead (0.3 m, hit),
   // at +90 deg (0.2 m, to (0.05, 0.45): miss); the no-return and too-short beams do not count.

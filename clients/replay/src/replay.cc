@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_file.h"
 #include "occgeo/replay/line_source.h"
@@ -146,7 +147,7 @@ struct PassConfig {
   std::string robot_id;
   bool even_only = false;
   std::string label;
-  const OccupancyWindow* consistency_grid = nullptr;  // count odd scans' endpoints against this grid
+  const mapfile::CertaintyWindow* consistency_grid = nullptr;  // count odd scans' endpoints against this grid
 };
 
 struct PassResult {
@@ -292,36 +293,26 @@ class Pass {
   PassResult result_;
 };
 
-OccupancyWindow window_of(const v1::GridReply& grid) {
-  OccupancyWindow window;
-  window.cell_size_m = grid.cell_size_m();
-  window.min_ix = grid.min_cell().ix();
-  window.min_iy = grid.min_cell().iy();
-  window.width = grid.width();
-  window.height = grid.height();
-  window.occupied_threshold = static_cast<int>(grid.occupied_threshold());
-  window.cells.assign(grid.cells().begin(), grid.cells().end());
-  return window;
-}
-
 }  // namespace
 
-bool OccupancyWindow::occupied_near(double x, double y) const {
-  if (width == 0 || height == 0 || cells.size() != static_cast<std::size_t>(width) * height) return false;
-  const auto ix = static_cast<std::int64_t>(std::floor(x / cell_size_m)) - min_ix;
-  const auto iy = static_cast<std::int64_t>(std::floor(y / cell_size_m)) - min_iy;
+bool occupied_near(const mapfile::CertaintyWindow& grid, double x, double y) {
+  if (grid.width == 0 || grid.height == 0 || grid.cells.size() != static_cast<std::size_t>(grid.width) * grid.height) {
+    return false;
+  }
+  const auto ix = static_cast<std::int64_t>(std::floor(x / grid.cell_size_m)) - grid.min_ix;
+  const auto iy = static_cast<std::int64_t>(std::floor(y / grid.cell_size_m)) - grid.min_iy;
   for (std::int64_t dy = -1; dy <= 1; ++dy) {
     for (std::int64_t dx = -1; dx <= 1; ++dx) {
       const std::int64_t cx = ix + dx, cy = iy + dy;
-      if (cx < 0 || cy < 0 || cx >= width || cy >= height) continue;
-      const std::uint8_t value = cells[static_cast<std::size_t>(cy * width + cx)];
-      if (value != mapfile::kUnobservedCertainty && value >= occupied_threshold) return true;
+      if (cx < 0 || cy < 0 || cx >= grid.width || cy >= grid.height) continue;
+      const std::uint8_t value = grid.cells[static_cast<std::size_t>(cy * grid.width + cx)];
+      if (value != mapfile::kUnobservedCertainty && value >= grid.occupied_threshold) return true;
     }
   }
   return false;
 }
 
-void ConsistencyCounter::add_scan(const OccupancyWindow& grid, const ScanRecord& scan, double range_min_m,
+void ConsistencyCounter::add_scan(const mapfile::CertaintyWindow& grid, const ScanRecord& scan, double range_min_m,
                                   double range_max_m) {
   const LogPose X_WS = scan.X_WB.compose(scan.X_BS);
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
@@ -329,13 +320,13 @@ void ConsistencyCounter::add_scan(const OccupancyWindow& grid, const ScanRecord&
     if (!(r >= range_min_m && r < range_max_m)) continue;
     const double angle = X_WS.theta + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
     ++endpoints_;
-    if (grid.occupied_near(X_WS.x + r * std::cos(angle), X_WS.y + r * std::sin(angle))) ++hits_;
+    if (occupied_near(grid, X_WS.x + r * std::cos(angle), X_WS.y + r * std::sin(angle))) ++hits_;
   }
 }
 
 ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics, std::ostream& err) {
   ReplaySummary summary;
-  std::optional<OccupancyWindow> even_grid;
+  std::optional<mapfile::CertaintyWindow> even_grid;
   if (options.consistency) {
     Diagnostics quiet;  // the full pass reports the log's quirks; do not count them twice
     PassConfig config{.world = options.world + "-even",
@@ -345,7 +336,7 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
                       .consistency_grid = nullptr};
     PassResult even = Pass(options, config, quiet, err).run();
     summary.errors += even.errors;
-    even_grid = window_of(*even.grid);
+    even_grid = client::certainty_window(*even.grid);
   }
   PassConfig config{.world = options.world,
                     .robot_id = options.robot_id,
@@ -367,16 +358,7 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
     if (grid.width() == 0 || grid.height() == 0) {
       err << "occgeo replay: world '" << options.world << "' has no observed cells; no map written\n";
     } else {
-      mapfile::CertaintyWindow window;
-      window.cell_size_m = grid.cell_size_m();
-      window.min_ix = grid.min_cell().ix();
-      window.min_iy = grid.min_cell().iy();
-      window.width = grid.width();
-      window.height = grid.height();
-      window.occupied_threshold = static_cast<int>(grid.occupied_threshold());
-      window.max_certainty = static_cast<int>(grid.max_certainty());
-      window.cells.assign(grid.cells().begin(), grid.cells().end());
-      const mapfile::OccupancyImage image = mapfile::image_from_certainty(window);
+      const mapfile::OccupancyImage image = mapfile::image_from_certainty(client::certainty_window(grid));
       mapfile::write_map(options.out_prefix, image);
       write_png_gray8(options.out_prefix + ".png", image.width, image.height, image.pixels);
       summary.files_written = {options.out_prefix + ".pgm", options.out_prefix + ".yaml", options.out_prefix + ".png"};

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/replay/diagnostics.h"
 #include "occgeo/replay/parsers.h"
 
@@ -32,24 +33,14 @@ struct ReplayOptions {
 // Parses the arguments after "replay"; throws std::invalid_argument with a message naming the option.
 ReplayOptions parse_replay_args(const std::vector<std::string>& args);
 
-// A grid fetched from the server (GridReply), for the consistency check.
-struct OccupancyWindow {
-  double cell_size_m = 0.1;
-  std::int32_t min_ix = 0;
-  std::int32_t min_iy = 0;
-  std::uint32_t width = 0;
-  std::uint32_t height = 0;
-  int occupied_threshold = 3;
-  std::vector<std::uint8_t> cells;  // row-major, row 0 at min_iy; 255 = unobserved
-
-  // True when the cell holding world point (x, y) or one of its 8 neighbours has certainty >= occupied_threshold.
-  [[nodiscard]] bool occupied_near(double x, double y) const;
-};
+// True when the cell of `grid` holding world point (x, y) or one of its 8 neighbours has certainty >= the grid's
+// occupied threshold.
+bool occupied_near(const mapfile::CertaintyWindow& grid, double x, double y);
 
 // Fraction of beam endpoints (range_min <= range < range_max) that land within one cell of an occupied cell.
 class ConsistencyCounter {
  public:
-  void add_scan(const OccupancyWindow& grid, const ScanRecord& scan, double range_min_m, double range_max_m);
+  void add_scan(const mapfile::CertaintyWindow& grid, const ScanRecord& scan, double range_min_m, double range_max_m);
   [[nodiscard]] std::uint64_t endpoints() const { return endpoints_; }
   [[nodiscard]] std::uint64_t hits() const { return hits_; }
   [[nodiscard]] double fraction() const {
