@@ -10,6 +10,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "../support/temp_dir.h"
 #include "occgeo/replay/line_source.h"
 #include "occgeo/replay/png.h"
 #include "occgeo/replay/replay.h"
@@ -87,27 +88,8 @@ TEST(Png, RejectsInconsistentSizes) {
 }
 
 // A directory under the system temp dir, removed afterwards.
-class ScratchDir {
- public:
-  ScratchDir() {
-    path_ = std::filesystem::temp_directory_path() /
-            ("occgeo-replay-test-" + std::to_string(std::random_device{}()) + std::to_string(::getpid()));
-    std::filesystem::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
 TEST(LineSource, ReadsGzipDetectedByMagicBytesAndPlainTextAlike) {
-  ScratchDir dir;
+  occgeo::testing::TempDir dir;
   const std::string text = "first line\r\nsecond\n\n" + std::string(20000, 'x') + "\nlast without newline";
   const auto gz_path = dir.path() / "log.txt";  // no .gz suffix: detection is by content
   {

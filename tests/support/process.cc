@@ -8,7 +8,6 @@
 
 #include <cstring>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -59,24 +58,6 @@ std::optional<int> wait_for(pid_t pid, std::chrono::milliseconds limit) {
 }
 
 }  // namespace
-
-TempDir::TempDir() {
-  std::random_device seed;
-  const auto base = std::filesystem::temp_directory_path();
-  for (int attempt = 0; attempt < 100; ++attempt) {
-    auto candidate = base / ("occgeo-test-" + std::to_string(seed()));
-    if (std::filesystem::create_directory(candidate)) {
-      path_ = candidate;
-      return;
-    }
-  }
-  throw std::runtime_error("cannot create a temporary directory");
-}
-
-TempDir::~TempDir() {
-  std::error_code ignored;
-  std::filesystem::remove_all(path_, ignored);
-}
 
 std::filesystem::path binary(const std::string& relative) {
   return std::filesystem::path(OCCGEO_BINARY_DIR) / relative;

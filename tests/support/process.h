@@ -10,20 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "temp_dir.h"
+
 namespace occgeo::testing {
-
-// A fresh directory under the system temp dir, removed with everything in it on destruction.
-class TempDir {
- public:
-  TempDir();
-  ~TempDir();
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
 
 // Path of a built program, e.g. binary("service/occgeod").
 std::filesystem::path binary(const std::string& relative);

@@ -16,7 +16,7 @@ class TempDir {
     std::random_device entropy;
     const auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
     path_ = std::filesystem::temp_directory_path() /
-            ("occgeo_mapping_test_" + std::to_string(stamp) + "_" + std::to_string(entropy()));
+            ("occgeo-test-" + std::to_string(stamp) + "_" + std::to_string(entropy()));
     std::filesystem::create_directories(path_);
   }
   ~TempDir() {
