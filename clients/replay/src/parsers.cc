@@ -87,14 +87,11 @@ std::string text(std::size_t n) { return std::to_string(n); }
 // CARMEN logs: FLASER and ROBOTLASER1 scans; PARAM robot_frontlaser_offset; everything else is counted and ignored.
 class CarmenParser : public LineParser {
  public:
-  explicit CarmenParser(Diagnostics& diagnostics) : diagnostics_(diagnostics) {}
+  using LineParser::LineParser;
 
-  std::optional<ScanRecord> parse_line(std::string_view line, std::size_t line_number) override {
-    const auto tokens = split(line);
-    if (tokens.empty()) {
-      diagnostics_.ignore_line("empty");
-      return std::nullopt;
-    }
+ protected:
+  std::optional<ScanRecord> parse_tokens(const std::vector<std::string_view>& tokens,
+                                         std::size_t line_number) override {
     if (tokens[0].front() == '#') {
       diagnostics_.ignore_line("comment");
       return std::nullopt;
@@ -213,21 +210,17 @@ class CarmenParser : public LineParser {
   // LMS reaches 81 m.
   static constexpr double kCarmenSentinelM = 81.0;
 
-  Diagnostics& diagnostics_;
   double frontlaser_offset_m_ = 0.0;
 };
 
 // DP-SLAM: "Odometry x y theta" then "Laser 181 r_1..r_181", no timestamps.
 class DpSlamParser : public LineParser {
  public:
-  explicit DpSlamParser(Diagnostics& diagnostics) : diagnostics_(diagnostics) {}
+  using LineParser::LineParser;
 
-  std::optional<ScanRecord> parse_line(std::string_view line, std::size_t line_number) override {
-    const auto tokens = split(line);
-    if (tokens.empty()) {
-      diagnostics_.ignore_line("empty");
-      return std::nullopt;
-    }
+ protected:
+  std::optional<ScanRecord> parse_tokens(const std::vector<std::string_view>& tokens,
+                                         std::size_t line_number) override {
     if (tokens[0] == "Odometry") {
       if (tokens.size() < 4) {
         diagnostics_.warn("truncated_line", line_number, "Odometry needs x y theta; line skipped");
@@ -283,21 +276,17 @@ class DpSlamParser : public LineParser {
  private:
   // 8.191 m is the LMS "no return" in 8 m mode; the log also holds 8.183 and 8.187 for the same.
   static constexpr double kSentinelM = 8.18;
-  Diagnostics& diagnostics_;
   std::optional<LogPose> pending_;
 };
 
 // CoreSLAM/tinySLAM exp1.dat: f[0] microseconds, f[2]/f[3] encoder ticks, f[24..705] ranges in mm (0: no return).
 class UrgParser : public LineParser {
  public:
-  explicit UrgParser(Diagnostics& diagnostics) : diagnostics_(diagnostics) {}
+  using LineParser::LineParser;
 
-  std::optional<ScanRecord> parse_line(std::string_view line, std::size_t line_number) override {
-    const auto tokens = split(line);
-    if (tokens.empty()) {
-      diagnostics_.ignore_line("empty");
-      return std::nullopt;
-    }
+ protected:
+  std::optional<ScanRecord> parse_tokens(const std::vector<std::string_view>& tokens,
+                                         std::size_t line_number) override {
     if (tokens.size() < kFirstRange + kBeams) {
       diagnostics_.warn(
           "truncated_line", line_number,
@@ -341,11 +330,19 @@ class UrgParser : public LineParser {
   static constexpr std::size_t kFirstRange = 24;
   static constexpr std::size_t kBeams = 682;
   static constexpr double kFovRad = 240.0 * kPi / 180.0;
-  Diagnostics& diagnostics_;
   geometry::EncoderOdometry odometry_{geometry::minesrover_encoder_params()};
 };
 
 }  // namespace
+
+std::optional<ScanRecord> LineParser::parse_line(std::string_view line, std::size_t line_number) {
+  const auto tokens = split(line);
+  if (tokens.empty()) {
+    diagnostics_.ignore_line("empty");
+    return std::nullopt;
+  }
+  return parse_tokens(tokens, line_number);
+}
 
 std::optional<LogFormat> parse_format(std::string_view name) {
   if (name == "carmen") return LogFormat::carmen;

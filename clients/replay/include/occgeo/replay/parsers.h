@@ -40,9 +40,21 @@ struct ScanRecord {
 // Every quirk is reported to the Diagnostics: a malformed line is skipped whole, never half-used.
 class LineParser {
  public:
+  explicit LineParser(Diagnostics& diagnostics) : diagnostics_(diagnostics) {}
   virtual ~LineParser() = default;
-  // The scan completed by this line, if any. `line_number` is 1-based and only used in warnings.
-  virtual std::optional<ScanRecord> parse_line(std::string_view line, std::size_t line_number) = 0;
+  LineParser(const LineParser&) = delete;
+  LineParser& operator=(const LineParser&) = delete;
+
+  // The scan completed by this line, if any. `line_number` is 1-based and only used in warnings. Blank lines are
+  // counted as ignored ("empty") here, for every format.
+  std::optional<ScanRecord> parse_line(std::string_view line, std::size_t line_number);
+
+ protected:
+  // The format's reading of one non-blank line split at whitespace.
+  virtual std::optional<ScanRecord> parse_tokens(const std::vector<std::string_view>& tokens,
+                                                 std::size_t line_number) = 0;
+
+  Diagnostics& diagnostics_;
 };
 
 std::unique_ptr<LineParser> make_parser(LogFormat format, Diagnostics& diagnostics);
