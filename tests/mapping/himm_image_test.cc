@@ -7,10 +7,10 @@
 #include <string>
 #include <vector>
 
+#include "../support/temp_dir.h"
 #include "cell_printer.h"
 #include "occgeo/mapfile/map_file.h"
 #include "occgeo/mapping/himm_grid.h"
-#include "../support/temp_dir.h"
 
 namespace occgeo::mapping {
 namespace {
