@@ -244,15 +244,16 @@ TEST(UrgParser, RealExp1ExcerptGivesMicrosecondStampsAndMillimetreRanges) {
   EXPECT_DOUBLE_EQ(scans[0].angle_min_rad, -120.0 * kDeg);
   EXPECT_NEAR(scans[0].angle_min_rad + 681.0 * scans[0].angle_increment_rad, 120.0 * kDeg, 1e-12);
   EXPECT_DOUBLE_EQ(scans[0].X_BS.x, 0.145);
-  EXPECT_TRUE(std::isinf(scans[0].ranges_m[0]));  // 0 mm: no return
+  // 0 mm is one of the URG's error codes, not "no return": it is sent below range_min so the server skips it.
+  EXPECT_EQ(scans[0].ranges_m[0], 0.0);
   EXPECT_FLOAT_EQ(scans[0].ranges_m[174], 2.229F);
-  // Each 0 mm reading is one no-return beam, counted once.
-  std::uint64_t zeros = 0;
+  std::uint64_t error_codes = 0;
   for (const auto& scan : scans)
-    zeros += static_cast<std::uint64_t>(
-        std::count_if(scan.ranges_m.begin(), scan.ranges_m.end(), [](double r) { return std::isinf(r); }));
-  EXPECT_GT(zeros, 0U);
-  EXPECT_EQ(diagnostics.no_return_beams(), zeros);
+    error_codes += static_cast<std::uint64_t>(
+        std::count_if(scan.ranges_m.begin(), scan.ranges_m.end(), [](double r) { return r < 0.02; }));
+  EXPECT_GT(error_codes, 0U);
+  EXPECT_EQ(diagnostics.invalid_beams(), error_codes);
+  EXPECT_EQ(diagnostics.no_return_beams(), 0U);
   // Same tick counts in both lines: the robot has not moved.
   EXPECT_DOUBLE_EQ(scans[1].X_WB.x, 0.0);
   EXPECT_DOUBLE_EQ(scans[1].X_WB.theta, 0.0);

@@ -317,11 +317,20 @@ class UrgParser : public LineParser {
     scan.angle_increment_rad = kFovRad / static_cast<double>(kBeams - 1);
     std::vector<double> metres;
     metres.reserve(kBeams);
-    // 0 mm means no return; to_ranges counts it once as such.
+    // The URG-04LX reports failed measurements as codes below 20 mm, 0 included (about half the beams of exp1.dat:
+    // dark or glancing surfaces as well as open space). They are not "no return up to max range": clearing along
+    // them erases real walls, so they are sent as 0 m, below range_min, and the server skips them.
+    std::uint64_t invalid = 0;
     for (std::size_t i = 0; i < kBeams; ++i) {
       const std::int64_t mm = fields[kFirstRange + i];
-      metres.push_back(mm == 0 ? std::numeric_limits<double>::infinity() : static_cast<double>(mm) * 1e-3);
+      if (mm >= 0 && mm < kFirstValidMm) {
+        ++invalid;
+        metres.push_back(0.0);
+      } else {
+        metres.push_back(static_cast<double>(mm) * 1e-3);
+      }
     }
+    diagnostics_.count_invalid_reading(invalid);
     scan.ranges_m = to_ranges(metres, std::numeric_limits<double>::infinity(), diagnostics_, line_number);
     return scan;
   }
@@ -329,6 +338,7 @@ class UrgParser : public LineParser {
  private:
   static constexpr std::size_t kFirstRange = 24;
   static constexpr std::size_t kBeams = 682;
+  static constexpr std::int64_t kFirstValidMm = 20;  // URG-04LX: 0-19 are error codes, 20 mm is range_min
   static constexpr double kFovRad = 240.0 * kPi / 180.0;
   geometry::EncoderOdometry odometry_{geometry::minesrover_encoder_params()};
 };

@@ -375,7 +375,8 @@ std::string summary_json(const ReplayOptions& options, const ReplaySummary& summ
       << ",\"errors\":" << summary.errors << ",\"warnings\":" << diagnostics.warnings()
       << ",\"warnings_by_kind\":" << json_counts(diagnostics.warnings_by_kind())
       << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
-      << ",\"no_return_beams\":" << diagnostics.no_return_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
+      << ",\"no_return_beams\":" << diagnostics.no_return_beams()
+      << ",\"invalid_beams\":" << diagnostics.invalid_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
       << ",\"scans_per_s\":" << fmt(summary.scans_per_s)
       << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
   if (summary.consistency) {

@@ -24,11 +24,16 @@ class Diagnostics {
   // Counts one beam at the format's max-range sentinel, sent as "no return"; normal data, not a warning.
   void count_no_return(std::uint64_t beams = 1) { no_return_beams_ += beams; }
 
+  // Counts one beam the sensor itself flagged as a failed measurement (e.g. URG-04LX codes 0-19 mm), sent below
+  // range_min so it neither clears nor marks: such a beam says nothing about the space along it.
+  void count_invalid_reading(std::uint64_t beams = 1) { invalid_beams_ += beams; }
+
   [[nodiscard]] std::uint64_t warnings() const;
   [[nodiscard]] const std::map<std::string, std::uint64_t>& warnings_by_kind() const { return warnings_; }
   [[nodiscard]] std::uint64_t count(const std::string& kind) const;
   [[nodiscard]] const std::map<std::string, std::uint64_t>& ignored_lines() const { return ignored_lines_; }
   [[nodiscard]] std::uint64_t no_return_beams() const { return no_return_beams_; }
+  [[nodiscard]] std::uint64_t invalid_beams() const { return invalid_beams_; }
 
  private:
   std::ostream* err_;
@@ -36,6 +41,7 @@ class Diagnostics {
   std::map<std::string, std::uint64_t> warnings_;
   std::map<std::string, std::uint64_t> ignored_lines_;
   std::uint64_t no_return_beams_ = 0;
+  std::uint64_t invalid_beams_ = 0;
 };
 
 }  // namespace occgeo::replay
