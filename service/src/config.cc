@@ -104,6 +104,7 @@ void ServerConfig::validate() const {
   require(limits.max_query_distance_m > 0 && limits.max_query_distance_m <= 1.0e4, "limits.max_query_distance_m",
           "must be in (0, 10000] metres");
   require(limits.max_grid_reply_cells > 0, "limits.max_grid_reply_cells", "must be positive");
+  require(limits.max_point_cloud_points > 0, "limits.max_point_cloud_points", "must be positive");
   require(queries.clearance_max_distance_m <= limits.max_query_distance_m, "queries.clearance_max_distance_m",
           "must not exceed limits.max_query_distance_m");
   require(control.command_expiry_s > 0 && control.command_expiry_s <= 10, "control.command_expiry_s",
@@ -146,7 +147,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_abs_coordinate_m", config.limits.max_abs_coordinate_m)
                        .field("max_sensor_range_m", config.limits.max_sensor_range_m)
                        .field("max_query_distance_m", config.limits.max_query_distance_m)
-                       .field("max_grid_reply_cells", config.limits.max_grid_reply_cells);
+                       .field("max_grid_reply_cells", config.limits.max_grid_reply_cells)
+                       .field("max_point_cloud_points", config.limits.max_point_cloud_points);
                  })
         .section("control", [&](Section& s) { s.field("command_expiry_s", config.control.command_expiry_s); })
         .section("queries",

@@ -18,15 +18,39 @@ std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
   return snapshot_;
 }
 
-const LaserModel* RobotModel::find_laser(const std::string& name) const {
-  for (const auto& laser : lasers) {
-    if (laser.name == name) return &laser;
+namespace {
+template <typename SensorModel>
+const SensorModel* find_by_name(const std::vector<SensorModel>& sensors, const std::string& name) {
+  for (const auto& sensor : sensors) {
+    if (sensor.name == name) return &sensor;
   }
   return nullptr;
 }
+}  // namespace
+
+const LaserModel* RobotModel::find_laser(const std::string& name) const { return find_by_name(lasers, name); }
+
+const RangeArrayModel* RobotModel::find_range_array(const std::string& name) const {
+  return find_by_name(range_arrays, name);
+}
+
+const ServoRangeModel* RobotModel::find_servo_range(const std::string& name) const {
+  return find_by_name(servo_ranges, name);
+}
+
+const PointCloudModel* RobotModel::find_point_cloud(const std::string& name) const {
+  return find_by_name(point_clouds, name);
+}
+
+bool RobotModel::has_sensor(const std::string& name) const {
+  return find_laser(name) != nullptr || find_range_array(name) != nullptr || find_servo_range(name) != nullptr ||
+         find_point_cloud(name) != nullptr;
+}
 
 Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat)
-    : model_(std::move(model)), world_(std::move(world)), behaviour_(bearcat) {}
+    : model_(std::move(model)), world_(std::move(world)), behaviour_(bearcat) {
+  if (model_->encoders) encoder_odometry_.emplace(*model_->encoders, model_->initial_pose);
+}
 
 RobotState Robot::state() const {
   const std::lock_guard lock(mutex_);

@@ -9,8 +9,10 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
+#include "occgeo/geometry/dead_reckoning.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
@@ -58,26 +60,76 @@ struct LaserModel {
   double range_max_m = 0.0;
 };
 
+// A ring or array of single-beam range sensors (sonar, infrared) as declared in a RobotSpec.
+struct RangeArrayModel {
+  std::string name;
+  geometry::Pose3 X_BS;               // sensor in base_link
+  std::vector<geometry::Pose2> X_SE;  // each element in the sensor frame; it measures along its own x axis
+  double beam_width_rad = 0.0;
+  double range_min_m = 0.0;
+  double range_max_m = 0.0;
+  double period_s = 0.0;
+};
+
+// A single-beam rangefinder turned by a servo about the sensor frame's z axis.
+struct ServoRangeModel {
+  std::string name;
+  geometry::Pose3 X_BS;  // sensor in base_link; the beam is its x axis rotated by the servo angle
+  double servo_min_rad = 0.0;
+  double servo_max_rad = 0.0;
+  double servo_step_rad = 0.0;
+  double step_period_s = 0.0;
+  double range_min_m = 0.0;
+  double range_max_m = 0.0;
+};
+
+// A 3D point sensor (depth camera, 3D lidar).
+struct PointCloudModel {
+  std::string name;
+  geometry::Pose3 X_BS;  // sensor in base_link
+  double range_max_m = 0.0;
+  std::size_t max_points = 0;  // the spec's limit, or the server's when the spec leaves it 0
+};
+
+// How the robot's wheels or tracks move it; decides what a motion command's wheel speeds mean.
+using DriveModel = std::variant<geometry::DifferentialDriveParams, geometry::SkidSteerParams>;
+
 // What a robot is: fixed once its driver has sent the RobotSpec.
 struct RobotModel {
   std::string id;
   std::string model;
   geometry::Footprint footprint;
-  geometry::DifferentialDriveParams drive;
+  DriveModel drive;
   std::vector<LaserModel> lasers;
+  std::vector<RangeArrayModel> range_arrays;
+  std::vector<ServoRangeModel> servo_ranges;
+  std::vector<PointCloudModel> point_clouds;
+  // Set when the spec declares wheel encoders: the server then dead-reckons the pose from
+  // WheelEncoders messages, starting at initial_pose.
+  std::optional<geometry::EncoderParams> encoders;
+  geometry::Pose2 initial_pose;
   v1::RobotSpec spec;
 
   [[nodiscard]] const LaserModel* find_laser(const std::string& name) const;
+  [[nodiscard]] const RangeArrayModel* find_range_array(const std::string& name) const;
+  [[nodiscard]] const ServoRangeModel* find_servo_range(const std::string& name) const;
+  [[nodiscard]] const PointCloudModel* find_point_cloud(const std::string& name) const;
+  // True when any sensor of any kind has this name.
+  [[nodiscard]] bool has_sensor(const std::string& name) const;
 };
 
 // What a robot is doing: updated by its world's strand, read by status queries.
 struct RobotState {
   bool connected = false;
-  std::optional<geometry::Pose2> X_WB;  // from the latest accepted odometry
+  std::optional<geometry::Pose2> X_WB;  // from the latest accepted odometry or wheel encoders
   std::optional<double> last_odometry_stamp_s;
+  std::optional<double> last_encoder_stamp_s;
+  std::optional<std::uint64_t> last_encoder_seq;
+  // Shared by every sensor message (laser scan, range array, servo range, point cloud): one
+  // increasing seq and non-decreasing stamp per robot across all of them.
   std::optional<double> last_scan_stamp_s;
   std::optional<std::uint64_t> last_scan_seq;
-  std::uint64_t scans_ingested = 0;
+  std::uint64_t scans_ingested = 0;  // sensor messages of every kind
   std::uint64_t scans_rejected = 0;
   std::uint64_t commands_sent = 0;
   std::string behaviour = "bearcat";
@@ -96,6 +148,9 @@ class Robot {
   [[nodiscard]] std::shared_ptr<World> world_ptr() const { return world_; }
   // The obstacle-avoidance behaviour; used only from the world's strand.
   control::BearcatBehaviour& behaviour_on_strand() { return behaviour_; }
+  // Dead reckoning from wheel ticks, present when the spec declares encoders; used only from the
+  // world's strand.
+  std::optional<geometry::EncoderOdometry>& encoder_odometry_on_strand() { return encoder_odometry_; }
 
   [[nodiscard]] RobotState state() const;
   template <typename Update>
@@ -108,6 +163,7 @@ class Robot {
   std::shared_ptr<const RobotModel> model_;
   std::shared_ptr<World> world_;
   control::BearcatBehaviour behaviour_;
+  std::optional<geometry::EncoderOdometry> encoder_odometry_;
   mutable std::mutex mutex_;
   RobotState state_;
 };

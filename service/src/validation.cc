@@ -1,6 +1,7 @@
 #include "validation.h"
 
 #include <cmath>
+#include <stdexcept>
 
 namespace occgeo::service {
 
@@ -55,6 +56,215 @@ std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& foo
   return std::nullopt;
 }
 
+namespace {
+
+// geometry's validate() names the bad member as "<Params>.<member> ..."; the RobotSpec's fields
+// carry the same member names, so the error can name the client's field.
+FieldError error_from_geometry(const std::invalid_argument& e, const std::string& prefix) {
+  const std::string what = e.what();
+  const auto dot = what.find('.');
+  const auto space = what.find(' ');
+  if (dot == std::string::npos || space == std::string::npos || space < dot) return field_error(prefix, what);
+  return field_error(prefix + "." + what.substr(dot + 1, space - dot - 1), what);
+}
+
+bool parse_drive(const v1::Kinematics& kinematics, RobotModel& model, FieldError& error) {
+  if (kinematics.has_differential()) {
+    const auto& drive = kinematics.differential();
+    const geometry::DifferentialDriveParams params{drive.wheel_separation_m(), drive.wheel_radius_m(),
+                                                   drive.max_wheel_speed_mps()};
+    try {
+      geometry::validate(params);
+    } catch (const std::invalid_argument& e) {
+      error = error_from_geometry(e, "robot_spec.kinematics.differential");
+      return false;
+    }
+    model.drive = params;
+    return true;
+  }
+  if (kinematics.has_skid_steer()) {
+    const auto& skid = kinematics.skid_steer();
+    const geometry::SkidSteerParams params{
+        skid.track_separation_m(), skid.left_sprocket_radius_m(), skid.right_sprocket_radius_m(), skid.left_slip(),
+        skid.right_slip(),         skid.max_track_speed_mps()};
+    try {
+      geometry::validate(params);
+    } catch (const std::invalid_argument& e) {
+      error = error_from_geometry(e, "robot_spec.kinematics.skid_steer");
+      return false;
+    }
+    if (!std::isfinite(skid.powertrain_time_constant_s()) || skid.powertrain_time_constant_s() < 0.0) {
+      error = field_error("robot_spec.kinematics.skid_steer.powertrain_time_constant_s",
+                          "must be a finite, non-negative time in seconds");
+      return false;
+    }
+    model.drive = params;
+    return true;
+  }
+  error = field_error("robot_spec.kinematics", "must be differential or skid_steer");
+  return false;
+}
+
+bool parse_encoders(const v1::RobotSpec& spec, const LimitsConfig& limits, RobotModel& model, FieldError& error) {
+  if (spec.has_initial_pose()) {
+    if (auto pose_error = check_pose(spec.initial_pose(), "robot_spec.initial_pose", limits)) {
+      error = *pose_error;
+      return false;
+    }
+    model.initial_pose = {spec.initial_pose().x(), spec.initial_pose().y(),
+                          geometry::wrap_angle(spec.initial_pose().theta())};
+  }
+  if (!spec.has_encoders()) return true;
+  const auto& encoders = spec.encoders();
+  // Checked before the cast to int so that a huge unsigned value cannot wrap into range.
+  if (encoders.counter_bits() < 1 || encoders.counter_bits() > 64) {
+    error = field_error("robot_spec.encoders.counter_bits",
+                        "is " + std::to_string(encoders.counter_bits()) + "; must be between 1 and 64");
+    return false;
+  }
+  const geometry::EncoderParams params{encoders.ticks_per_revolution(), encoders.wheel_radius_m(),
+                                       encoders.wheel_separation_m(), static_cast<int>(encoders.counter_bits())};
+  try {
+    geometry::validate(params);
+  } catch (const std::invalid_argument& e) {
+    error = error_from_geometry(e, "robot_spec.encoders");
+    return false;
+  }
+  model.encoders = params;
+  return true;
+}
+
+// Minimum and maximum range of a single-beam sensor: 0 <= min < max <= the server's limit.
+bool check_range_limits(double range_min_m, double range_max_m, const std::string& prefix, const LimitsConfig& limits,
+                        FieldError& error) {
+  if (!finite_positive(range_max_m) || range_max_m > limits.max_sensor_range_m) {
+    error = field_error(prefix + ".range_max_m",
+                        "must be a positive length up to " + std::to_string(limits.max_sensor_range_m) + " m");
+    return false;
+  }
+  if (!std::isfinite(range_min_m) || range_min_m < 0 || range_min_m >= range_max_m) {
+    error = field_error(prefix + ".range_min_m", "must be in [0, range_max_m)");
+    return false;
+  }
+  return true;
+}
+
+bool finite_non_negative(double v) { return std::isfinite(v) && v >= 0.0; }
+
+bool parse_laser(const v1::LaserSpec& laser, const std::string& prefix, const LimitsConfig& limits, LaserModel& model,
+                 FieldError& error) {
+  if (laser.beam_count() == 0 || laser.beam_count() > limits.max_beams) {
+    error = field_error(prefix + ".beam_count", "must be between 1 and " + std::to_string(limits.max_beams));
+    return false;
+  }
+  if (!std::isfinite(laser.angle_min_rad()) || std::abs(laser.angle_min_rad()) > 2 * M_PI) {
+    error = field_error(prefix + ".angle_min_rad", "must be a finite angle within ±2π");
+    return false;
+  }
+  if (!std::isfinite(laser.angle_increment_rad()) || laser.angle_increment_rad() == 0.0 ||
+      std::abs(laser.angle_increment_rad() * (laser.beam_count() - 1)) > 2 * M_PI + 1e-9) {
+    error = field_error(prefix + ".angle_increment_rad", "must be non-zero and span at most 2π");
+    return false;
+  }
+  if (!check_range_limits(laser.range_min_m(), laser.range_max_m(), prefix, limits, error)) return false;
+  model.angle_min_rad = laser.angle_min_rad();
+  model.angle_increment_rad = laser.angle_increment_rad();
+  model.beam_count = laser.beam_count();
+  model.range_min_m = laser.range_min_m();
+  model.range_max_m = laser.range_max_m();
+  return true;
+}
+
+bool parse_range_array(const v1::RangeArraySpec& array, const std::string& prefix, const LimitsConfig& limits,
+                       RangeArrayModel& model, FieldError& error) {
+  // Every element is one beam per firing, so the laser's beam limit bounds the work per message.
+  if (array.elements_size() == 0 || static_cast<std::uint32_t>(array.elements_size()) > limits.max_beams) {
+    error = field_error(prefix + ".elements", "must have between 1 and " + std::to_string(limits.max_beams) +
+                                                  " elements, has " + std::to_string(array.elements_size()));
+    return false;
+  }
+  for (int k = 0; k < array.elements_size(); ++k) {
+    const auto& element = array.elements(k);
+    const std::string field = prefix + ".elements[" + std::to_string(k) + "]";
+    // An element is part of the sensor: it cannot sit farther from it than any sensor can see.
+    for (const auto& [name, value] : {std::pair{".x", element.x()}, std::pair{".y", element.y()}}) {
+      if (!std::isfinite(value) || std::abs(value) > limits.max_sensor_range_m) {
+        error = field_error(field + name, "must be finite and within ±" + std::to_string(limits.max_sensor_range_m) +
+                                              " m of the sensor frame");
+        return false;
+      }
+    }
+    if (!std::isfinite(element.theta())) {
+      error = field_error(field + ".theta", "must be finite");
+      return false;
+    }
+    model.X_SE.push_back({element.x(), element.y(), geometry::wrap_angle(element.theta())});
+  }
+  if (!std::isfinite(array.beam_width_rad()) || array.beam_width_rad() <= 0.0 || array.beam_width_rad() > M_PI) {
+    error = field_error(prefix + ".beam_width_rad", "must be an angle in (0, π]");
+    return false;
+  }
+  if (!check_range_limits(array.range_min_m(), array.range_max_m(), prefix, limits, error)) return false;
+  if (!finite_non_negative(array.period_s())) {
+    error = field_error(prefix + ".period_s", "must be a finite, non-negative time in seconds");
+    return false;
+  }
+  model.beam_width_rad = array.beam_width_rad();
+  model.range_min_m = array.range_min_m();
+  model.range_max_m = array.range_max_m();
+  model.period_s = array.period_s();
+  return true;
+}
+
+bool parse_servo_range(const v1::ServoRangeSpec& servo, const std::string& prefix, const LimitsConfig& limits,
+                       ServoRangeModel& model, FieldError& error) {
+  if (!std::isfinite(servo.servo_min_rad()) || std::abs(servo.servo_min_rad()) > 2 * M_PI) {
+    error = field_error(prefix + ".servo_min_rad", "must be a finite angle within ±2π");
+    return false;
+  }
+  if (!std::isfinite(servo.servo_max_rad()) || std::abs(servo.servo_max_rad()) > 2 * M_PI ||
+      servo.servo_max_rad() <= servo.servo_min_rad()) {
+    error = field_error(prefix + ".servo_max_rad", "must be a finite angle within ±2π, above servo_min_rad");
+    return false;
+  }
+  if (!finite_positive(servo.servo_step_rad()) || servo.servo_step_rad() > 2 * M_PI) {
+    error = field_error(prefix + ".servo_step_rad", "must be a positive angle up to 2π");
+    return false;
+  }
+  if (!finite_non_negative(servo.step_period_s())) {
+    error = field_error(prefix + ".step_period_s", "must be a finite, non-negative time in seconds");
+    return false;
+  }
+  if (!check_range_limits(servo.range_min_m(), servo.range_max_m(), prefix, limits, error)) return false;
+  model.servo_min_rad = servo.servo_min_rad();
+  model.servo_max_rad = servo.servo_max_rad();
+  model.servo_step_rad = servo.servo_step_rad();
+  model.step_period_s = servo.step_period_s();
+  model.range_min_m = servo.range_min_m();
+  model.range_max_m = servo.range_max_m();
+  return true;
+}
+
+bool parse_point_cloud(const v1::PointCloudSpec& cloud, const std::string& prefix, const LimitsConfig& limits,
+                       PointCloudModel& model, FieldError& error) {
+  if (!finite_positive(cloud.range_max_m()) || cloud.range_max_m() > limits.max_sensor_range_m) {
+    error = field_error(prefix + ".range_max_m",
+                        "must be a positive length up to " + std::to_string(limits.max_sensor_range_m) + " m");
+    return false;
+  }
+  if (cloud.max_points() > limits.max_point_cloud_points) {
+    error = field_error(prefix + ".max_points", "is " + std::to_string(cloud.max_points()) +
+                                                    "; this server takes at most " +
+                                                    std::to_string(limits.max_point_cloud_points) + " points");
+    return false;
+  }
+  model.range_max_m = cloud.range_max_m();
+  model.max_points = cloud.max_points() == 0 ? limits.max_point_cloud_points : cloud.max_points();
+  return true;
+}
+
+}  // namespace
+
 std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot_id, const v1::RobotSpec& spec,
                                                         const LimitsConfig& limits, FieldError& error) {
   auto model = std::make_shared<RobotModel>();
@@ -62,28 +272,13 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
   model->model = spec.model();
   model->spec = spec;
 
-  if (!spec.kinematics().has_differential()) {
-    error = field_error("robot_spec.kinematics", "must be differential (the only model this server version knows)");
-    return nullptr;
-  }
-  const auto& drive = spec.kinematics().differential();
-  if (!finite_positive(drive.wheel_separation_m())) {
-    error = field_error("robot_spec.kinematics.differential.wheel_separation_m", "must be a positive length");
-    return nullptr;
-  }
-  if (!finite_positive(drive.wheel_radius_m())) {
-    error = field_error("robot_spec.kinematics.differential.wheel_radius_m", "must be a positive length");
-    return nullptr;
-  }
-  if (!finite_positive(drive.max_wheel_speed_mps())) {
-    error = field_error("robot_spec.kinematics.differential.max_wheel_speed_mps", "must be a positive speed");
-    return nullptr;
-  }
-  model->drive = {drive.wheel_separation_m(), drive.wheel_radius_m(), drive.max_wheel_speed_mps()};
+  if (!parse_drive(spec.kinematics(), *model, error)) return nullptr;
 
   auto footprint = footprint_from_proto(spec.footprint(), "robot_spec.footprint", error);
   if (!footprint) return nullptr;
   model->footprint = *footprint;
+
+  if (!parse_encoders(spec, limits, *model, error)) return nullptr;
 
   if (spec.sensors_size() == 0) {
     error = field_error("robot_spec.sensors", "must declare at least one sensor");
@@ -96,12 +291,8 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
       error = field_error(prefix + ".name", "must not be empty");
       return nullptr;
     }
-    if (model->find_laser(sensor.name()) != nullptr) {
+    if (model->has_sensor(sensor.name())) {
       error = field_error(prefix + ".name", "'" + sensor.name() + "' is used by an earlier sensor");
-      return nullptr;
-    }
-    if (!sensor.has_laser()) {
-      error = field_error(prefix, "must be a laser (the only sensor model this server version knows)");
       return nullptr;
     }
     const auto& mount = sensor.mount();
@@ -112,39 +303,45 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         return nullptr;
       }
     }
-    const auto& laser = sensor.laser();
-    if (laser.beam_count() == 0 || laser.beam_count() > limits.max_beams) {
-      error = field_error(prefix + ".laser.beam_count", "must be between 1 and " + std::to_string(limits.max_beams));
-      return nullptr;
+    const geometry::Pose3 X_BS = geometry::Pose3::from_xyz_rpy(
+        mount.position().x(), mount.position().y(), mount.position().z(), mount.roll(), mount.pitch(), mount.yaw());
+    switch (sensor.model_case()) {
+      case v1::SensorSpec::kLaser: {
+        LaserModel laser;
+        laser.name = sensor.name();
+        laser.X_BS = X_BS;
+        if (!parse_laser(sensor.laser(), prefix + ".laser", limits, laser, error)) return nullptr;
+        model->lasers.push_back(std::move(laser));
+        break;
+      }
+      case v1::SensorSpec::kRangeArray: {
+        RangeArrayModel array;
+        array.name = sensor.name();
+        array.X_BS = X_BS;
+        if (!parse_range_array(sensor.range_array(), prefix + ".range_array", limits, array, error)) return nullptr;
+        model->range_arrays.push_back(std::move(array));
+        break;
+      }
+      case v1::SensorSpec::kServoRange: {
+        ServoRangeModel servo;
+        servo.name = sensor.name();
+        servo.X_BS = X_BS;
+        if (!parse_servo_range(sensor.servo_range(), prefix + ".servo_range", limits, servo, error)) return nullptr;
+        model->servo_ranges.push_back(std::move(servo));
+        break;
+      }
+      case v1::SensorSpec::kPointCloud: {
+        PointCloudModel cloud;
+        cloud.name = sensor.name();
+        cloud.X_BS = X_BS;
+        if (!parse_point_cloud(sensor.point_cloud(), prefix + ".point_cloud", limits, cloud, error)) return nullptr;
+        model->point_clouds.push_back(std::move(cloud));
+        break;
+      }
+      default:
+        error = field_error(prefix, "must be a laser, range_array, servo_range or point_cloud");
+        return nullptr;
     }
-    if (!std::isfinite(laser.angle_min_rad()) || std::abs(laser.angle_min_rad()) > 2 * M_PI) {
-      error = field_error(prefix + ".laser.angle_min_rad", "must be a finite angle within ±2π");
-      return nullptr;
-    }
-    if (!std::isfinite(laser.angle_increment_rad()) || laser.angle_increment_rad() == 0.0 ||
-        std::abs(laser.angle_increment_rad() * (laser.beam_count() - 1)) > 2 * M_PI + 1e-9) {
-      error = field_error(prefix + ".laser.angle_increment_rad", "must be non-zero and span at most 2π");
-      return nullptr;
-    }
-    if (!finite_positive(laser.range_max_m()) || laser.range_max_m() > limits.max_sensor_range_m) {
-      error = field_error(prefix + ".laser.range_max_m",
-                          "must be a positive length up to " + std::to_string(limits.max_sensor_range_m) + " m");
-      return nullptr;
-    }
-    if (!std::isfinite(laser.range_min_m()) || laser.range_min_m() < 0 || laser.range_min_m() >= laser.range_max_m()) {
-      error = field_error(prefix + ".laser.range_min_m", "must be in [0, range_max_m)");
-      return nullptr;
-    }
-    LaserModel laser_model;
-    laser_model.name = sensor.name();
-    laser_model.X_BS = geometry::Pose3::from_xyz_rpy(mount.position().x(), mount.position().y(), mount.position().z(),
-                                                     mount.roll(), mount.pitch(), mount.yaw());
-    laser_model.angle_min_rad = laser.angle_min_rad();
-    laser_model.angle_increment_rad = laser.angle_increment_rad();
-    laser_model.beam_count = laser.beam_count();
-    laser_model.range_min_m = laser.range_min_m();
-    laser_model.range_max_m = laser.range_max_m();
-    model->lasers.push_back(std::move(laser_model));
   }
   return model;
 }
@@ -186,6 +383,102 @@ std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel
     if (!std::isfinite(range) || range < 0.0F) {
       return field_error("laser_scan.ranges[" + std::to_string(i) + "]",
                          "is " + std::to_string(range) + "; ranges must be finite and non-negative metres");
+    }
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+// Every sensor message's ranges: finite and non-negative metres, each one named when it is not.
+std::optional<FieldError> check_ranges(const google::protobuf::RepeatedField<float>& ranges, const std::string& field) {
+  for (int i = 0; i < ranges.size(); ++i) {
+    const float range = ranges.Get(i);
+    if (!std::isfinite(range) || range < 0.0F) {
+      return field_error(field + "[" + std::to_string(i) + "]",
+                         "is " + std::to_string(range) + "; ranges must be finite and non-negative metres");
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<FieldError> check_range_array(const v1::RangeArray& message, const RobotModel& model) {
+  const RangeArrayModel* array = model.find_range_array(message.sensor());
+  if (array == nullptr) {
+    return field_error("range_array.sensor",
+                       "'" + message.sensor() + "' is not a range array in robot '" + model.id + "'s spec");
+  }
+  if (!std::isfinite(message.stamp_s())) return field_error("range_array.stamp_s", "must be finite");
+  if (static_cast<std::size_t>(message.ranges_size()) != array->X_SE.size()) {
+    return field_error("range_array.ranges", "has " + std::to_string(message.ranges_size()) + " readings but sensor '" +
+                                                 array->name + "' declares " + std::to_string(array->X_SE.size()) +
+                                                 " elements");
+  }
+  return check_ranges(message.ranges(), "range_array.ranges");
+}
+
+std::optional<FieldError> check_servo_range(const v1::ServoRange& message, const RobotModel& model) {
+  const ServoRangeModel* servo = model.find_servo_range(message.sensor());
+  if (servo == nullptr) {
+    return field_error("servo_range.sensor",
+                       "'" + message.sensor() + "' is not a servo range sensor in robot '" + model.id + "'s spec");
+  }
+  if (!std::isfinite(message.stamp_s())) return field_error("servo_range.stamp_s", "must be finite");
+  const double angle = message.servo_angle_rad();
+  if (!std::isfinite(angle) || angle < servo->servo_min_rad - kServoAngleTolerance_rad ||
+      angle > servo->servo_max_rad + kServoAngleTolerance_rad) {
+    return field_error("servo_range.servo_angle_rad", "is " + std::to_string(angle) + "; sensor '" + servo->name +
+                                                          "' turns within [" + std::to_string(servo->servo_min_rad) +
+                                                          ", " + std::to_string(servo->servo_max_rad) + "] rad");
+  }
+  const float range = message.range_m();
+  if (!std::isfinite(range) || range < 0.0F) {
+    return field_error("servo_range.range_m",
+                       "is " + std::to_string(range) + "; ranges must be finite and non-negative metres");
+  }
+  return std::nullopt;
+}
+
+std::optional<FieldError> check_wheel_encoders(const v1::WheelEncoders& message, const RobotModel& model) {
+  if (!model.encoders) {
+    return field_error("wheel_encoders",
+                       "robot '" + model.id + "'s spec declares no encoders (set robot_spec.encoders to send ticks)");
+  }
+  if (!std::isfinite(message.stamp_s())) return field_error("wheel_encoders.stamp_s", "must be finite");
+  return std::nullopt;
+}
+
+std::optional<FieldError> check_point_cloud(const v1::PointCloud& message, const RobotModel& model) {
+  const PointCloudModel* cloud = model.find_point_cloud(message.sensor());
+  if (cloud == nullptr) {
+    return field_error("point_cloud.sensor",
+                       "'" + message.sensor() + "' is not a point cloud sensor in robot '" + model.id + "'s spec");
+  }
+  if (!std::isfinite(message.stamp_s())) return field_error("point_cloud.stamp_s", "must be finite");
+  const auto values = static_cast<std::size_t>(message.xyz_size());
+  if (values % 3 != 0) {
+    return field_error("point_cloud.xyz", "has " + std::to_string(values) + " values, not a multiple of 3");
+  }
+  if (values / 3 > cloud->max_points) {
+    return field_error("point_cloud.xyz", "has " + std::to_string(values / 3) + " points; sensor '" + cloud->name +
+                                              "' takes at most " + std::to_string(cloud->max_points));
+  }
+  const double range_max_squared = cloud->range_max_m * cloud->range_max_m;
+  for (std::size_t i = 0; i < values; i += 3) {
+    const Eigen::Vector3d point(message.xyz(static_cast<int>(i)), message.xyz(static_cast<int>(i + 1)),
+                                message.xyz(static_cast<int>(i + 2)));
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      if (!std::isfinite(point[static_cast<Eigen::Index>(axis)])) {
+        return field_error("point_cloud.xyz[" + std::to_string(i + axis) + "]",
+                           "is " + std::to_string(point[static_cast<Eigen::Index>(axis)]) + "; must be finite metres");
+      }
+    }
+    if (point.squaredNorm() > range_max_squared) {
+      return field_error("point_cloud.xyz[" + std::to_string(i) + "]",
+                         "point " + std::to_string(i / 3) + " is " + std::to_string(point.norm()) +
+                             " m from the sensor, beyond its range_max_m " + std::to_string(cloud->range_max_m));
     }
   }
   return std::nullopt;

@@ -30,6 +30,25 @@ std::optional<FieldError> check_odometry(const v1::Odometry& odometry, const Lim
 // Checks a scan against its robot's spec: known sensor, beam count, finite non-negative ranges.
 std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel& model);
 
+// How far outside the spec's [servo_min_rad, servo_max_rad] a reported servo angle may be, radians:
+// drivers compute angles as min + k * step in floating point and may round past the end.
+inline constexpr double kServoAngleTolerance_rad = 1e-4;
+
+// Checks a range array against its robot's spec: known sensor, one reading per element, finite
+// non-negative ranges.
+std::optional<FieldError> check_range_array(const v1::RangeArray& message, const RobotModel& model);
+
+// Checks a servo range reading: known sensor, servo angle within the spec's limits, finite
+// non-negative range.
+std::optional<FieldError> check_servo_range(const v1::ServoRange& message, const RobotModel& model);
+
+// Checks wheel encoder counts: the robot declares encoders and the stamp is finite.
+std::optional<FieldError> check_wheel_encoders(const v1::WheelEncoders& message, const RobotModel& model);
+
+// Checks a point cloud: known sensor, whole finite triples, no more points than the sensor's
+// limit, none beyond its range.
+std::optional<FieldError> check_point_cloud(const v1::PointCloud& message, const RobotModel& model);
+
 // Checks a query pose: finite and within the coordinate limit.
 std::optional<FieldError> check_pose(const v1::Pose2D& pose, const std::string& field, const LimitsConfig& limits);
 

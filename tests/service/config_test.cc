@@ -50,5 +50,17 @@ TEST(Config, BadValuesNameTheField) {
   EXPECT_NE(load_error("listen: nowhere\n").find("listen"), std::string::npos);
 }
 
+TEST(Config, PointCloudLimitIsReadCheckedAndSpelledExactly) {
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << "limits:\n  max_point_cloud_points: 5000\n";
+  EXPECT_EQ(load_config(file).limits.max_point_cloud_points, 5000U);
+  EXPECT_EQ(ServerConfig{}.limits.max_point_cloud_points, 200000U);
+  EXPECT_NE(load_error("limits:\n  max_point_cloud_points: 0\n").find("limits.max_point_cloud_points"),
+            std::string::npos);
+  EXPECT_NE(load_error("limits:\n  max_pointcloud_points: 10\n").find("'limits.max_pointcloud_points'"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace occgeo::service

@@ -3,6 +3,7 @@
 #include <condition_variable>
 #include <deque>
 #include <mutex>
+#include <vector>
 
 #include "handlers/handlers.h"
 
@@ -36,6 +37,13 @@ class FakeSession final : public SessionContext {
       if (message->body_case() == kind) return message;
     }
     return std::nullopt;
+  }
+  // Everything sent so far and not yet taken, without waiting (call after ServerCore::drain).
+  std::vector<v1::ServerMessage> take_all() {
+    const std::lock_guard lock(mutex_);
+    std::vector<v1::ServerMessage> all(std::make_move_iterator(sent_.begin()), std::make_move_iterator(sent_.end()));
+    sent_.clear();
+    return all;
   }
 
  private:

@@ -71,6 +71,24 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
         handle_laser_scan(session, std::move(*message.mutable_laser_scan()));
       }
       return;
+    case v1::ClientMessage::kRangeArray:
+      if (require_driver_with_spec(session, "range_array")) {
+        handle_range_array(session, std::move(*message.mutable_range_array()));
+      }
+      return;
+    case v1::ClientMessage::kServoRange:
+      if (require_driver_with_spec(session, "servo_range")) {
+        handle_servo_range(session, std::move(*message.mutable_servo_range()));
+      }
+      return;
+    case v1::ClientMessage::kWheelEncoders:
+      if (require_driver_with_spec(session, "wheel_encoders")) handle_wheel_encoders(session, message.wheel_encoders());
+      return;
+    case v1::ClientMessage::kPointCloud:
+      if (require_driver_with_spec(session, "point_cloud")) {
+        handle_point_cloud(session, std::move(*message.mutable_point_cloud()));
+      }
+      return;
     case v1::ClientMessage::kCollision:
       handle_collision_query(session, message.collision());
       return;

@@ -1,9 +1,10 @@
 #include <boost/asio/post.hpp>
 #include <cmath>
 
-#include "../validation.h"
-#include "handlers.h"
+#include <variant>
+
 #include "occgeo/service/log.h"
+#include "sensor_ingest.h"
 
 namespace occgeo::service {
 
@@ -47,11 +48,24 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   }
 }
 
+// The decision as a command the robot's drive can execute: differential wheel speeds straight from
+// the behaviour, or, for skid steer, the track rim speeds that produce the decided body velocity
+// despite the declared slippage. Either way the speeds are clamped to the robot's maximum (keeping
+// their ratio, hence the path's curvature) and linear/angular describe what the clamped speeds do.
 v1::MotionCommand command_from_decision(const control::BearcatDecision& decision, const RobotModel& model,
                                         double expiry_s) {
-  geometry::WheelSpeeds wheels{decision.left_wheel_mps, decision.right_wheel_mps};
-  wheels = geometry::clamp_to_max_speed(wheels, model.drive);
-  const geometry::BodyVelocity body = geometry::to_body(wheels, model.drive);
+  geometry::WheelSpeeds wheels;
+  geometry::BodyVelocity body;
+  if (const auto* skid = std::get_if<geometry::SkidSteerParams>(&model.drive)) {
+    wheels = geometry::to_wheels(geometry::BodyVelocity{decision.linear_mps, decision.angular_radps}, *skid);
+    wheels = geometry::clamp_to_max_speed(wheels, *skid);
+    body = geometry::to_body(wheels, *skid);
+  } else {
+    const auto& drive = std::get<geometry::DifferentialDriveParams>(model.drive);
+    wheels =
+        geometry::clamp_to_max_speed(geometry::WheelSpeeds{decision.left_wheel_mps, decision.right_wheel_mps}, drive);
+    body = geometry::to_body(wheels, drive);
+  }
   v1::MotionCommand command;
   command.set_left_wheel_mps(wheels.left_mps);
   command.set_right_wheel_mps(wheels.right_mps);
@@ -67,71 +81,41 @@ v1::MotionCommand command_from_decision(const control::BearcatDecision& decision
 // Orders, maps and answers one validated scan; runs on the robot's world strand.
 void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& robot, const v1::LaserScan& scan,
                       double expiry_s) {
-  const RobotState before = robot->state();
-  std::string order_error;
-  std::string order_field;
-  if (!before.X_WB) {
-    order_field = "laser_scan";
-    order_error = "no odometry received yet: the scan cannot be placed in the world";
-  } else if (before.last_scan_stamp_s && scan.stamp_s() < *before.last_scan_stamp_s) {
-    order_field = "laser_scan.stamp_s";
-    order_error = "timestamp went backwards";
-  } else if (before.last_scan_seq && scan.seq() <= *before.last_scan_seq) {
-    order_field = "laser_scan.seq";
-    order_error = "sequence number did not increase";
-  }
-  if (!order_error.empty()) {
-    robot->update_state([](RobotState& state) { ++state.scans_rejected; });
-    session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the scan was discarded", 0, scan.seq());
-    return;
-  }
-
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
-  World& world = robot->world();
-  insert_scan(world.grid_on_strand(), planar_sensor_pose(*before.X_WB, laser), laser, scan);
-  world.publish_on_strand();
+  const bool accepted =
+      ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s()},
+                                      [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
+                                        insert_scan(grid, planar_sensor_pose(X_WB, laser), laser, scan);
+                                      });
+  if (!accepted) return;
 
-  v1::ServerMessage ack;
-  ack.mutable_scan_ack()->set_seq(scan.seq());
-  ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-  session->send(std::move(ack));
-
-  // The behaviour steers from the robot's first laser; other lasers only update the map.
-  const bool steering_laser = &laser == &model.lasers.front();
-  std::optional<v1::MotionCommand> command;
-  if (steering_laser) {
-    const control::ScanView view{
-        laser.angle_min_rad, laser.angle_increment_rad,
-        std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
-    const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
-    command = command_from_decision(decision, model, expiry_s);
-    command->set_answers_scan_seq(scan.seq());
-  }
+  // The behaviour steers from the robot's first laser; other lasers and the other sensor kinds
+  // only update the map, so a robot without a laser gets no motion commands.
+  if (&laser != &model.lasers.front()) return;
+  const control::ScanView view{
+      laser.angle_min_rad, laser.angle_increment_rad,
+      std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
+  const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
+  v1::MotionCommand command = command_from_decision(decision, model, expiry_s);
+  command.set_answers_scan_seq(scan.seq());
 
   std::string previous_state;
   robot->update_state([&](RobotState& state) {
-    state.last_scan_stamp_s = scan.stamp_s();
-    state.last_scan_seq = scan.seq();
-    ++state.scans_ingested;
-    if (command) {
-      command->set_seq(++state.commands_sent);
-      previous_state = state.behaviour_state;
-      state.behaviour_state = command->state();
-      state.last_linear_mps = command->linear_mps();
-      state.last_angular_radps = command->angular_radps();
-    }
+    command.set_seq(++state.commands_sent);
+    previous_state = state.behaviour_state;
+    state.behaviour_state = command.state();
+    state.last_linear_mps = command.linear_mps();
+    state.last_angular_radps = command.angular_radps();
   });
-  if (!command) return;
-  if (command->state() != previous_state) {
-    const auto level = command->stop() ? log::Level::warn : log::Level::debug;
+  if (command.state() != previous_state) {
+    const auto level = command.stop() ? log::Level::warn : log::Level::debug;
     if (log::enabled(level)) {
-      log::write(level, "behaviour_state",
-                 {{"robot", model.id}, {"state", command->state()}, {"scan_seq", scan.seq()}});
+      log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command.state()}, {"scan_seq", scan.seq()}});
     }
   }
   v1::ServerMessage reply;
-  *reply.mutable_motion_command() = std::move(*command);
+  *reply.mutable_motion_command() = std::move(command);
   session->send(std::move(reply));
 }
 
@@ -140,9 +124,7 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
 void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
   auto robot = session->info().robot;
   if (auto error = check_scan(scan, robot->model())) {
-    robot->update_state([](RobotState& state) { ++state.scans_rejected; });
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, error->field, error->message + "; the scan was discarded", 0,
-                        scan.seq());
+    reject_sensor_message(session, *robot, *error, scan.seq());
     return;
   }
   const double expiry_s = session->core().config().control.command_expiry_s;

@@ -22,6 +22,13 @@ void apply_on_strand(const SessionPtr& session, Robot& robot, const v1::Odometry
   if (went_backwards) {
     session->send_error(v1::ERROR_OUT_OF_ORDER, "odometry.stamp_s", "timestamp went backwards; odometry ignored", 0,
                         odometry.seq());
+    return;
+  }
+  // For a robot that dead-reckons from wheel encoders, odometry is a correction (e.g. from a
+  // localiser): dead reckoning goes on from this pose, the next counts only setting a reference.
+  if (auto& encoder_odometry = robot.encoder_odometry_on_strand()) {
+    encoder_odometry->reset(
+        geometry::Pose2{odometry.pose().x(), odometry.pose().y(), geometry::wrap_angle(odometry.pose().theta())});
   }
 }
 

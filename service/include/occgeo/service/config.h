@@ -28,6 +28,7 @@ struct LimitsConfig {
   double max_sensor_range_m = 200.0;                         // a RobotSpec's range_max_m above this is rejected
   double max_query_distance_m = 100.0;                       // clearance search radius limit
   std::size_t max_grid_reply_cells = std::size_t{16} << 20;  // whole-grid replies larger than this are refused
+  std::size_t max_point_cloud_points = 200000;               // larger point clouds are rejected (each is a ray)
 };
 
 // Server-side control of the robots.

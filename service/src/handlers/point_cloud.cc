@@ -1,0 +1,55 @@
+#include <boost/asio/post.hpp>
+#include <variant>
+
+#include "sensor_ingest.h"
+
+namespace occgeo::service {
+
+namespace {
+
+// Points lower than this above the ground are taken to be the ground itself (noise on a flat
+// floor), not obstacles, metres.
+constexpr double kGroundClearance_m = 0.05;
+
+double footprint_height_m(const geometry::Footprint& footprint) {
+  return std::visit([](const auto& shape) { return shape.height; }, footprint);
+}
+
+// The 2D grid holds what the robot would hit: points between the ground and the robot's height.
+// Each is ray-cast from the sensor's position on the ground, clearing the cells before it and
+// marking its own. Points above the robot (overhangs it passes under) or on the ground are left
+// for a 3D model.
+void insert_point_cloud(mapping::HimmGrid& grid, const geometry::Pose2& X_WB, const RobotModel& model,
+                        const PointCloudModel& cloud, const v1::PointCloud& message) {
+  const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(cloud.X_BS);
+  const Eigen::Vector2d origin_W = X_WS.translation().head<2>();
+  const double top_m = footprint_height_m(model.footprint);
+  for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
+    const Eigen::Vector3d p_S(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2));
+    const Eigen::Vector3d p_W = X_WS.transform * p_S;
+    if (p_W.z() < kGroundClearance_m || p_W.z() > top_m) continue;
+    grid.insert_ray(origin_W, p_W.head<2>(), true);
+  }
+}
+
+}  // namespace
+
+void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
+  auto robot = session->info().robot;
+  if (auto error = check_point_cloud(message, robot->model())) {
+    reject_sensor_message(session, *robot, *error, message.seq());
+    return;
+  }
+  asio::post(robot->world().strand(), [session, robot, message = std::move(message)] {
+    run_guarded(session, "point_cloud", 0, [&] {
+      const RobotModel& model = robot->model();
+      const PointCloudModel& cloud = *model.find_point_cloud(message.sensor());
+      ingest_sensor_message_on_strand(session, *robot, {"point_cloud", message.seq(), message.stamp_s()},
+                                      [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
+                                        insert_point_cloud(grid, X_WB, model, cloud, message);
+                                      });
+    });
+  });
+}
+
+}  // namespace occgeo::service

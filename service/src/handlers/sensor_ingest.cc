@@ -1,0 +1,70 @@
+#include "sensor_ingest.h"
+
+#include <cmath>
+#include <string>
+
+namespace occgeo::service {
+
+void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq) {
+  robot.update_state([](RobotState& state) { ++state.scans_rejected; });
+  session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message + "; the message was discarded", 0, seq);
+}
+
+bool ingest_sensor_message_on_strand(
+    const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
+    const std::function<void(const geometry::Pose2& X_WB, mapping::HimmGrid& grid)>& insert) {
+  const RobotState before = robot.state();
+  const std::string kind(header.kind);
+  std::string order_error;
+  std::string order_field;
+  if (!before.X_WB) {
+    order_field = kind;
+    order_error = "no odometry or wheel encoders received yet: the message cannot be placed in the world";
+  } else if (before.last_scan_stamp_s && header.stamp_s < *before.last_scan_stamp_s) {
+    order_field = kind + ".stamp_s";
+    order_error = "timestamp went backwards (the last sensor message of this robot had " +
+                  std::to_string(*before.last_scan_stamp_s) + " s)";
+  } else if (before.last_scan_seq && header.seq <= *before.last_scan_seq) {
+    order_field = kind + ".seq";
+    order_error = "sequence number did not increase (the last sensor message of this robot had " +
+                  std::to_string(*before.last_scan_seq) + ")";
+  }
+  if (!order_error.empty()) {
+    robot.update_state([](RobotState& state) { ++state.scans_rejected; });
+    session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the message was discarded", 0,
+                        header.seq);
+    return false;
+  }
+
+  World& world = robot.world();
+  insert(*before.X_WB, world.grid_on_strand());
+  world.publish_on_strand();
+
+  v1::ServerMessage ack;
+  ack.mutable_scan_ack()->set_seq(header.seq);
+  ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
+  session->send(std::move(ack));
+
+  robot.update_state([&](RobotState& state) {
+    state.last_scan_stamp_s = header.stamp_s;
+    state.last_scan_seq = header.seq;
+    ++state.scans_ingested;
+  });
+  return true;
+}
+
+geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Pose3& X_BS,
+                                 const geometry::Pose2& X_SE) {
+  return geometry::Pose3::from_pose2(X_WB).compose(X_BS).compose(geometry::Pose3::from_pose2(X_SE)).to_pose2();
+}
+
+void insert_beam(mapping::HimmGrid& grid, const geometry::Pose2& X_WE, double reading_m, double range_min_m,
+                 double range_max_m) {
+  if (reading_m < range_min_m) return;
+  const double range = std::min(reading_m, range_max_m);
+  const Eigen::Vector2d origin = X_WE.position();
+  const Eigen::Vector2d end = origin + range * Eigen::Vector2d(std::cos(X_WE.theta), std::sin(X_WE.theta));
+  grid.insert_ray(origin, end, reading_m < range_max_m);
+}
+
+}  // namespace occgeo::service

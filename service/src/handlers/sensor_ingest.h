@@ -1,0 +1,46 @@
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string_view>
+
+#include "../validation.h"
+#include "handlers.h"
+
+namespace occgeo::service {
+
+// What every sensor message (LaserScan, RangeArray, ServoRange, PointCloud) carries for ordering.
+struct SensorMessageHeader {
+  std::string_view kind;  // its ClientMessage field, e.g. "range_array"; errors name fields under it
+  std::uint64_t seq = 0;
+  double stamp_s = 0.0;
+};
+
+// Answers a sensor message that failed validation: counts the rejection in the robot's status
+// and sends ERROR_INVALID_ARGUMENT naming the field. Nothing reaches the map.
+void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq);
+
+// Updates the map from one validated sensor message; runs on the robot's world strand. Sensor
+// messages share one order per robot whatever their kind, so a range array cannot slip in
+// between a laser scan and the next with a stale seq or stamp. When the robot has a pose and the
+// message's seq increases and its stamp does not go backwards, calls insert(X_WB, grid) with the
+// robot's latest pose, publishes one snapshot, sends the ScanAck and records the message in the
+// robot's state, then returns true. Otherwise sends ERROR_OUT_OF_ORDER naming the field, counts
+// the rejection and returns false, leaving the map alone.
+bool ingest_sensor_message_on_strand(
+    const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
+    const std::function<void(const geometry::Pose2& X_WB, mapping::HimmGrid& grid)>& insert);
+
+// The ground-plane pose of a beam that lies in a sensor's x-y plane at X_SE (metres, radians) and
+// measures along its own x axis, for a robot at X_WB carrying the sensor at X_BS. Composed in 3D
+// and then projected, so that an upside-down mount mirrors the beams as it does physically.
+geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Pose3& X_BS,
+                                 const geometry::Pose2& X_SE = {});
+
+// Applies one single-beam reading taken from a beam at X_WE on the ground plane: readings below
+// range_min_m carry no information and are skipped; readings at or beyond range_max_m clear the
+// beam up to range_max_m without marking; others clear up to the reading and mark its cell.
+void insert_beam(mapping::HimmGrid& grid, const geometry::Pose2& X_WE, double reading_m, double range_min_m,
+                 double range_max_m);
+
+}  // namespace occgeo::service

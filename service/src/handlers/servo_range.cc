@@ -1,0 +1,27 @@
+#include <boost/asio/post.hpp>
+
+#include "sensor_ingest.h"
+
+namespace occgeo::service {
+
+void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
+  auto robot = session->info().robot;
+  if (auto error = check_servo_range(message, robot->model())) {
+    reject_sensor_message(session, *robot, *error, message.seq());
+    return;
+  }
+  asio::post(robot->world().strand(), [session, robot, message = std::move(message)] {
+    run_guarded(session, "servo_range", 0, [&] {
+      const ServoRangeModel& servo = *robot->model().find_servo_range(message.sensor());
+      ingest_sensor_message_on_strand(
+          session, *robot, {"servo_range", message.seq(), message.stamp_s()},
+          [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
+            // The servo turns the beam about the sensor frame's z axis.
+            const geometry::Pose2 X_WE = planar_beam_pose(X_WB, servo.X_BS, {0.0, 0.0, message.servo_angle_rad()});
+            insert_beam(grid, X_WE, static_cast<double>(message.range_m()), servo.range_min_m, servo.range_max_m);
+          });
+    });
+  });
+}
+
+}  // namespace occgeo::service
