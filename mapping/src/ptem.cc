@@ -1,0 +1,277 @@
+#include "occgeo/mapping/ptem.h"
+
+#include <CGAL/Min_sphere_of_spheres_d.h>
+#include <CGAL/Min_sphere_of_spheres_d_traits_2.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "format_number.h"
+
+namespace occgeo::mapping {
+
+namespace {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+// Tag_true: let CGAL take square roots, so the result is a plain double rather than a + b√c.
+using MinCircleTraits = CGAL::Min_sphere_of_spheres_d_traits_2<Kernel, double, CGAL::Tag_true>;
+using MinCircle = CGAL::Min_sphere_of_spheres_d<MinCircleTraits>;
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+void require(bool condition, const std::string& what, const std::string& rule, const std::string& value) {
+  if (!condition) throw std::invalid_argument(what + " must be " + rule + ", got " + value);
+}
+
+std::string format_point(const Eigen::Vector2d& p) {
+  return "(" + format_number(p.x()) + ", " + format_number(p.y()) + ")";
+}
+
+// Eq 4.1 for one isotropic term at distance² d2 from its mean: exp(−d²/(2σ²)) / (2πσ²).
+double gaussian_2d(double d2, double sigma) {
+  const double s2 = sigma * sigma;
+  return std::exp(-d2 / (2.0 * s2)) / (kTwoPi * s2);
+}
+
+// Distance from q (relative to a segment's start) to the segment of the given length along unit direction u.
+double distance_to_segment(const Eigen::Vector2d& q, const Eigen::Vector2d& u, double length) {
+  const double t = std::clamp(q.dot(u), 0.0, length);
+  return (q - t * u).norm();
+}
+
+// Distance from p_W to the closed sector the scan covered: apex p_WS, within field_of_view_rad / 2 of the heading
+// yaw_WS and within max_range_m; 0 inside. Outside the wedge the nearest point lies on one of the two bounding
+// segments (the arc's points nearest to such a point are its ends), which holds for wedges wider than 180° too (the
+// URG-04LX's is 240°).
+double distance_to_scanned_sector(const Eigen::Vector2d& p_W, const PtemScan& scan) {
+  const Eigen::Vector2d q = p_W - scan.p_WS;
+  const double beyond_range = std::max(0.0, q.norm() - scan.max_range_m);
+  if (scan.field_of_view_rad >= kTwoPi) return beyond_range;
+  const double half = scan.field_of_view_rad / 2.0;
+  const Eigen::Vector2d heading(std::cos(scan.yaw_WS), std::sin(scan.yaw_WS));
+  const double bearing = std::atan2(heading.x() * q.y() - heading.y() * q.x(), heading.dot(q));
+  if (std::abs(bearing) <= half) return beyond_range;
+  const Eigen::Vector2d left(std::cos(scan.yaw_WS + half), std::sin(scan.yaw_WS + half));
+  const Eigen::Vector2d right(std::cos(scan.yaw_WS - half), std::sin(scan.yaw_WS - half));
+  return std::min(distance_to_segment(q, left, scan.max_range_m), distance_to_segment(q, right, scan.max_range_m));
+}
+
+void validate_scan(const PtemScan& scan, const std::optional<double>& latest_stamp_s) {
+  require(std::isfinite(scan.stamp_s), "PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
+  if (latest_stamp_s) {
+    require(scan.stamp_s >= *latest_stamp_s, "PtemScan.stamp_s",
+            ">= the previous scan's stamp " + format_number(*latest_stamp_s), format_number(scan.stamp_s));
+  }
+  require(scan.p_WS.allFinite(), "PtemScan.p_WS", "finite", format_point(scan.p_WS));
+  require(std::isfinite(scan.yaw_WS), "PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
+  require(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi, "PtemScan.field_of_view_rad", "in (0, 2pi]",
+          format_number(scan.field_of_view_rad));
+  require(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0, "PtemScan.max_range_m", "a finite number > 0",
+          format_number(scan.max_range_m));
+  for (std::size_t i = 0; i < scan.points_W.size(); ++i) {
+    require(scan.points_W[i].allFinite(), "PtemScan.points_W[" + std::to_string(i) + "]", "finite",
+            format_point(scan.points_W[i]));
+  }
+}
+
+}  // namespace
+
+void PtemParams::validate() const {
+  require(std::isfinite(cluster_distance_m) && cluster_distance_m >= 0.0, "PtemParams.cluster_distance_m",
+          "a finite number >= 0", format_number(cluster_distance_m));
+  require(std::isfinite(initial_cluster_radius_m) && initial_cluster_radius_m > 0.0,
+          "PtemParams.initial_cluster_radius_m", "a finite number > 0", format_number(initial_cluster_radius_m));
+  require(std::isfinite(restricted_threshold) && restricted_threshold > 0.0, "PtemParams.restricted_threshold",
+          "a finite number > 0", format_number(restricted_threshold));
+  if (first_cluster_sigma_m) {
+    require(std::isfinite(*first_cluster_sigma_m) && *first_cluster_sigma_m > 0.0, "PtemParams.first_cluster_sigma_m",
+            "a finite number > 0 when set", format_number(*first_cluster_sigma_m));
+  }
+  require(construction == PtemConstruction::kCumulative || construction == PtemConstruction::kSingleScan,
+          "PtemParams.construction", "kCumulative or kSingleScan", std::to_string(static_cast<int>(construction)));
+}
+
+PtemCircle enclose_circle_and_point(const PtemCircle& circle, const Eigen::Vector2d& p_W) {
+  // §4.2.1: "If the new data point is already inside the cluster, then no change is required."
+  if ((p_W - circle.centre_W).norm() <= circle.radius_m) return circle;
+  const std::array<MinCircleTraits::Sphere, 2> spheres{
+      MinCircleTraits::Sphere(Kernel::Point_2(circle.centre_W.x(), circle.centre_W.y()), circle.radius_m),
+      MinCircleTraits::Sphere(Kernel::Point_2(p_W.x(), p_W.y()), 0.0)};
+  MinCircle min_circle(spheres.begin(), spheres.end());
+  auto centre = min_circle.center_cartesian_begin();
+  const double x = *centre;
+  ++centre;
+  const double y = *centre;
+  return PtemCircle{Eigen::Vector2d(x, y), min_circle.radius()};
+}
+
+double max_cluster_radius(double f_r) { return 1.0 / std::sqrt(std::numbers::pi * std::numbers::e * f_r); }
+
+std::optional<double> sigma_for_radius(double radius_m, double f_r) {
+  // Eq 4.1 for one cluster at distance R = radius_m from its mean, set equal to f_r:
+  //   f_r = exp(−R²/(2σ²)) / (2πσ²).
+  // With u = R²/(2σ²), i.e. σ² = R²/(2u), this is f_r = u e^{−u} / (πR²), so (−u) e^{−u} = −πR² f_r and
+  // −u = W(−πR² f_r). A real solution needs −πR² f_r >= −1/e, i.e. R <= 1/√(πe f_r). Of the two branches, W₀ gives
+  // u in (0, 1] and a σ that shrinks as R grows (σ → 1/√(2π f_r), about 2 m, for a tiny cluster); W₋₁ gives u >= 1 and
+  // σ that grows with R, which is what the seed reads into σ ("variance increases ... restricted region is also
+  // getting bigger", §6.1.1). Both put f_r exactly on the circle; W₋₁ is the one used.
+  //
+  // W₋₁ is computed here rather than by boost::math::lambert_wm1, which returns 0 when compiled with
+  // -frounding-math, as CGAL requires of this file. With a = πR²f_r and L = −ln a, u e^{−u} = a is h(u) = u − ln u − L
+  // = 0 on u >= 1; h is increasing and convex there and h(2L) >= 0 for L >= 1, so Newton's method from u = 2L descends
+  // monotonically onto the root (linearly only at the branch point itself, L = 1).
+  const double a = std::numbers::pi * radius_m * radius_m * f_r;
+  const double big_l = -std::log(a);
+  if (big_l < 1.0 - 1e-12) return std::nullopt;
+  double u = 1.0;
+  if (big_l > 1.0) {
+    u = 2.0 * big_l;
+    for (int iteration = 0; iteration < 200; ++iteration) {
+      const double step = (u - std::log(u) - big_l) / (1.0 - 1.0 / u);
+      u -= step;
+      if (!(step > 1e-15 * u) || u <= 1.0) break;
+    }
+    u = std::max(u, 1.0);
+  }
+  return radius_m / std::sqrt(2.0 * u);
+}
+
+PtemSnapshot::PtemSnapshot(std::vector<PtemCluster> clusters, std::optional<double> f_r, std::uint64_t scan_count,
+                           std::optional<double> latest_stamp_s)
+    : clusters_(std::move(clusters)), f_r_(f_r), scan_count_(scan_count), latest_stamp_s_(latest_stamp_s) {
+  terms_.reserve(clusters_.size());
+  for (PtemCluster& cluster : clusters_) {
+    cluster.age_scans = scan_count_ - 1 - cluster.first_seen_scan;
+    cluster.age_s = latest_stamp_s_.value_or(cluster.first_seen_stamp_s) - cluster.first_seen_stamp_s;
+    const double s2 = cluster.sigma_m * cluster.sigma_m;
+    terms_.push_back(Term{cluster.centre_W, 1.0 / (kTwoPi * s2), 1.0 / (2.0 * s2)});
+  }
+}
+
+double PtemSnapshot::threat(const Eigen::Vector2d& p_W) const {
+  // Eq 4.1 with K_i = σ_i² I: f(r) = Σ_i exp(−|r − μ_i|²/(2σ_i²)) / (2πσ_i²).
+  double f = 0.0;
+  for (const Term& term : terms_) f += term.peak * std::exp(-(p_W - term.mean_W).squaredNorm() * term.inv_two_sigma_sq);
+  return f;
+}
+
+PtemThreat PtemSnapshot::threat_and_gradient(const Eigen::Vector2d& p_W) const {
+  // ∇ of each term of eq 4.1: −(r − μ_i)/σ_i² · f_i(r) = −2 (r − μ_i) · inv_two_sigma_sq · f_i(r).
+  PtemThreat out;
+  for (const Term& term : terms_) {
+    const Eigen::Vector2d d = p_W - term.mean_W;
+    const double f_i = term.peak * std::exp(-d.squaredNorm() * term.inv_two_sigma_sq);
+    out.value += f_i;
+    out.gradient_W -= (2.0 * term.inv_two_sigma_sq * f_i) * d;
+  }
+  return out;
+}
+
+bool PtemSnapshot::restricted(const Eigen::Vector2d& p_W) const {
+  if (!f_r_) return false;
+  for (const PtemCluster& cluster : clusters_) {
+    if (!cluster.threshold_reachable && (p_W - cluster.centre_W).norm() <= cluster.radius_m) return true;
+  }
+  return threat(p_W) >= *f_r_;
+}
+
+PtemModel::PtemModel(const PtemParams& params) : params_(params) {
+  params_.validate();
+  if (!params_.first_cluster_sigma_m) f_r_ = params_.restricted_threshold;
+}
+
+void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double stamp_s,
+                               std::vector<PtemCluster>& clusters, std::vector<bool>& grown) const {
+  for (const Eigen::Vector2d& p_W : points_W) {
+    // The nearest cluster boundary: |p − c| − radius (negative inside the circle).
+    std::size_t nearest = clusters.size();
+    double nearest_distance = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < clusters.size(); ++i) {
+      const double distance = (p_W - clusters[i].centre_W).norm() - clusters[i].radius_m;
+      if (distance < nearest_distance) {
+        nearest_distance = distance;
+        nearest = i;
+      }
+    }
+    if (nearest == clusters.size() || nearest_distance > params_.cluster_distance_m) {
+      PtemCluster cluster;
+      cluster.centre_W = p_W;
+      cluster.radius_m = params_.initial_cluster_radius_m;
+      cluster.first_seen_scan = scan_count_;
+      cluster.first_seen_stamp_s = stamp_s;
+      clusters.push_back(cluster);
+      grown.push_back(true);
+    } else if (nearest_distance > 0.0) {
+      PtemCluster& cluster = clusters[nearest];
+      const PtemCircle enclosing = enclose_circle_and_point(PtemCircle{cluster.centre_W, cluster.radius_m}, p_W);
+      cluster.centre_W = enclosing.centre_W;
+      cluster.radius_m = enclosing.radius_m;
+      grown[nearest] = true;
+    }
+  }
+}
+
+void PtemModel::insert_scan(const PtemScan& scan) {
+  validate_scan(scan, latest_stamp_s_);
+
+  std::vector<PtemCluster> clusters;
+  std::vector<bool> grown;
+  if (params_.construction == PtemConstruction::kCumulative) {
+    // §4.2.2: the clusters of earlier scans are kept and take part in clustering this scan's points.
+    clusters = clusters_;
+    grown.assign(clusters.size(), false);
+    cluster_points(scan.points_W, scan.stamp_s, clusters, grown);
+  } else {
+    // §4.2.3/§4.2.5: "All the previous information of obstacle is retained only if they fall outside the LRF limits."
+    // The scan's points are clustered on their own, so kept clusters neither grow nor absorb them.
+    std::vector<PtemCluster> fresh;
+    std::vector<bool> fresh_grown;
+    cluster_points(scan.points_W, scan.stamp_s, fresh, fresh_grown);
+    for (const PtemCluster& cluster : clusters_) {
+      // "Falls outside": the circle and the scanned sector are disjoint. A circle the sector covers even in part is
+      // dropped: the scan re-observed that part, and keeping such circles would pile up copies of every obstacle
+      // near the edges of the field of view and range as the robot moves.
+      if (distance_to_scanned_sector(cluster.centre_W, scan) > cluster.radius_m) {
+        clusters.push_back(cluster);
+        grown.push_back(false);
+      }
+    }
+    clusters.insert(clusters.end(), fresh.begin(), fresh.end());
+    grown.insert(grown.end(), fresh_grown.begin(), fresh_grown.end());
+  }
+
+  if (!f_r_ && !clusters.empty()) {
+    // §4.3, eq 4.2: f_r is set once from the first cluster's radius r_ca and the pre-specified σ. Eq 4.2 is written
+    // with the 1D factor 1/(√(2π)σ) although the text derives it from eq 4.1; the 2D factor of eq 4.1 is used here so
+    // that f_r is the value the threat f itself takes on the first cluster's circle.
+    const double sigma = *params_.first_cluster_sigma_m;
+    const double r_ca = clusters.front().radius_m;
+    f_r_ = gaussian_2d(r_ca * r_ca, sigma);
+  }
+  for (std::size_t i = 0; i < clusters.size(); ++i) {
+    if (!grown[i]) continue;
+    PtemCluster& cluster = clusters[i];
+    const std::optional<double> sigma = sigma_for_radius(cluster.radius_m, *f_r_);
+    // No σ puts f_r on a circle this large: take σ = R/√2, which maximises f at distance R (the limit of the W₋₁
+    // branch as R reaches max_cluster_radius), and let restricted() count the whole circle.
+    cluster.threshold_reachable = sigma.has_value();
+    cluster.sigma_m = sigma.value_or(cluster.radius_m / std::numbers::sqrt2);
+  }
+
+  clusters_ = std::move(clusters);
+  ++scan_count_;
+  latest_stamp_s_ = scan.stamp_s;
+}
+
+std::shared_ptr<const PtemSnapshot> PtemModel::snapshot() const {
+  return std::shared_ptr<const PtemSnapshot>(new PtemSnapshot(clusters_, f_r_, scan_count_, latest_stamp_s_));
+}
+
+}  // namespace occgeo::mapping

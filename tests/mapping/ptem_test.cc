@@ -1,0 +1,550 @@
+#include "occgeo/mapping/ptem.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace occgeo::mapping {
+namespace {
+
+// Hokuyo URG-04LX as seed 004 §3.2.1 describes it: 240° sweep, 4 m range; 682 beams spread evenly over the sweep.
+constexpr int kUrgBeams = 682;
+constexpr double kUrgFieldOfView = 240.0 * std::numbers::pi / 180.0;
+constexpr double kUrgMaxRange = 4.0;
+
+// A circular obstacle, metres.
+struct Disc {
+  Eigen::Vector2d centre_W;
+  double radius_m;
+};
+
+// The points a perfect URG-04LX at p_WS with heading yaw_WS returns from the discs (nearest hit per beam; beams that
+// hit nothing within range return nothing).
+std::vector<Eigen::Vector2d> urg_points(const Eigen::Vector2d& p_WS, double yaw_WS, const std::vector<Disc>& discs) {
+  std::vector<Eigen::Vector2d> points;
+  for (int beam = 0; beam < kUrgBeams; ++beam) {
+    const double angle = yaw_WS - kUrgFieldOfView / 2.0 + kUrgFieldOfView * beam / (kUrgBeams - 1);
+    const Eigen::Vector2d u(std::cos(angle), std::sin(angle));
+    double range = std::numeric_limits<double>::infinity();
+    for (const Disc& disc : discs) {
+      // |p_WS + t u − c|² = R²  →  t² + 2 t u·q + |q|² − R² = 0 with q = p_WS − c.
+      const Eigen::Vector2d q = p_WS - disc.centre_W;
+      const double b = u.dot(q);
+      const double discriminant = b * b - (q.squaredNorm() - disc.radius_m * disc.radius_m);
+      if (discriminant < 0.0) continue;
+      const double t = -b - std::sqrt(discriminant);
+      if (t > 0.0) range = std::min(range, t);
+    }
+    if (range <= kUrgMaxRange) points.push_back(p_WS + range * u);
+  }
+  return points;
+}
+
+PtemScan urg_scan(double stamp_s, const Eigen::Vector2d& p_WS, double yaw_WS,
+                  const std::vector<Eigen::Vector2d>& points_W) {
+  PtemScan scan;
+  scan.stamp_s = stamp_s;
+  scan.p_WS = p_WS;
+  scan.yaw_WS = yaw_WS;
+  scan.field_of_view_rad = kUrgFieldOfView;
+  scan.max_range_m = kUrgMaxRange;
+  scan.points_W = points_W;
+  return scan;
+}
+
+// A scan that sees all around to 100 m, so that it places clusters anywhere.
+PtemScan omniscient_scan(double stamp_s, const std::vector<Eigen::Vector2d>& points_W) {
+  PtemScan scan;
+  scan.stamp_s = stamp_s;
+  scan.field_of_view_rad = 2.0 * std::numbers::pi;
+  scan.max_range_m = 100.0;
+  scan.points_W = points_W;
+  return scan;
+}
+
+PtemParams params_for(PtemConstruction construction) {
+  PtemParams params;
+  params.construction = construction;
+  return params;
+}
+
+// f of one cluster (eq 4.1 with K = σ² I) at distance d from its centre.
+double gaussian(double d, double sigma) {
+  return std::exp(-d * d / (2.0 * sigma * sigma)) / (2.0 * std::numbers::pi * sigma * sigma);
+}
+
+// The message of the std::invalid_argument that f throws, or "" when it does not throw.
+template <typename F>
+std::string invalid_argument_message(F&& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(PtemTest, ParamsValidationNamesTheField) {
+  const auto message_for = [](auto change) {
+    PtemParams params;
+    change(params);
+    return invalid_argument_message([&params] { params.validate(); });
+  };
+  EXPECT_EQ(message_for([](PtemParams&) {}), "");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.cluster_distance_m = -0.1; }),
+            "PtemParams.cluster_distance_m must be a finite number >= 0, got -0.1");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.initial_cluster_radius_m = 0.0; }),
+            "PtemParams.initial_cluster_radius_m must be a finite number > 0, got 0");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.restricted_threshold = std::numeric_limits<double>::quiet_NaN(); }),
+            "PtemParams.restricted_threshold must be a finite number > 0, got nan");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.first_cluster_sigma_m = -1.0; }),
+            "PtemParams.first_cluster_sigma_m must be a finite number > 0 when set, got -1");
+  PtemParams bad;
+  bad.cluster_distance_m = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(invalid_argument_message([&bad] { PtemModel model(bad); }),
+            "PtemParams.cluster_distance_m must be a finite number >= 0, got inf");
+}
+
+TEST(PtemTest, ScanValidationNamesTheFieldAndChangesNothing) {
+  PtemModel model(PtemParams{});
+  const std::vector<Eigen::Vector2d> good{{1.0, 0.0}};
+  model.insert_scan(urg_scan(2.0, {0.0, 0.0}, 0.0, good));
+  const auto message_for = [&model, &good](auto change) {
+    PtemScan scan = urg_scan(3.0, {0.0, 0.0}, 0.0, good);
+    change(scan);
+    return invalid_argument_message([&] { model.insert_scan(scan); });
+  };
+  EXPECT_EQ(message_for([](PtemScan& s) { s.stamp_s = 1.5; }),
+            "PtemScan.stamp_s must be >= the previous scan's stamp 2, got 1.5");
+  EXPECT_EQ(message_for([](PtemScan& s) { s.field_of_view_rad = 0.0; }),
+            "PtemScan.field_of_view_rad must be in (0, 2pi], got 0");
+  EXPECT_EQ(message_for([](PtemScan& s) { s.max_range_m = -4.0; }),
+            "PtemScan.max_range_m must be a finite number > 0, got -4");
+  EXPECT_EQ(message_for([](PtemScan& s) { s.yaw_WS = std::numeric_limits<double>::infinity(); }),
+            "PtemScan.yaw_WS must be finite, got inf");
+  const std::vector<Eigen::Vector2d> bad_points{{1.0, 0.0}, {std::numeric_limits<double>::quiet_NaN(), 2.0}};
+  EXPECT_EQ(message_for([&bad_points](PtemScan& s) { s.points_W = bad_points; }),
+            "PtemScan.points_W[1] must be finite, got (nan, 2)");
+  EXPECT_EQ(model.scan_count(), 1U);
+  EXPECT_EQ(model.cluster_count(), 1U);
+}
+
+// §4.2.1: a point farther than C_r from every cluster boundary starts a new cluster of the preset radius centred on it.
+TEST(PtemTest, FarPointStartsNewCluster) {
+  PtemParams params = params_for(PtemConstruction::kCumulative);
+  params.cluster_distance_m = 0.381;
+  params.initial_cluster_radius_m = 0.02;
+  PtemModel model(params);
+  // Boundary distance 1.0 − 0.02 = 0.98 > C_r.
+  const std::vector<Eigen::Vector2d> points{{1.0, 0.0}, {2.0, 0.0}};
+  model.insert_scan(omniscient_scan(0.0, points));
+  const auto snapshot = model.snapshot();
+  ASSERT_EQ(snapshot->clusters().size(), 2U);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(snapshot->clusters()[i].centre_W, points[i]);
+    EXPECT_EQ(snapshot->clusters()[i].radius_m, 0.02);
+  }
+}
+
+// §4.2.1: a point within C_r of a boundary grows that cluster to the smallest circle enclosing the old circle and the
+// point; a point already inside changes nothing.
+TEST(PtemTest, NearPointGrowsNearestCluster) {
+  PtemParams params = params_for(PtemConstruction::kCumulative);
+  params.cluster_distance_m = 0.381;
+  params.initial_cluster_radius_m = 0.02;
+  PtemModel model(params);
+  // Two clusters 2 m apart, then a point 0.3 m right of the first one's centre: boundary distance 0.28 <= C_r, and it
+  // is nearer to the first cluster. Then a point inside the grown circle.
+  const std::vector<Eigen::Vector2d> points{{0.0, 0.0}, {2.0, 0.0}, {0.3, 0.0}, {0.1, 0.05}};
+  model.insert_scan(omniscient_scan(0.0, points));
+  const auto snapshot = model.snapshot();
+  ASSERT_EQ(snapshot->clusters().size(), 2U);
+  const PtemCluster& grown = snapshot->clusters()[0];
+  // Enclosing circle of the circle (0, 0.02) and the point (0.3, 0): diameter from −0.02 to 0.3.
+  EXPECT_NEAR(grown.radius_m, 0.16, 1e-12);
+  EXPECT_NEAR(grown.centre_W.x(), 0.14, 1e-12);
+  EXPECT_NEAR(grown.centre_W.y(), 0.0, 1e-12);
+  EXPECT_EQ(snapshot->clusters()[1].radius_m, 0.02);
+}
+
+// A point exactly C_r from the boundary grows the cluster ("greater than the threshold" starts a new one).
+TEST(PtemTest, PointAtClusterDistanceGrows) {
+  PtemParams params = params_for(PtemConstruction::kCumulative);
+  params.cluster_distance_m = 0.5;
+  params.initial_cluster_radius_m = 0.25;
+  PtemModel model(params);
+  const std::vector<Eigen::Vector2d> points{{0.0, 0.0}, {0.75, 0.0}, {0.0, 2.0}};
+  model.insert_scan(omniscient_scan(0.0, points));
+  EXPECT_EQ(model.cluster_count(), 2U);
+}
+
+// The smallest circle enclosing a circle and a point, as a brute-force search over centres finds it: the radius a
+// centre x needs is max(|x − c| + R, |x − p|), a convex function of x, and so is its minimum over y as a function of
+// x; nested ternary searches over a box holding both shapes find the optimum without assuming where it lies.
+// Tolerances: 200 ternary steps shrink the box to ~1e-35 of its size, so the search is exact to rounding (~1e-15 m);
+// 1e-9 m on the radius and 1e-6 m on the centre (the needed radius is flat to first order along the optimum's
+// ridge, so the centre is found only to about the square root of the rounding).
+TEST(PtemTest, EnclosingCircleMatchesBruteForce) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  std::uniform_real_distribution<double> radius(0.0, 1.5);
+  const auto ternary_min = [](double lo, double hi, const auto& g) {
+    for (int step = 0; step < 200; ++step) {
+      const double m1 = lo + (hi - lo) / 3.0;
+      const double m2 = hi - (hi - lo) / 3.0;
+      if (g(m1) < g(m2)) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
+    }
+    return (lo + hi) / 2.0;
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    const PtemCircle circle{{coordinate(rng), coordinate(rng)}, radius(rng)};
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    const auto needed = [&](const Eigen::Vector2d& x) {
+      return std::max((x - circle.centre_W).norm() + circle.radius_m, (x - p).norm());
+    };
+    const auto best_y = [&](double x) { return ternary_min(-5.0, 5.0, [&](double y) { return needed({x, y}); }); };
+    const double x = ternary_min(-5.0, 5.0, [&](double x_) { return needed({x_, best_y(x_)}); });
+    const Eigen::Vector2d best(x, best_y(x));
+    const PtemCircle enclosing = enclose_circle_and_point(circle, p);
+    EXPECT_NEAR(enclosing.radius_m, needed(best), 1e-9) << "trial " << trial;
+    EXPECT_NEAR((enclosing.centre_W - best).norm(), 0.0, 1e-6) << "trial " << trial;
+    // It encloses both, with rounding slack.
+    EXPECT_LE((p - enclosing.centre_W).norm(), enclosing.radius_m + 1e-12);
+    EXPECT_LE((circle.centre_W - enclosing.centre_W).norm() + circle.radius_m, enclosing.radius_m + 1e-12);
+  }
+}
+
+// §4.3: σ is solved so that the cluster's PDF equals f_r on its circle; σ grows with the radius; no σ exists beyond
+// 1/√(πe f_r).
+TEST(PtemTest, SigmaPutsThresholdOnTheCircle) {
+  const double f_r = 0.04;
+  const double r_max = max_cluster_radius(f_r);
+  EXPECT_NEAR(r_max, 1.7110, 1e-4);
+  double previous_sigma = 0.0;
+  for (double radius = 0.005; radius < r_max; radius += 0.01) {
+    const std::optional<double> sigma = sigma_for_radius(radius, f_r);
+    ASSERT_TRUE(sigma.has_value()) << radius;
+    EXPECT_NEAR(gaussian(radius, *sigma), f_r, 1e-9 * f_r) << radius;
+    EXPECT_GT(*sigma, previous_sigma) << radius;
+    EXPECT_LE(*sigma, radius / std::numbers::sqrt2 * (1.0 + 1e-9)) << radius;
+    previous_sigma = *sigma;
+  }
+  const std::optional<double> at_max = sigma_for_radius(r_max, f_r);
+  ASSERT_TRUE(at_max.has_value());
+  EXPECT_NEAR(*at_max, r_max / std::numbers::sqrt2, 1e-6);
+  EXPECT_FALSE(sigma_for_radius(r_max * 1.001, f_r).has_value());
+}
+
+// Eq 4.1: f is the sum of the clusters' PDFs; its gradient agrees with central differences.
+TEST(PtemTest, ThreatIsSumOfGaussiansAndGradientMatchesFiniteDifferences) {
+  PtemModel model(params_for(PtemConstruction::kCumulative));
+  const std::vector<Eigen::Vector2d> points{{0.0, 0.0}, {0.2, 0.1}, {1.5, 0.5}, {1.5, 0.9}, {1.4, 0.7}};
+  model.insert_scan(omniscient_scan(0.0, points));
+  const auto snapshot = model.snapshot();
+  ASSERT_EQ(snapshot->clusters().size(), 2U);
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> coordinate(-0.5, 2.0);
+  for (int trial = 0; trial < 100; ++trial) {
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    double expected = 0.0;
+    for (const PtemCluster& cluster : snapshot->clusters()) {
+      expected += gaussian((p - cluster.centre_W).norm(), cluster.sigma_m);
+    }
+    const PtemThreat threat = snapshot->threat_and_gradient(p);
+    EXPECT_NEAR(threat.value, expected, 1e-12 * std::max(1.0, expected));
+    EXPECT_EQ(snapshot->threat(p), threat.value);
+    // Central differences with h = 1e-6 m: truncation error ~h²·|f'''| and rounding ~ε·f/h, both far below 1e-5
+    // relative to the gradient's scale (|∇f| up to f/σ, σ ~ 0.1 m here).
+    const double h = 1e-6;
+    const Eigen::Vector2d numeric(
+        (snapshot->threat(p + Eigen::Vector2d(h, 0)) - snapshot->threat(p - Eigen::Vector2d(h, 0))) / (2 * h),
+        (snapshot->threat(p + Eigen::Vector2d(0, h)) - snapshot->threat(p - Eigen::Vector2d(0, h))) / (2 * h));
+    const double scale = std::max(1e-3, threat.gradient_W.norm());
+    EXPECT_NEAR((threat.gradient_W - numeric).norm() / scale, 0.0, 1e-5) << p.transpose();
+  }
+}
+
+// The restricted region of a lone cluster is its circle: f >= f_r inside, < f_r outside.
+TEST(PtemTest, RestrictedRegionIsTheClusterCircle) {
+  PtemModel model(params_for(PtemConstruction::kCumulative));
+  const std::vector<Eigen::Vector2d> points{{1.0, 1.0}, {1.3, 1.0}};
+  model.insert_scan(omniscient_scan(0.0, points));
+  const auto snapshot = model.snapshot();
+  ASSERT_EQ(snapshot->clusters().size(), 1U);
+  const PtemCluster& cluster = snapshot->clusters()[0];
+  EXPECT_TRUE(cluster.threshold_reachable);
+  for (int k = 0; k < 16; ++k) {
+    const double a = k * std::numbers::pi / 8.0;
+    const Eigen::Vector2d u(std::cos(a), std::sin(a));
+    EXPECT_TRUE(snapshot->restricted(cluster.centre_W + (cluster.radius_m - 1e-6) * u));
+    EXPECT_FALSE(snapshot->restricted(cluster.centre_W + (cluster.radius_m + 1e-6) * u));
+  }
+  EXPECT_TRUE(snapshot->restricted(cluster.centre_W));
+  EXPECT_EQ(snapshot->restricted_threshold(), std::optional<double>(0.04));
+}
+
+// A cluster too large for any σ to put f_r on its circle (a wall): σ = R/√2, and its whole circle is restricted.
+TEST(PtemTest, ClusterBeyondMaxRadiusIsRestrictedOverItsCircle) {
+  PtemModel model(params_for(PtemConstruction::kCumulative));
+  std::vector<Eigen::Vector2d> wall;
+  for (double x = 0.0; x <= 4.0; x += 0.05) wall.emplace_back(x, 1.0);
+  model.insert_scan(omniscient_scan(0.0, wall));
+  const auto snapshot = model.snapshot();
+  ASSERT_EQ(snapshot->clusters().size(), 1U);
+  const PtemCluster& cluster = snapshot->clusters()[0];
+  EXPECT_GT(cluster.radius_m, max_cluster_radius(0.04));
+  EXPECT_FALSE(cluster.threshold_reachable);
+  EXPECT_NEAR(cluster.sigma_m, cluster.radius_m / std::numbers::sqrt2, 1e-12);
+  for (const Eigen::Vector2d& p : wall) EXPECT_TRUE(snapshot->restricted(p)) << p.transpose();
+  EXPECT_FALSE(snapshot->restricted(cluster.centre_W + Eigen::Vector2d(0.0, cluster.radius_m + 0.01)));
+}
+
+// §4.2.3/§4.2.5: in single-scan mode an older cluster survives only while its circle lies wholly outside the scanned
+// sector.
+TEST(PtemTest, SingleScanKeepsOnlyClustersOutsideTheScannedSector) {
+  PtemModel model(params_for(PtemConstruction::kSingleScan));
+  const auto polar = [](double bearing_deg, double range) {
+    const double a = bearing_deg * std::numbers::pi / 180.0;
+    return Eigen::Vector2d(range * std::cos(a), range * std::sin(a));
+  };
+  // Clusters of the initial radius 0.02 m; the URG-04LX at the origin facing +x sees bearings in [−120°, 120°].
+  const std::vector<Eigen::Vector2d> first{
+      {2.0, 0.0},          // in front, inside the sector, not re-observed: dropped
+      {-2.0, 0.0},         // behind the robot, outside the field of view: kept
+      {6.0, 0.0},          // beyond the 4 m range: kept
+      {4.01, 0.0},         // centre beyond range but its circle reaches into it: dropped
+      polar(119.0, 3.0),   // inside the field of view, 0.052 m from its edge: dropped
+      polar(120.3, 1.5),   // centre 0.008 m outside the field of view, circle crosses its edge: dropped
+      polar(-121.5, 2.0),  // 0.052 m outside the field of view: kept
+  };
+  model.insert_scan(omniscient_scan(0.0, first));
+  ASSERT_EQ(model.cluster_count(), first.size());
+  const std::vector<Eigen::Vector2d> none;
+  model.insert_scan(urg_scan(0.1, {0.0, 0.0}, 0.0, none));
+  const auto snapshot = model.snapshot();
+  std::vector<Eigen::Vector2d> kept;
+  for (const PtemCluster& cluster : snapshot->clusters()) kept.push_back(cluster.centre_W);
+  EXPECT_EQ(kept, (std::vector<Eigen::Vector2d>{{-2.0, 0.0}, {6.0, 0.0}, polar(-121.5, 2.0)}));
+  for (const PtemCluster& cluster : snapshot->clusters()) {
+    EXPECT_EQ(cluster.age_scans, 1U);
+    EXPECT_DOUBLE_EQ(cluster.age_s, 0.1);
+  }
+  // Turned around, the sensor now covers the clusters behind and beside it, which are dropped; the one beyond range
+  // stays.
+  model.insert_scan(urg_scan(0.2, {0.0, 0.0}, std::numbers::pi, none));
+  const auto after_turn = model.snapshot();
+  ASSERT_EQ(after_turn->clusters().size(), 1U);
+  EXPECT_EQ(after_turn->clusters()[0].centre_W, Eigen::Vector2d(6.0, 0.0));
+  // A cluster seen again is made again: a fresh cluster, age 0.
+  const std::vector<Eigen::Vector2d> again{{2.0, 0.0}};
+  model.insert_scan(urg_scan(0.3, {0.0, 0.0}, 0.0, again));
+  const auto seen_again = model.snapshot();
+  ASSERT_EQ(seen_again->clusters().size(), 2U);
+  EXPECT_EQ(seen_again->clusters()[1].centre_W, again[0]);
+  EXPECT_EQ(seen_again->clusters()[1].age_scans, 0U);
+}
+
+// In single-scan mode a re-observed obstacle is a fresh cluster (age 0); in cumulative mode it stays the first one.
+TEST(PtemTest, ConstructionsDifferInWhatTheyKeep) {
+  const std::vector<Eigen::Vector2d> a{{2.0, 0.0}};
+  const std::vector<Eigen::Vector2d> b{{2.0, 1.0}};
+  PtemModel cumulative(params_for(PtemConstruction::kCumulative));
+  PtemModel single(params_for(PtemConstruction::kSingleScan));
+  for (PtemModel* model : {&cumulative, &single}) {
+    model->insert_scan(urg_scan(0.0, {0.0, 0.0}, 0.0, a));
+    model->insert_scan(urg_scan(0.5, {0.0, 0.0}, 0.0, b));
+  }
+  const auto c = cumulative.snapshot();
+  ASSERT_EQ(c->clusters().size(), 2U);
+  EXPECT_EQ(c->clusters()[0].centre_W, a[0]);
+  EXPECT_EQ(c->clusters()[0].age_scans, 1U);
+  EXPECT_DOUBLE_EQ(c->clusters()[0].age_s, 0.5);
+  const auto s = single.snapshot();
+  ASSERT_EQ(s->clusters().size(), 1U);
+  EXPECT_EQ(s->clusters()[0].centre_W, b[0]);
+  EXPECT_EQ(s->clusters()[0].age_scans, 0U);
+  EXPECT_EQ(s->clusters()[0].first_seen_scan, 1U);
+}
+
+// §4.3: with a σ pre-specified for the first cluster, f_r is eq 4.1 at the first cluster's radius, then fixed.
+TEST(PtemTest, ThresholdFromFirstClusterIsFixed) {
+  PtemParams params = params_for(PtemConstruction::kCumulative);
+  params.first_cluster_sigma_m = 0.03;
+  PtemModel model(params);
+  EXPECT_FALSE(model.snapshot()->restricted_threshold().has_value());
+  EXPECT_FALSE(model.snapshot()->restricted({0.0, 0.0}));
+  // The first cluster grows from (1, 0) with radius 0.02 m to enclose (1.1, 0): r_ca = 0.06 m.
+  const std::vector<Eigen::Vector2d> first{{1.0, 0.0}, {1.1, 0.0}};
+  model.insert_scan(omniscient_scan(0.0, first));
+  const auto snapshot = model.snapshot();
+  const double r_ca = snapshot->clusters()[0].radius_m;
+  EXPECT_NEAR(r_ca, 0.06, 1e-12);
+  ASSERT_TRUE(snapshot->restricted_threshold().has_value());
+  const double f_r = *snapshot->restricted_threshold();
+  EXPECT_NEAR(f_r, gaussian(r_ca, 0.03), 1e-12 * f_r);
+  // σ = 0.03 m <= r_ca/√2 lies on the branch sigma_for_radius solves on, so solving gives the pre-specified σ back.
+  EXPECT_NEAR(snapshot->clusters()[0].sigma_m, 0.03, 1e-9);
+  const std::vector<Eigen::Vector2d> second{{3.0, 0.0}, {3.5, 0.0}};
+  model.insert_scan(omniscient_scan(1.0, second));
+  EXPECT_EQ(model.snapshot()->restricted_threshold(), std::optional<double>(f_r));
+}
+
+// A snapshot does not change when the model ingests more scans.
+TEST(PtemTest, SnapshotIsImmutable) {
+  PtemModel model(params_for(PtemConstruction::kSingleScan));
+  const std::vector<Eigen::Vector2d> a{{2.0, 0.0}};
+  model.insert_scan(urg_scan(0.0, {0.0, 0.0}, 0.0, a));
+  const auto before = model.snapshot();
+  const double threat_before = before->threat({2.0, 0.0});
+  const std::vector<Eigen::Vector2d> b{{1.0, 1.0}, {1.0, -1.0}};
+  model.insert_scan(urg_scan(0.1, {0.0, 0.0}, 0.0, b));
+  EXPECT_EQ(before->scan_count(), 1U);
+  ASSERT_EQ(before->clusters().size(), 1U);
+  EXPECT_EQ(before->clusters()[0].centre_W, a[0]);
+  EXPECT_EQ(before->threat({2.0, 0.0}), threat_before);
+  EXPECT_EQ(model.snapshot()->clusters().size(), 2U);
+}
+
+// Points of the disc on a polar grid (11 rings, 72 spokes), boundary included, for which keep(p) holds.
+template <typename Keep>
+std::vector<Eigen::Vector2d> disc_samples(const Disc& disc, Keep keep) {
+  std::vector<Eigen::Vector2d> samples;
+  for (int ring = 0; ring <= 10; ++ring) {
+    for (int k = 0; k < 72; ++k) {
+      const double a = k * std::numbers::pi / 36.0;
+      const Eigen::Vector2d p = disc.centre_W + disc.radius_m * ring / 10.0 * Eigen::Vector2d(std::cos(a), std::sin(a));
+      if (keep(p)) samples.push_back(p);
+    }
+  }
+  return samples;
+}
+
+// Seed §5.1: a thin obstacle (r = 0.055 m at (1.75, 0)) and a cone (r = 0.15 m at 1.75 m ahead), each seen by the
+// URG-04LX from the origin over 10 scans, give one cluster in both constructions. Its restricted region holds every
+// return, the obstacle's centre and at least half of its disc, but not the far side, which no beam reaches:
+// §4.2.1's circles enclose what was seen, not the obstacle (the drive-past test shows full coverage).
+TEST(PtemTest, StationaryObstaclesGiveOneClusterCoveringTheSeenSide) {
+  const Eigen::Vector2d p_WS(0.0, 0.0);
+  for (const Disc& obstacle : {Disc{{1.75, 0.0}, 0.055}, Disc{{1.75, 0.0}, 0.15}}) {
+    for (PtemConstruction construction : {PtemConstruction::kCumulative, PtemConstruction::kSingleScan}) {
+      PtemModel model(params_for(construction));
+      const std::vector<Eigen::Vector2d> points = urg_points(p_WS, 0.0, {obstacle});
+      ASSERT_GT(points.size(), 5U);
+      for (int k = 0; k < 10; ++k) model.insert_scan(urg_scan(0.1 * k, p_WS, 0.0, points));
+      const auto snapshot = model.snapshot();
+      ASSERT_EQ(snapshot->clusters().size(), 1U) << obstacle.radius_m;
+      const PtemCluster& cluster = snapshot->clusters()[0];
+      const std::vector<Eigen::Vector2d> all = disc_samples(obstacle, [](const Eigen::Vector2d&) { return true; });
+      const auto covered =
+          std::count_if(all.begin(), all.end(), [&](const auto& p) { return snapshot->restricted(p); });
+      std::printf(
+          "obstacle r=%.3f m, %s: %zu returns, cluster centre (%.4f, %.4f) radius %.4f m sigma %.4f m, %.0f%% of the "
+          "obstacle's disc restricted\n",
+          obstacle.radius_m, construction == PtemConstruction::kCumulative ? "cumulative" : "single-scan",
+          points.size(), cluster.centre_W.x(), cluster.centre_W.y(), cluster.radius_m, cluster.sigma_m,
+          100.0 * static_cast<double>(covered) / static_cast<double>(all.size()));
+      for (const Eigen::Vector2d& p : points) EXPECT_TRUE(snapshot->restricted(p)) << p.transpose();
+      EXPECT_TRUE(snapshot->restricted(obstacle.centre_W));
+      EXPECT_GE(static_cast<double>(covered), 0.5 * static_cast<double>(all.size()));
+      EXPECT_FALSE(snapshot->restricted(obstacle.centre_W + Eigen::Vector2d(obstacle.radius_m, 0.0)));
+    }
+  }
+}
+
+// Seed §5.1 as driven: the robot passes the obstacles at 0.3 m/s along y = −0.6 m, scanning at 10 Hz, so that the
+// sensor sees their lower half from in front, beside and behind. The cumulative construction ends with one cluster
+// whose restricted region covers the whole seen half (y <= obstacle's y) and more of the disc than one viewpoint
+// gives; the upper half's far side is never seen.
+TEST(PtemTest, CumulativeDrivePastCoversTheSeenHalf) {
+  for (const Disc& obstacle : {Disc{{1.75, 0.0}, 0.055}, Disc{{1.75, 0.0}, 0.15}}) {
+    PtemModel model(params_for(PtemConstruction::kCumulative));
+    for (int k = 0; k <= 120; ++k) {
+      const Eigen::Vector2d p_WS(0.03 * k, -0.6);
+      const std::vector<Eigen::Vector2d> points = urg_points(p_WS, 0.0, {obstacle});
+      model.insert_scan(urg_scan(0.1 * k, p_WS, 0.0, points));
+    }
+    const auto snapshot = model.snapshot();
+    ASSERT_EQ(snapshot->clusters().size(), 1U) << obstacle.radius_m;
+    const PtemCluster& cluster = snapshot->clusters()[0];
+    const std::vector<Eigen::Vector2d> all = disc_samples(obstacle, [](const Eigen::Vector2d&) { return true; });
+    const auto covered = std::count_if(all.begin(), all.end(), [&](const auto& p) { return snapshot->restricted(p); });
+    std::printf("drive past r=%.3f m: cluster centre (%.4f, %.4f) radius %.4f m sigma %.4f m, %.0f%% of the disc\n",
+                obstacle.radius_m, cluster.centre_W.x(), cluster.centre_W.y(), cluster.radius_m, cluster.sigma_m,
+                100.0 * static_cast<double>(covered) / static_cast<double>(all.size()));
+    const auto lower_half = [&](const Eigen::Vector2d& p) { return p.y() <= obstacle.centre_W.y(); };
+    for (const Eigen::Vector2d& p : disc_samples(obstacle, lower_half)) {
+      EXPECT_TRUE(snapshot->restricted(p)) << "obstacle r=" << obstacle.radius_m << " at " << p.transpose();
+    }
+    EXPECT_GE(static_cast<double>(covered), 0.8 * static_cast<double>(all.size()));
+  }
+}
+
+// Area (m²) of the restricted region inside [x_min, x_max] × [y_min, y_max], by counting 1 cm cells.
+double restricted_area(const PtemSnapshot& snapshot, double x_min, double x_max, double y_min, double y_max) {
+  constexpr double kCell = 0.01;
+  int count = 0;
+  for (double x = x_min + kCell / 2; x < x_max; x += kCell) {
+    for (double y = y_min + kCell / 2; y < y_max; y += kCell) count += snapshot.restricted({x, y}) ? 1 : 0;
+  }
+  return count * kCell * kCell;
+}
+
+// Seed §6.1.1: an obstacle moving toward the robot at 0.1 m/s from (3.3, 0), scanned at 10 Hz. The cumulative
+// restricted region keeps growing along the obstacle's track; the single-scan one stays the obstacle's size.
+TEST(PtemTest, MovingObstacleCumulativeGrowsSingleScanDoesNot) {
+  constexpr double kObstacleRadius = 0.15;  // the cone of §6.2
+  constexpr double kSpeed = 0.1;            // m/s
+  constexpr double kPeriod = 0.1;           // s, 10 Hz (§3.2.1: 100 ms per scan)
+  constexpr int kScans = 150;               // 15 s: the obstacle ends at (1.8, 0)
+  PtemModel cumulative(params_for(PtemConstruction::kCumulative));
+  PtemModel single(params_for(PtemConstruction::kSingleScan));
+  std::printf(
+      "  t[s]  obstacle_x | cumulative: n  mean_x  mean_y  sigma  area[m2] | single-scan: n  mean_x  mean_y  "
+      "sigma  area[m2]\n");
+  double previous_cumulative_area = 0.0;
+  const double obstacle_area = std::numbers::pi * kObstacleRadius * kObstacleRadius;
+  for (int k = 0; k < kScans; ++k) {
+    const double t = k * kPeriod;
+    const Disc obstacle{{3.3 - kSpeed * t, 0.0}, kObstacleRadius};
+    const std::vector<Eigen::Vector2d> points = urg_points({0.0, 0.0}, 0.0, {obstacle});
+    cumulative.insert_scan(urg_scan(t, {0.0, 0.0}, 0.0, points));
+    single.insert_scan(urg_scan(t, {0.0, 0.0}, 0.0, points));
+    const auto c = cumulative.snapshot();
+    const auto s = single.snapshot();
+    ASSERT_EQ(s->clusters().size(), 1U) << "t=" << t;
+    const PtemCluster& sc = s->clusters()[0];
+    // Single-scan: the restricted region lies within 2 obstacle radii of the obstacle's true centre.
+    EXPECT_LE((sc.centre_W - obstacle.centre_W).norm() + sc.radius_m, 2.0 * kObstacleRadius) << "t=" << t;
+    if (k % 10 == 0 || k == kScans - 1) {
+      const double c_area = restricted_area(*c, 0.0, 4.0, -2.0, 2.0);
+      const double s_area = restricted_area(*s, 0.0, 4.0, -2.0, 2.0);
+      const PtemCluster& cc = c->clusters().front();
+      std::printf("  %4.1f  %5.2f      | %zu  %6.3f  %6.3f  %6.4f  %7.4f  | %zu  %6.3f  %6.3f  %6.4f  %7.4f\n", t,
+                  obstacle.centre_W.x(), c->clusters().size(), cc.centre_W.x(), cc.centre_W.y(), cc.sigma_m, c_area,
+                  s->clusters().size(), sc.centre_W.x(), sc.centre_W.y(), sc.sigma_m, s_area);
+      EXPECT_LE(s_area, 4.0 * obstacle_area) << "t=" << t;
+      if (k >= 10) {
+        EXPECT_GT(c_area, previous_cumulative_area) << "t=" << t;
+      }
+      previous_cumulative_area = c_area;
+    }
+  }
+  // After 15 s the cumulative region spans the 1.5 m the obstacle travelled.
+  EXPECT_GT(previous_cumulative_area, 10.0 * obstacle_area);
+}
+
+}  // namespace
+}  // namespace occgeo::mapping
