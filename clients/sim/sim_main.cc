@@ -30,7 +30,7 @@ using SteadyClock = std::chrono::steady_clock;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
 
-// Longest wall time a lockstep run waits for the command answering a scan.
+// Longest wall time a lockstep run waits for a batch's ScanAck and motion command.
 constexpr std::chrono::seconds kLockstepAnswerTimeout{10};
 // Longest single wait on the socket, so a signal is noticed promptly.
 constexpr std::chrono::milliseconds kReceiveSlice{100};
@@ -59,15 +59,14 @@ std::ofstream open_output(const std::filesystem::path& path, const char* flag) {
   return out;
 }
 
-// Sends the scan due now (odometry first) and appends the pose to the trace; returns the scan's seq.
-std::uint64_t send_scan(Connection& connection, Simulation& simulation, OutputFiles& files) {
-  const occgeo::sim::ScanMessages scan = simulation.take_scan();
-  connection.send(scan.odometry);
-  connection.send(scan.laser_scan);
+// Sends the batch due now (pose message first) and appends the pose to the trace.
+occgeo::sim::SensorBatch send_batch(Connection& connection, Simulation& simulation, OutputFiles& files) {
+  occgeo::sim::SensorBatch batch = simulation.take_batch();
+  for (const occgeo::v1::ClientMessage& message : batch.messages) connection.send(message);
   if (files.trace) {
     *files.trace << occgeo::sim::trace_csv_row(simulation.robot().time_s(), simulation.robot().pose()) << '\n';
   }
-  return scan.seq;
+  return batch;
 }
 
 // Throws RunError for a server Error; returns the motion command the message carries, if any.
@@ -81,22 +80,29 @@ std::optional<occgeo::v1::MotionCommand> motion_command_in(const occgeo::v1::Ser
   return std::nullopt;
 }
 
-// Waits for the command answering scan `seq` and applies it; older commands and other messages are skipped.
-void await_answer(Connection& connection, Simulation& simulation, std::uint64_t seq) {
+// Waits until the server acknowledged the batch's last sensor message and, when the batch holds the steering laser's
+// scan, sent the command answering it (applied); either may come first. Older acks and commands are skipped.
+void await_answer(Connection& connection, Simulation& simulation, const occgeo::sim::SensorBatch& batch) {
+  bool acked = batch.last_sensor_seq == 0;
+  bool answered = !batch.steering_scan_seq.has_value();
   const auto deadline = SteadyClock::now() + kLockstepAnswerTimeout;
-  while (g_stop_requested == 0) {
+  while (g_stop_requested == 0 && !(acked && answered)) {
     const auto now = SteadyClock::now();
     if (now >= deadline) {
-      throw RunError("occgeo-sim: lockstep: no motion command answered scan " + std::to_string(seq) + " within " +
+      const std::string waiting_for =
+          !acked ? "no ScanAck for sensor message " + std::to_string(batch.last_sensor_seq)
+                 : "no motion command answered scan " + std::to_string(*batch.steering_scan_seq);
+      throw RunError("occgeo-sim: lockstep: " + waiting_for + " within " +
                      std::to_string(kLockstepAnswerTimeout.count()) + " s");
     }
     const auto wait = std::min(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now), kReceiveSlice);
     const auto message = connection.receive(wait);
     if (!message) continue;
+    if (message->has_scan_ack() && message->scan_ack().seq() == batch.last_sensor_seq) acked = true;
     const auto command = motion_command_in(*message);
-    if (command && command->answers_scan_seq() == seq) {
+    if (command && batch.steering_scan_seq && command->answers_scan_seq() == *batch.steering_scan_seq) {
       simulation.apply_command(*command);
-      return;
+      answered = true;
     }
   }
 }
@@ -115,7 +121,7 @@ void receive_until(Connection& connection, Simulation& simulation, SteadyClock::
 void log_progress(const Simulation& simulation) {
   const occgeo::sim::SimulatedRobot& robot = simulation.robot();
   std::fprintf(stderr,
-               "occgeo-sim: t=%.0f s pose=(%.2f, %.2f, %.3f) distance=%.1f m collisions=%llu scans=%llu "
+               "occgeo-sim: t=%.0f s pose=(%.2f, %.2f, %.3f) distance=%.1f m collisions=%llu sensor messages=%llu "
                "commands=%llu state=%s\n",
                robot.time_s(), robot.pose().x, robot.pose().y, robot.pose().theta, robot.distance_m(),
                static_cast<unsigned long long>(robot.collisions()),
@@ -130,7 +136,7 @@ void run(const SimOptions& options, const occgeo::sim::RobotPreset& preset, Simu
   Connection connection = Connection::open(options.server);
   connection.hello(occgeo::sim::make_driver_hello(options.robot_id, options.world_name));
   occgeo::v1::ClientMessage spec;
-  *spec.mutable_robot_spec() = occgeo::sim::make_robot_spec(preset);
+  *spec.mutable_robot_spec() = occgeo::sim::make_robot_spec(preset, options.start);
   connection.send(spec);
 
   const std::optional<std::int64_t> last_step =
@@ -139,9 +145,9 @@ void run(const SimOptions& options, const occgeo::sim::RobotPreset& preset, Simu
   const auto wall_start = SteadyClock::now();
   const auto step_wall = std::chrono::duration<double>(occgeo::sim::kPhysicsStep_s);
   while (g_stop_requested == 0 && (!last_step || simulation.robot().step_count() < *last_step)) {
-    if (simulation.scan_due()) {
-      const std::uint64_t seq = send_scan(connection, simulation, files);
-      if (options.lockstep) await_answer(connection, simulation, seq);
+    if (simulation.batch_due()) {
+      const occgeo::sim::SensorBatch batch = send_batch(connection, simulation, files);
+      if (options.lockstep) await_answer(connection, simulation, batch);
     }
     if (g_stop_requested != 0) break;
     if (!options.lockstep) {
@@ -180,6 +186,11 @@ int main(int argc, char** argv) {
       simulation.emplace(std::move(world), preset, options.start, options.seed);
     } catch (const std::invalid_argument& error) {
       throw occgeo::sim::ArgsError(std::string("--start: ") + error.what());
+    }
+    try {
+      if (options.drive) simulation->set_drive_script(*options.drive);
+    } catch (const std::invalid_argument& error) {
+      throw occgeo::sim::ArgsError(std::string("--drive: ") + error.what());
     }
     if (options.trace_out) {
       files.trace = open_output(*options.trace_out, "--trace-out");

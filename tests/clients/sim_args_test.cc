@@ -86,7 +86,8 @@ TEST(ParseArgs, ErrorsNameTheFlag) {
       {{"--world", "w.yaml", "--start", "1,2"}, "--start: expected X,Y,THETA"},
       {{"--world", "w.yaml", "--start", "1,2,x"}, "--start: expected X,Y,THETA"},
       {{"--world", "w.yaml", "--start", "1,2,3,4"}, "--start: expected X,Y,THETA"},
-      {{"--world", "w.yaml", "--robot", "r2d2"}, "--robot: unknown robot 'r2d2' (known: bearcat)"},
+      {{"--world", "w.yaml", "--robot", "r2d2"},
+       "--robot: unknown robot 'r2d2' (known: bearcat, scout, activitybot, ugv)"},
       {{"--world", "w.yaml", "--server", "localhost"}, "--server: "},
       {{"--world", "w.yaml", "--server", "localhost:99999"}, "--server: "},
       {{"--world", "w.yaml", "--seed", "-3"}, "--seed: expected a non-negative integer"},
@@ -107,11 +108,11 @@ TEST(ParseArgs, ErrorsNameTheFlag) {
 
 TEST(ConfiguredPreset, AppliesTheLaserOverrides) {
   const RobotPreset preset = configured_preset(parse_args({"--world", "w.yaml", "--laser-range", "5", "--noise", "0"}));
-  EXPECT_EQ(preset.laser.range_max_m, 5.0);
-  EXPECT_EQ(preset.laser.range_noise_sigma_m, 0.0);
+  EXPECT_EQ(preset.laser()->range_max_m, 5.0);
+  EXPECT_EQ(preset.laser()->range_noise_sigma_m, 0.0);
   const RobotPreset defaults = configured_preset(parse_args({"--world", "w.yaml"}));
-  EXPECT_EQ(defaults.laser.range_max_m, 8.0);
-  EXPECT_EQ(defaults.laser.range_noise_sigma_m, 0.01);
+  EXPECT_EQ(defaults.laser()->range_max_m, 8.0);
+  EXPECT_EQ(defaults.laser()->range_noise_sigma_m, 0.01);
 }
 
 TEST(Usage, ListsEveryFlag) {

@@ -10,7 +10,7 @@ namespace occgeo::sim {
 namespace {
 
 LaserPreset bearcat_laser(double noise_sigma_m) {
-  LaserPreset laser = find_robot_preset("bearcat")->laser;
+  LaserPreset laser = *find_robot_preset("bearcat")->laser();
   laser.range_noise_sigma_m = noise_sigma_m;
   return laser;
 }

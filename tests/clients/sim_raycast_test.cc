@@ -127,6 +127,56 @@ TEST(CastRay, AlongAnEdgeHitsOnlyWhereBothSidesAreObstacles) {
   EXPECT_EQ(down_hit->pixels, (std::vector<Pixel>{{1, 2}, {2, 2}}));
 }
 
+TEST(CastRay, NormalIsThatOfThePixelEdgeEntered) {
+  // Hitting the wall column from the left, at any angle, enters its left edge: (-1, 0).
+  const World world = wall_world();
+  EXPECT_EQ(cast_ray(world, {0.0, 0.1}, {1.0, 0.0}, 8.0)->normal_W, Eigen::Vector2d(-1.0, 0.0));
+  const double angle = 20.0 * M_PI / 180.0;
+  EXPECT_EQ(cast_ray(world, {0.0, 0.1}, {std::cos(angle), std::sin(angle)}, 8.0)->normal_W, Eigen::Vector2d(-1.0, 0.0));
+  // From the right, leaving the image's last column, its right edge: (1, 0).
+  EXPECT_EQ(cast_ray(world, {1.9, 0.1}, {-1.0, 0.0}, 8.0)->normal_W, Eigen::Vector2d(1.0, 0.0));
+
+  // A ceiling row (y from 0.5 to 1) hit from below, straight or steeply: (0, -1); a floor row (y from -1 to -0.5) hit
+  // from above: (0, 1).
+  const World floor_and_ceiling = World::from_rows({"####", "....", "....", "...."}, 0.5, {0.0, -1.0});
+  EXPECT_EQ(cast_ray(floor_and_ceiling, {1.0, 0.1}, {0.0, 1.0}, 8.0)->normal_W, Eigen::Vector2d(0.0, -1.0));
+  const double steep = 70.0 * M_PI / 180.0;
+  EXPECT_EQ(cast_ray(floor_and_ceiling, {0.1, 0.1}, {std::cos(steep), std::sin(steep)}, 8.0)->normal_W,
+            Eigen::Vector2d(0.0, -1.0));
+  const World floor = World::from_rows({"....", "....", "....", "####"}, 0.5, {0.0, -1.0});
+  EXPECT_EQ(cast_ray(floor, {1.0, 0.1}, {0.0, -1.0}, 8.0)->normal_W, Eigen::Vector2d(0.0, 1.0));
+}
+
+TEST(CastRay, NormalThroughACornerOrFromInsideIsTheMostOpposedAxis) {
+  // Through the exact corner (3, 3) of the upper obstacle of diagonal_world: no single edge; the diagonal ray's
+  // components tie, so the x edge's normal.
+  const World world = diagonal_world();
+  const auto corner = cast_ray(world, {0.5, 0.5}, Eigen::Vector2d(1.0, 1.0).normalized(), 10.0);
+  ASSERT_TRUE(corner);
+  EXPECT_EQ(corner->normal_W, Eigen::Vector2d(-1.0, 0.0));
+  // From inside the lower obstacle, steeper than 45° downwards: the y edge the direction most opposes, (0, 1).
+  const auto inside = cast_ray(world, {2.5, 1.5}, Eigen::Vector2d(0.3, -1.0).normalized(), 10.0);
+  ASSERT_TRUE(inside);
+  EXPECT_EQ(inside->distance_m, 0.0);
+  EXPECT_EQ(inside->normal_W, Eigen::Vector2d(0.0, 1.0));
+  // Along a shared edge the ray enters through a column edge.
+  const World both = World::from_rows({".....", "...#.", "...#."}, 1.0, {0.0, 0.0});
+  EXPECT_EQ(cast_ray(both, {0.5, 1.0}, {1.0, 0.0}, 10.0)->normal_W, Eigen::Vector2d(-1.0, 0.0));
+}
+
+TEST(CastRay, NormalAtTheImageBorderIsTheBordersEdge) {
+  // A ray from outside the image entering an obstacle in its first column through the image's left border.
+  const World world = World::from_rows({"#...", "#...", "#...", "#..."}, 1.0, {0.0, 0.0});
+  const auto hit = cast_ray(world, {-1.0, 2.2}, Eigen::Vector2d(1.0, 0.2).normalized(), 10.0);
+  ASSERT_TRUE(hit);
+  EXPECT_EQ(hit->normal_W, Eigen::Vector2d(-1.0, 0.0));
+  // Entering the bottom row from below the image.
+  const World bottom = World::from_rows({"....", "....", "....", "####"}, 1.0, {0.0, 0.0});
+  const auto up = cast_ray(bottom, {1.5, -1.0}, Eigen::Vector2d(0.2, 1.0).normalized(), 10.0);
+  ASSERT_TRUE(up);
+  EXPECT_EQ(up->normal_W, Eigen::Vector2d(0.0, -1.0));
+}
+
 TEST(CastRay, IsExactAtTheSimulatorsResolution) {
   // 0.1 m pixels from (-30, -30) like the shipped worlds; one obstacle at column 305, x from 0.5 to 0.6.
   std::vector<std::string> rows(600, std::string(600, '.'));

@@ -130,22 +130,22 @@ TEST(SimulatedRobot, RefusesAStartPoseInCollision) {
 
 TEST(RobotPresets, BearcatMatchesTheSeed) {
   const RobotPreset& preset = bearcat();
-  EXPECT_NO_THROW(geometry::validate(preset.drive));
-  EXPECT_EQ(preset.drive.wheel_separation_m, 0.7);
-  EXPECT_EQ(preset.drive.wheel_radius_m, 0.2);
-  EXPECT_EQ(preset.drive.max_wheel_speed_mps, 1.2);
+  EXPECT_NO_THROW(geometry::validate(std::get<geometry::DifferentialDriveParams>(preset.kinematics)));
+  EXPECT_EQ(std::get<geometry::DifferentialDriveParams>(preset.kinematics).wheel_separation_m, 0.7);
+  EXPECT_EQ(std::get<geometry::DifferentialDriveParams>(preset.kinematics).wheel_radius_m, 0.2);
+  EXPECT_EQ(std::get<geometry::DifferentialDriveParams>(preset.kinematics).max_wheel_speed_mps, 1.2);
   EXPECT_EQ(preset.footprint.length, 1.0);
   EXPECT_EQ(preset.footprint.width, 0.8);
   EXPECT_EQ(preset.footprint.height, 1.2);
-  EXPECT_EQ(preset.laser.name, "front_laser");
-  EXPECT_EQ(preset.laser.beam_count, 181U);
-  EXPECT_NEAR(preset.laser.angle_min_rad + 180 * preset.laser.angle_increment_rad, M_PI / 2.0, 1e-12);
-  EXPECT_EQ(preset.laser.range_max_m, 8.0);
-  EXPECT_EQ(preset.laser.X_BS.x, 0.45);
-  EXPECT_EQ(preset.laser.mount_height_m, 0.6);
+  EXPECT_EQ(preset.laser()->name, "front_laser");
+  EXPECT_EQ(preset.laser()->beam_count, 181U);
+  EXPECT_NEAR(preset.laser()->angle_min_rad + 180 * preset.laser()->angle_increment_rad, M_PI / 2.0, 1e-12);
+  EXPECT_EQ(preset.laser()->range_max_m, 8.0);
+  EXPECT_EQ(preset.laser()->X_BS.x, 0.45);
+  EXPECT_EQ(preset.laser()->mount_height_m, 0.6);
   EXPECT_EQ(preset.command_timeout_s, 0.5);
   EXPECT_EQ(find_robot_preset("r2d2"), nullptr);
-  EXPECT_EQ(robot_preset_names(), "bearcat");
+  EXPECT_EQ(robot_preset_names(), "bearcat, scout, activitybot, ugv");
 }
 
 }  // namespace

@@ -117,6 +117,58 @@ TEST(ShapeRayCast, RotatedBoxDistanceIsExact) {
   EXPECT_NEAR(*ray_distance(box, {3.0, 5.0}, {0.0, -1.0}), 5.0 - 0.5 * std::sqrt(2.0), 1e-12);
 }
 
+TEST(ShapeRayCast, NormalsAreTheSurfacesAtTheEntryPoint) {
+  // Circle: radial at the entry point, pointing back out of the circle.
+  const Shape circle = Shape::circle({3.0, 0.0}, 0.5);
+  const auto head_on = ray_hit(circle, {0.0, 0.0}, {1.0, 0.0});
+  ASSERT_TRUE(head_on);
+  EXPECT_NEAR((head_on->normal_W - Eigen::Vector2d(-1.0, 0.0)).norm(), 0.0, 1e-12);
+  // Off centre at y = 0.3: enters at (3 - 0.4, 0.3), so the normal is (-0.4, 0.3) / 0.5.
+  const auto off_centre = ray_hit(circle, {0.0, 0.3}, {1.0, 0.0});
+  ASSERT_TRUE(off_centre);
+  EXPECT_NEAR(off_centre->distance_m, 2.6, 1e-12);
+  EXPECT_NEAR((off_centre->normal_W - Eigen::Vector2d(-0.8, 0.6)).norm(), 0.0, 1e-12);
+  // Starting inside, no surface was crossed: the reversed direction.
+  EXPECT_EQ(ray_hit(circle, {3.1, 0.0}, {0.0, 1.0})->normal_W, Eigen::Vector2d(0.0, -1.0));
+
+  // A 2 x 1 box at (3, 0) turned 30°: a ray at the midpoint of its long side y = -0.5 (box frame), head on, gets that
+  // side's outward normal, rotated with the box.
+  const double yaw = M_PI / 6.0;
+  const Shape box = Shape::box({3.0, 0.0}, 2.0, 1.0, yaw);
+  const Eigen::Vector2d long_side_normal(std::sin(yaw), -std::cos(yaw));  // outward normal of the y = -0.5 side
+  const auto square = ray_hit(box, Eigen::Vector2d(3.0, 0.0) + 2.0 * long_side_normal, -long_side_normal);
+  ASSERT_TRUE(square);
+  EXPECT_NEAR(square->distance_m, 1.5, 1e-12);
+  EXPECT_NEAR((square->normal_W - long_side_normal).norm(), 0.0, 1e-12);
+  // Obliquely, entering the same side 0.5 m from its midpoint along the side: still that side's normal.
+  const Eigen::Vector2d along(std::cos(yaw), std::sin(yaw));
+  const Eigen::Vector2d entry = Eigen::Vector2d(3.0, 0.0) - 0.5 * -long_side_normal + 0.5 * along;
+  const Eigen::Vector2d oblique = (-long_side_normal + 0.5 * along).normalized();
+  const auto slanted = ray_hit(box, entry - 2.0 * oblique, oblique);
+  ASSERT_TRUE(slanted);
+  EXPECT_NEAR(slanted->distance_m, 2.0, 1e-12);
+  EXPECT_NEAR((slanted->normal_W - long_side_normal).norm(), 0.0, 1e-12);
+}
+
+TEST(ShapeWorldCast, NormalComesFromTheNearestShapeIncludingMovingOnes) {
+  MovingObstacle mover{
+      .shape = Shape::circle({0.0, 0.0}, 0.5), .waypoints = {{2.0, 0.0}, {2.0, 5.0}}, .speed_mps = 1.0, .loop = false};
+  const ShapeWorld world({Shape::box({5.0, 0.0}, 1.0, 1.0, 0.0)}, {mover});
+  // At t = 0 the moving circle at (2, 0) is nearest: radial normal (-1, 0); at t = 3 it is out of the way at (2, 3)
+  // and the box's left face, normal (-1, 0), is hit at 4.5 m; from above, the box's top face gives (0, 1).
+  const auto first = world.cast({0.0, 0.0}, {1.0, 0.0}, 8.0, 0.0, kLaserHeight_m);
+  ASSERT_TRUE(first);
+  EXPECT_NEAR(first->distance_m, 1.5, 1e-12);
+  EXPECT_NEAR((first->normal_W - Eigen::Vector2d(-1.0, 0.0)).norm(), 0.0, 1e-12);
+  const auto later = world.cast({0.0, 0.0}, {1.0, 0.0}, 8.0, 3.0, kLaserHeight_m);
+  ASSERT_TRUE(later);
+  EXPECT_NEAR(later->distance_m, 4.5, 1e-12);
+  EXPECT_NEAR((later->normal_W - Eigen::Vector2d(-1.0, 0.0)).norm(), 0.0, 1e-12);
+  const auto top = world.cast({5.0, 3.0}, {0.0, -1.0}, 8.0, 0.0, kLaserHeight_m);
+  ASSERT_TRUE(top);
+  EXPECT_NEAR((top->normal_W - Eigen::Vector2d(0.0, 1.0)).norm(), 0.0, 1e-12);
+}
+
 TEST(ShapeRayCast, PolygonDistanceIsExactEitherWinding) {
   // Left edge from (3, -1) to (2, 1): at y = 0 it lies at x = 2.5; at y = 0.5 at x = 2.25.
   const Shape ccw = Shape::polygon({{3.0, -1.0}, {5.0, -1.0}, {5.0, 1.0}, {2.0, 1.0}});
@@ -162,10 +214,11 @@ TEST(ShapeWorldHeights, OverhangIsInvisibleToTheLaserButCollidesWithTheTallBody)
 TEST(ShapeWorldHeights, RobotDrivesIntoTheUnseenShortObstacleOfTheShippedWorld) {
   const auto world = load_sim_world(kWorlds / "short_and_overhang.yaml");
   RobotPreset preset = bearcat();
-  preset.laser.range_noise_sigma_m = 0.0;
+  preset.laser()->range_noise_sigma_m = 0.0;
   Simulation simulation(load_sim_world(kWorlds / "short_and_overhang.yaml"), preset, {0.0, 0.0, 0.0}, 1);
-  const ScanMessages scan = simulation.take_scan();
-  for (const float range : scan.laser_scan.laser_scan().ranges()) EXPECT_FLOAT_EQ(range, 8.0f);  // sees nothing
+  const SensorBatch batch = simulation.take_batch();
+  const v1::LaserScan& laser = *batch.laser_scan();
+  for (const float range : laser.ranges()) EXPECT_FLOAT_EQ(range, 8.0f);  // sees nothing
 
   SimulatedRobot robot(*world, preset, {0.0, 0.0, 0.0});
   for (int i = 0; i < 500; ++i) {
@@ -193,21 +246,56 @@ TEST(MovingObstacle, FollowsItsWaypointsAtConstantSpeed) {
 
 TEST(MovingObstacle, SuccessiveScansSeeTheApproachingObstacleCloser) {
   RobotPreset preset = bearcat();
-  preset.laser.range_noise_sigma_m = 0.0;
+  preset.laser()->range_noise_sigma_m = 0.0;
   Simulation simulation(load_sim_world(kWorlds / "ptem_approaching.yaml"), preset, {0.0, 0.0, 0.0}, 1);
-  const int ahead = static_cast<int>(std::lround(-preset.laser.angle_min_rad / preset.laser.angle_increment_rad));
+  const int ahead = static_cast<int>(std::lround(-preset.laser()->angle_min_rad / preset.laser()->angle_increment_rad));
   std::vector<double> ranges;
   while (ranges.size() < 20) {
-    if (simulation.scan_due()) {
-      const ScanMessages scan = simulation.take_scan();
-      ranges.push_back(scan.laser_scan.laser_scan().ranges(ahead));
+    if (simulation.batch_due()) {
+      const SensorBatch batch = simulation.take_batch();
+      const v1::LaserScan& laser = *batch.laser_scan();
+      ranges.push_back(laser.ranges(ahead));
       // Obstacle surface at 3.3 - 0.1 t - 0.15, laser at x = 0.45.
-      EXPECT_NEAR(ranges.back(), 3.3 - 0.1 * scan.laser_scan.laser_scan().stamp_s() - 0.15 - 0.45, 1e-5);
+      EXPECT_NEAR(ranges.back(), 3.3 - 0.1 * laser.stamp_s() - 0.15 - 0.45, 1e-5);
     }
     simulation.step();
   }
   for (std::size_t i = 1; i < ranges.size(); ++i) {
     EXPECT_NEAR(ranges[i - 1] - ranges[i], 0.1 * 0.1, 1e-5) << "scan " << i;
+  }
+}
+
+// The UGV preset's URG-04LX (seed 004 §3.2.1) sees the approaching obstacle of seed 004 §6 at its new position in
+// every scan. No URG beam points straight ahead (682 beams over 240°): the two middle ones are ±0.176° off the axis,
+// so the expected range is the exact ray-circle distance for beam 340.
+TEST(MovingObstacle, UgvUrgSeesTheApproachingObstacleAtItsNewPositionEachScan) {
+  RobotPreset preset = *find_robot_preset("ugv");
+  LaserPreset& urg = *preset.laser();
+  urg.range_noise_sigma_m = 0.0;
+  Simulation simulation(load_sim_world(kWorlds / "ptem_approaching.yaml"), preset, {0.0, 0.0, 0.0}, 1);
+  constexpr int kBeam = 340;
+  const double angle_rad = urg.angle_min_rad + kBeam * urg.angle_increment_rad;
+  ASSERT_NEAR(angle_rad, -0.5 * urg.angle_increment_rad, 1e-12);
+  std::vector<double> ranges;
+  for (int step = 0; step < 3000 && ranges.size() < 20; ++step) {
+    if (simulation.batch_due()) {
+      const SensorBatch batch = simulation.take_batch();
+      const v1::LaserScan* scan = batch.laser_scan();
+      ASSERT_NE(scan, nullptr);
+      EXPECT_EQ(scan->sensor(), "urg_04lx");
+      ASSERT_EQ(scan->ranges_size(), 682);
+      ranges.push_back(scan->ranges(kBeam));
+      // Centre at 3.3 - 0.1 t on the x axis, radius 0.15; the laser at x = 0.3.
+      const double centre_ahead_m = 3.3 - 0.1 * scan->stamp_s() - urg.X_BS.x;
+      const double along_m = centre_ahead_m * std::cos(angle_rad);
+      const double across_m = centre_ahead_m * std::sin(angle_rad);
+      EXPECT_NEAR(ranges.back(), along_m - std::sqrt(0.15 * 0.15 - across_m * across_m), 1e-5);
+    }
+    simulation.step();
+  }
+  ASSERT_EQ(ranges.size(), 20U);
+  for (std::size_t i = 1; i < ranges.size(); ++i) {
+    EXPECT_NEAR(ranges[i - 1] - ranges[i], 0.1 * 0.1, 1e-4) << "scan " << i << ": 0.1 m/s for one 0.1 s period";
   }
 }
 
@@ -227,10 +315,12 @@ TEST(SimWorldLoad, EveryShippedWorldLoadsAndTheStartIsClear) {
     SCOPED_TRACE(entry.path().string());
     const std::unique_ptr<SimWorld> world = load_sim_world(entry.path());
     ASSERT_TRUE(world);
-    EXPECT_FALSE(world->find_collision(bearcat().footprint, {0.0, 0.0, 0.0}, 0.0));
+    for (const RobotPreset& preset : robot_presets()) {
+      EXPECT_FALSE(world->find_collision(preset.footprint, {0.0, 0.0, 0.0}, 0.0)) << preset.name;
+    }
     ++loaded;
   }
-  EXPECT_EQ(loaded, 8);
+  EXPECT_EQ(loaded, 9);
   EXPECT_TRUE(dynamic_cast<const PixelWorld*>(load_sim_world(kWorlds / "corridor.yaml").get()));
   EXPECT_TRUE(dynamic_cast<const ShapeWorld*>(load_sim_world(kWorlds / "ptem_thin.yaml").get()));
 }

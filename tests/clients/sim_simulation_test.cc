@@ -33,11 +33,11 @@ v1::MotionCommand command_for(std::uint64_t scan_seq, double left_mps, double ri
 RunSummary run_lockstep(std::uint64_t seed, int steps) {
   Simulation simulation(wall_ahead(), bearcat(), {}, seed);
   for (int i = 0; i < steps; ++i) {
-    if (simulation.scan_due()) {
-      const ScanMessages scan = simulation.take_scan();
-      const double nearest =
-          *std::min_element(scan.laser_scan.laser_scan().ranges().begin(), scan.laser_scan.laser_scan().ranges().end());
-      simulation.apply_command(command_for(scan.seq, 0.5 + nearest * 0.01, 0.6, "wander"));
+    if (simulation.batch_due()) {
+      const SensorBatch batch = simulation.take_batch();
+      const v1::LaserScan& laser = *batch.laser_scan();
+      const double nearest = *std::min_element(laser.ranges().begin(), laser.ranges().end());
+      simulation.apply_command(command_for(batch.last_sensor_seq, 0.5 + nearest * 0.01, 0.6, "wander"));
     }
     simulation.step();
   }
@@ -48,22 +48,24 @@ TEST(Simulation, ScansEveryPeriodWithOdometryFirstAndIncreasingSeqs) {
   Simulation simulation(wall_ahead(), bearcat(), {1.0, 0.5, 0.1}, 1);
   int scans = 0;
   for (int step = 0; step < 100; ++step) {
-    if (simulation.scan_due()) {
-      const ScanMessages scan = simulation.take_scan();
+    if (simulation.batch_due()) {
+      const SensorBatch batch = simulation.take_batch();
+      const v1::ClientMessage& odometry = batch.messages.front();
+      const v1::LaserScan& laser = *batch.laser_scan();
       ++scans;
       EXPECT_EQ(step % 10, 0) << "every 0.1 s";
-      EXPECT_FALSE(simulation.scan_due()) << "one scan per scan time";
-      EXPECT_EQ(scan.seq, static_cast<std::uint64_t>(scans));
-      ASSERT_TRUE(scan.odometry.has_odometry());
-      EXPECT_EQ(scan.odometry.odometry().seq(), scan.seq);
-      EXPECT_NEAR(scan.odometry.odometry().stamp_s(), step * 0.01, 1e-12);
-      EXPECT_EQ(scan.odometry.odometry().pose().x(), 1.0);
-      EXPECT_EQ(scan.odometry.odometry().pose().theta(), 0.1);
-      ASSERT_TRUE(scan.laser_scan.has_laser_scan());
-      EXPECT_EQ(scan.laser_scan.laser_scan().sensor(), "front_laser");
-      EXPECT_EQ(scan.laser_scan.laser_scan().seq(), scan.seq);
-      EXPECT_EQ(scan.laser_scan.laser_scan().stamp_s(), scan.odometry.odometry().stamp_s());
-      EXPECT_EQ(scan.laser_scan.laser_scan().ranges_size(), 181);
+      EXPECT_FALSE(simulation.batch_due()) << "one scan per scan time";
+      EXPECT_EQ(batch.last_sensor_seq, static_cast<std::uint64_t>(scans));
+      ASSERT_TRUE(odometry.has_odometry());
+      EXPECT_EQ(odometry.odometry().seq(), batch.last_sensor_seq);
+      EXPECT_NEAR(odometry.odometry().stamp_s(), step * 0.01, 1e-12);
+      EXPECT_EQ(odometry.odometry().pose().x(), 1.0);
+      EXPECT_EQ(odometry.odometry().pose().theta(), 0.1);
+      ASSERT_NE(batch.laser_scan(), nullptr);
+      EXPECT_EQ(laser.sensor(), "front_laser");
+      EXPECT_EQ(laser.seq(), batch.last_sensor_seq);
+      EXPECT_EQ(laser.stamp_s(), odometry.odometry().stamp_s());
+      EXPECT_EQ(laser.ranges_size(), 181);
     }
     simulation.step();
   }
@@ -97,7 +99,7 @@ TEST(Simulation, LockstepRunsAreDeterministicForASeed) {
 TEST(Simulation, RefusesABadStartOrScanPeriod) {
   EXPECT_THROW(Simulation(wall_ahead(), bearcat(), {3.0, 0.0, 0.0}, 1), std::invalid_argument);
   RobotPreset odd_period = bearcat();
-  odd_period.laser.scan_period_s = 0.015;
+  odd_period.laser()->scan_period_s = 0.015;
   EXPECT_THROW(Simulation(wall_ahead(), odd_period, {}, 1), std::invalid_argument);
 }
 
@@ -146,12 +148,15 @@ TEST(Report, JsonHasEveryField) {
                            .final_pose = {1.25, -2.0, 0.5},
                            .deadlock_reported = true,
                            .last_state = "deadlock",
-                           .state_counts = {{"clear", 590}, {"deadlock", 8}}};
+                           .state_counts = {{"clear", 590}, {"deadlock", 8}},
+                           .messages_sent = {{"laser_scan", 600}, {"odometry", 600}},
+                           .commands_ignored = 3};
   EXPECT_EQ(to_json(summary),
             "{\"robot\": \"bc \\\"1\\\"\", \"world\": \"worlds/open_field.yaml\", \"distance_m\": 12.5, "
             "\"collisions\": 2, \"sim_time_s\": 60, \"scans_sent\": 600, \"commands_received\": 598, "
             "\"final_pose\": {\"x\": 1.25, \"y\": -2, \"theta\": 0.5}, \"deadlock_reported\": true, "
-            "\"last_state\": \"deadlock\", \"state_counts\": {\"clear\": 590, \"deadlock\": 8}}");
+            "\"last_state\": \"deadlock\", \"state_counts\": {\"clear\": 590, \"deadlock\": 8}, "
+            "\"messages_sent\": {\"laser_scan\": 600, \"odometry\": 600}, \"commands_ignored\": 3}");
   EXPECT_NE(to_text(summary).find("collisions  2"), std::string::npos);
 }
 

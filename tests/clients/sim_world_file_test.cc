@@ -2,7 +2,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <string>
+#include <utility>
 
 #include "occgeo/geometry/pose.h"
 #include "occgeo/sim/footprint_collision.h"
@@ -109,6 +111,29 @@ TEST(ShippedWorlds, CorridorStartsInsideFacingAlongIt) {
   const auto right = cast_ray(world, {0.0, 0.0}, {0.0, -1.0}, 100.0);
   ASSERT_TRUE(right);
   EXPECT_NEAR(right->distance_m, 1.5, 1e-9);
+}
+
+TEST(ShippedWorlds, RoomIsTenByEightMetresWithAClearCentre) {
+  const World world = load_world(kWorlds / "room.yaml");
+  EXPECT_EQ(world.resolution_m(), 0.1);
+  EXPECT_EQ(world.width(), 104);
+  EXPECT_EQ(world.height(), 84);
+  for (const RobotPreset& preset : robot_presets()) {
+    EXPECT_FALSE(find_collision(world, preset.footprint, {0.0, 0.0, 0.0})) << preset.name;
+  }
+  // The inside of the walls is x -5..5, y -4..4; along the axes nothing stands between the centre and the walls.
+  const std::vector<std::pair<Eigen::Vector2d, double>> walls = {
+      {{1.0, 0.0}, 5.0}, {{-1.0, 0.0}, 5.0}, {{0.0, 1.0}, 4.0}, {{0.0, -1.0}, 4.0}};
+  for (const auto& [direction, distance_m] : walls) {
+    const auto hit = cast_ray(world, {0.0, 0.0}, direction, 100.0);
+    ASSERT_TRUE(hit);
+    EXPECT_NEAR(hit->distance_m, distance_m, 1e-9);
+  }
+  // Nothing within 1.9 m of the centre: a ring of rays that far sees no obstacle.
+  for (int k = 0; k < 360; ++k) {
+    const double angle = k * std::numbers::pi / 180.0;
+    EXPECT_FALSE(cast_ray(world, {0.0, 0.0}, {std::cos(angle), std::sin(angle)}, 1.9)) << k << " deg";
+  }
 }
 
 }  // namespace

@@ -2,47 +2,12 @@
 // touching anything, and the map the server builds must match what its laser could see.
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <regex>
-
+#include "../support/json_fields.h"
+#include "../support/map_score.h"
 #include "../support/process.h"
-#include "../support/world_truth.h"
 
 namespace occgeo::testing {
 namespace {
-
-// Pulls a number out of a flat JSON object by key (the sim's and CLI's summaries are flat
-// except for final_pose, whose keys do not clash with the top-level ones asked for here).
-double json_number(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\"\\s*:\\s*(-?[0-9.eE+-]+)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no '" + key + "' in " + json);
-  return std::stod(match[1]);
-}
-
-bool json_bool(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\"\\s*:\\s*(true|false)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no '" + key + "' in " + json);
-  return match[1] == "true";
-}
-
-std::set<std::pair<int, int>> read_visible_cells(const std::filesystem::path& file, const WorldTruth& truth) {
-  std::set<std::pair<int, int>> cells;
-  std::ifstream in(file);
-  std::uint32_t col = 0, row = 0;
-  while (in >> col >> row) cells.insert(truth.cell_of_pixel(col, row));
-  return cells;
-}
-
-bool marked_within_one_cell(const std::set<std::pair<int, int>>& marked, const std::pair<int, int>& cell) {
-  for (int dx = -1; dx <= 1; ++dx) {
-    for (int dy = -1; dy <= 1; ++dy) {
-      if (marked.contains({cell.first + dx, cell.second + dy})) return true;
-    }
-  }
-  return false;
-}
 
 // Avoidance states of the Bearcat behaviour: any of them means the robot steered around something.
 const std::vector<std::string> kAvoidanceStates = {"avoid_right_obstacle", "avoid_left_obstacle", "steer_gap",
@@ -53,7 +18,7 @@ TEST(DriveOpenField, BearcatWandersTwoMinutesWithoutCollisionAndMapsWhatItSaw) {
   ServerProcess server(dir.path());
   const auto world_yaml = source("clients/sim/worlds/open_field.yaml");
   const WorldTruth truth(mapfile::read_map_yaml(world_yaml));
-  std::set<std::pair<int, int>> visible;
+  CellSet visible;
 
   // Four headings from the origin whose straight lines run into obstacles; each robot maps into
   // the same world, one after the other.
@@ -92,26 +57,11 @@ TEST(DriveOpenField, BearcatWandersTwoMinutesWithoutCollisionAndMapsWhatItSaw) {
   const auto map = mapfile::read_map_yaml(prefix.string() + ".yaml");
   const auto marked = occupied_cells(map);
   ASSERT_GT(visible.size(), 100U) << "the laser should have seen many obstacle cells";
-
-  std::size_t found = 0;
-  for (const auto& cell : visible) found += marked_within_one_cell(marked, cell) ? 1 : 0;
-  const double recall = static_cast<double>(found) / static_cast<double>(visible.size());
-
-  std::size_t false_marks = 0;
-  for (const auto& cell : marked) false_marks += truth.free_cells().contains(cell) ? 1 : 0;
-  const double false_rate = static_cast<double>(false_marks) / static_cast<double>(truth.free_cells().size());
-  // A stricter view of the same errors: relative to the free cells the map actually observed.
-  const auto observed = observed_cells(map);
-  std::size_t observed_free = 0;
-  for (const auto& cell : observed) observed_free += truth.free_cells().contains(cell) ? 1 : 0;
-  const double observed_false_rate = static_cast<double>(false_marks) / static_cast<double>(observed_free);
-  std::cout << "map: " << visible.size() << " obstacle cells seen, " << found << " marked within one cell ("
-            << 100.0 * recall << "%); " << false_marks << " of " << truth.free_cells().size()
-            << " free cells marked occupied (" << 100.0 * false_rate << "%; " << 100.0 * observed_false_rate
-            << "% of the " << observed_free << " free cells observed)\n";
-  EXPECT_GE(recall, 0.90);
-  EXPECT_LT(false_rate, 0.02);
-  EXPECT_LT(observed_false_rate, 0.02);
+  const MapScore score = score_map(visible, map, truth);
+  std::cout << "map: " << score.describe() << '\n';
+  EXPECT_GE(score.recall(), 0.90);
+  EXPECT_LT(score.false_rate(), 0.02);
+  EXPECT_LT(score.observed_false_rate(), 0.02);
 
   // The CLI's collision query: inside an obstacle the robot mapped says hit, its start pose is free.
   std::optional<std::pair<int, int>> mapped_obstacle;

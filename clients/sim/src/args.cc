@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <set>
+#include <variant>
 
 namespace occgeo::sim {
 
@@ -12,9 +13,9 @@ namespace {
 const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", "-h"};
 
 // Flags that take one value.
-const std::set<std::string_view> kValueFlags = {"--world",  "--robot",    "--id",          "--world-name",
-                                                "--server", "--duration", "--start",       "--laser-range",
-                                                "--noise",  "--seed",     "--visible-out", "--trace-out"};
+const std::set<std::string_view> kValueFlags = {
+    "--world",       "--robot", "--id",   "--world-name",  "--server",    "--duration", "--start",
+    "--laser-range", "--noise", "--seed", "--visible-out", "--trace-out", "--drive"};
 
 [[noreturn]] void fail(std::string_view flag, const std::string& problem) {
   throw ArgsError(std::string(flag) + ": " + problem);
@@ -97,10 +98,42 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
     options.visible_out = parse_name(flag, value);
   } else if (flag == "--trace-out") {
     options.trace_out = parse_name(flag, value);
+  } else if (flag == "--drive") {
+    options.drive = parse_drive_script(value);
   }
 }
 
 }  // namespace
+
+DriveScript parse_drive_script(std::string_view text) {
+  constexpr std::string_view kFlag = "--drive";
+  const std::string expected = "V,W,T (m/s, rad/s, s)";
+  if (text.empty()) fail(kFlag, "expected segments " + expected + " separated by ';', got nothing");
+  DriveScript script;
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t semicolon = text.find(';', begin);
+    const std::string_view part =
+        text.substr(begin, semicolon == std::string_view::npos ? semicolon : semicolon - begin);
+    const std::string where = "segment " + std::to_string(script.size() + 1) + " '" + std::string(part) + "'";
+    std::vector<double> values;
+    std::size_t field_begin = 0;
+    while (field_begin <= part.size()) {
+      const std::size_t comma = part.find(',', field_begin);
+      const std::string_view field =
+          part.substr(field_begin, comma == std::string_view::npos ? comma : comma - field_begin);
+      values.push_back(parse_number(kFlag, field, expected + " in " + where + ", a number"));
+      if (comma == std::string_view::npos) break;
+      field_begin = comma + 1;
+    }
+    if (values.size() != 3) fail(kFlag, where + ": expected " + expected);
+    if (values[2] <= 0.0) fail(kFlag, where + ": the duration must be greater than 0 s");
+    script.push_back({values[0], values[1], values[2]});
+    if (semicolon == std::string_view::npos) break;
+    begin = semicolon + 1;
+  }
+  return script;
+}
 
 SimOptions parse_args(const std::vector<std::string_view>& args) {
   SimOptions options;
@@ -139,8 +172,8 @@ SimOptions parse_args(const std::vector<std::string_view>& args) {
 std::string usage() {
   return "usage: occgeo-sim --world FILE.yaml [options]\n"
          "\n"
-         "A simulated robot that connects to occgeod as a driver: it streams odometry and laser scans and\n"
-         "drives by the motion commands it receives.\n"
+         "A simulated robot that connects to occgeod as a driver: it streams odometry (or wheel encoder ticks)\n"
+         "and its sensors' readings and drives by the motion commands it receives (or by --drive).\n"
          "\n"
          "  --world FILE.yaml     ROS map_server world (occupied pixels are obstacles) or shape world (required)\n"
          "  --robot NAME          robot preset: " +
@@ -151,12 +184,16 @@ std::string usage() {
          "  --server HOST:PORT    server address (default 127.0.0.1:7700)\n"
          "  --start X,Y,THETA     start pose in metres and radians (default 0,0,0)\n"
          "  --duration S          sim seconds to run (default: until SIGINT or SIGTERM)\n"
-         "  --lockstep            wait for the command answering each scan; run as fast as possible\n"
-         "  --laser-range M       laser maximum range in metres (default: the preset's, 8 for bearcat)\n"
-         "  --noise SIGMA         range noise standard deviation in metres (default: the preset's, 0.01)\n"
+         "  --lockstep            after each batch wait for the ScanAck of its last sensor message (and the command\n"
+         "                        answering the steering laser's scan); run as fast as possible\n"
+         "  --laser-range M       the first laser's maximum range in metres (default: the preset's, 8 for bearcat)\n"
+         "  --noise SIGMA         range noise standard deviation in metres of lasers and servo beams, and of range\n"
+         "                        arrays at 1 m (their noise grows with range) (default: each preset's)\n"
+         "  --drive V,W,T;...     follow this looped script of body velocities (m/s, rad/s, seconds each) and ignore\n"
+         "                        the server's motion commands (how robots the server does not steer move)\n"
          "  --seed N              noise seed (default 1)\n"
          "  --json                print the summary as one JSON object on stdout\n"
-         "  --visible-out FILE    write the obstacle pixels the laser hit, one \"col row\" line each\n"
+         "  --visible-out FILE    write the obstacle pixels the sensors hit, one \"col row\" line each\n"
          "                        (pixel worlds only; empty for shape worlds)\n"
          "  --trace-out FILE      write the pose at each scan as CSV t,x,y,theta\n"
          "  --help                print this help\n";
@@ -166,8 +203,23 @@ RobotPreset configured_preset(const SimOptions& options) {
   const RobotPreset* named = find_robot_preset(options.robot);
   if (named == nullptr) throw ArgsError("--robot: unknown robot '" + options.robot + "'");
   RobotPreset preset = *named;
-  if (options.laser_range_m) preset.laser.range_max_m = *options.laser_range_m;
-  if (options.noise_sigma_m) preset.laser.range_noise_sigma_m = *options.noise_sigma_m;
+  if (options.laser_range_m) {
+    LaserPreset* laser = preset.laser();
+    if (laser == nullptr) throw ArgsError("--laser-range: robot '" + preset.name + "' has no laser");
+    laser->range_max_m = *options.laser_range_m;
+  }
+  if (options.noise_sigma_m) {
+    const double sigma_m = *options.noise_sigma_m;
+    for (SensorPreset& sensor : preset.sensors) {
+      if (auto* laser = std::get_if<LaserPreset>(&sensor)) laser->range_noise_sigma_m = sigma_m;
+      if (auto* servo = std::get_if<ServoRangePreset>(&sensor)) {
+        servo->noise_sigma_near_m = sigma_m;
+        servo->noise_sigma_far_m = sigma_m;
+      }
+      // A range array's noise grows with range: SIGMA is its σ at 1 m.
+      if (auto* array = std::get_if<RangeArrayPreset>(&sensor)) array->range_noise_fraction = sigma_m / 1.0;
+    }
+  }
   return preset;
 }
 

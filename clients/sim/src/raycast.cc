@@ -12,6 +12,17 @@ namespace {
 
 constexpr double kNever = std::numeric_limits<double>::infinity();
 
+// The normal of a column edge (vertical) entered by a ray with x-component dx: it faces back towards the ray.
+Eigen::Vector2d column_edge_normal(double dx) { return {dx > 0.0 ? -1.0 : 1.0, 0.0}; }
+
+// The normal of a row edge (horizontal) entered by a ray with y-component dy.
+Eigen::Vector2d row_edge_normal(double dy) { return {0.0, dy > 0.0 ? -1.0 : 1.0}; }
+
+// The axis normal the direction (dx, dy) most opposes, for entries through no single edge (a corner, or the start).
+Eigen::Vector2d most_opposed_normal(double dx, double dy) {
+  return std::abs(dx) >= std::abs(dy) ? column_edge_normal(dx) : row_edge_normal(dy);
+}
+
 // The column a ray at x moving with x-component dx is in: on a column edge, the one it moves into.
 int start_column(const World& world, double x, double dx) {
   int col = world.column_of(x);
@@ -63,7 +74,9 @@ std::optional<RayHit> cast_along_row_edge(const World& world, const Eigen::Vecto
   while (col >= 0 && col < world.width()) {
     const Pixel above{col, k - 1};
     const Pixel below{col, k};
-    if (world.is_obstacle(above) && world.is_obstacle(below)) return RayHit{t_entry, {above, below}};
+    if (world.is_obstacle(above) && world.is_obstacle(below)) {
+      return RayHit{t_entry, {above, below}, column_edge_normal(dx)};
+    }
     t_entry = (world.x_of_column_edge(step > 0 ? col + 1 : col) - p.x()) / dx;
     if (t_entry >= t_end) break;
     col += step;
@@ -80,7 +93,7 @@ std::optional<RayHit> cast_along_column_edge(const World& world, const Eigen::Ve
   while (row >= 0 && row < world.height()) {
     const Pixel left{k - 1, row};
     const Pixel right{k, row};
-    if (world.is_obstacle(left) && world.is_obstacle(right)) return RayHit{t_entry, {left, right}};
+    if (world.is_obstacle(left) && world.is_obstacle(right)) return RayHit{t_entry, {left, right}, row_edge_normal(dy)};
     t_entry = (world.y_of_row_edge(step < 0 ? row : row + 1) - p.y()) / dy;
     if (t_entry >= t_end) break;
     row += step;
@@ -119,8 +132,18 @@ std::optional<RayHit> cast_ray(const World& world, const Eigen::Vector2d& p_W, c
   const int col_step = dx > 0.0 ? 1 : -1;
   const int row_step = dy > 0.0 ? -1 : 1;  // rows count downwards
   double t_entry = t_begin;
+  // The first pixel is entered through the image border when the ray starts outside the image (t_begin > 0): through a
+  // column edge when the x clip set t_begin (later than the y clip), else a row edge; otherwise it is the start.
+  Eigen::Vector2d entry_normal = most_opposed_normal(dx, dy);
+  if (t_begin > 0.0) {
+    const double t_x_border =
+        dx == 0.0 ? -kNever : (world.x_of_column_edge(dx > 0.0 ? 0 : world.width()) - p_W.x()) / dx;
+    const double t_y_border = dy == 0.0 ? -kNever : (world.y_of_row_edge(dy > 0.0 ? world.height() : 0) - p_W.y()) / dy;
+    if (t_x_border > t_y_border) entry_normal = column_edge_normal(dx);
+    if (t_y_border > t_x_border) entry_normal = row_edge_normal(dy);
+  }
   while (true) {
-    if (world.is_obstacle(pixel)) return RayHit{t_entry, {pixel}};
+    if (world.is_obstacle(pixel)) return RayHit{t_entry, {pixel}, entry_normal};
     const double t_x =
         dx == 0.0 ? kNever : (world.x_of_column_edge(dx > 0.0 ? pixel.col + 1 : pixel.col) - p_W.x()) / dx;
     const double t_y = dy == 0.0 ? kNever : (world.y_of_row_edge(dy > 0.0 ? pixel.row : pixel.row + 1) - p_W.y()) / dy;
@@ -129,6 +152,7 @@ std::optional<RayHit> cast_ray(const World& world, const Eigen::Vector2d& p_W, c
     // Through an exact corner the ray passes diagonally: the two pixels beside the corner are only touched.
     if (t_x <= t_y) pixel.col += col_step;
     if (t_y <= t_x) pixel.row += row_step;
+    entry_normal = t_x < t_y ? column_edge_normal(dx) : t_y < t_x ? row_edge_normal(dy) : most_opposed_normal(dx, dy);
     if (pixel.col < 0 || pixel.col >= world.width() || pixel.row < 0 || pixel.row >= world.height()) {
       return std::nullopt;
     }

@@ -62,15 +62,17 @@ RunSummary summarize(const Simulation& simulation, const std::string& robot_id, 
                     .final_pose = robot.pose(),
                     .deadlock_reported = simulation.deadlock_reported(),
                     .last_state = simulation.last_state(),
-                    .state_counts = simulation.state_counts()};
+                    .state_counts = simulation.state_counts(),
+                    .messages_sent = simulation.message_counts(),
+                    .commands_ignored = simulation.ignored_command_count()};
 }
 
 namespace {
 
-// "state": count pairs for the JSON summary.
-std::string state_counts_json(const RunSummary& summary) {
+// "key": count pairs for the JSON summary; an empty key is written as "-".
+std::string counts_json(const std::map<std::string, std::uint64_t>& counts) {
   std::string out;
-  for (const auto& [state, count] : summary.state_counts) {
+  for (const auto& [state, count] : counts) {
     if (!out.empty()) out += ", ";
     out += json_string(state.empty() ? "-" : state) + ": " + std::to_string(count);
   }
@@ -89,8 +91,9 @@ std::string to_json(const RunSummary& summary) {
          ", \"final_pose\": {\"x\": " + number_text(summary.final_pose.x) +
          ", \"y\": " + number_text(summary.final_pose.y) + ", \"theta\": " + number_text(summary.final_pose.theta) +
          "}, \"deadlock_reported\": " + (summary.deadlock_reported ? "true" : "false") +
-         ", \"last_state\": " + json_string(summary.last_state) + ", \"state_counts\": {" + state_counts_json(summary) +
-         "}}";
+         ", \"last_state\": " + json_string(summary.last_state) + ", \"state_counts\": {" +
+         counts_json(summary.state_counts) + "}, \"messages_sent\": {" + counts_json(summary.messages_sent) +
+         "}, \"commands_ignored\": " + std::to_string(summary.commands_ignored) + "}";
 }
 
 std::string to_text(const RunSummary& summary) {
@@ -99,7 +102,7 @@ std::string to_text(const RunSummary& summary) {
        << std::setprecision(2) << "  sim time    " << summary.sim_time_s << " s\n"
        << std::setprecision(3) << "  distance    " << summary.distance_m << " m\n"
        << "  collisions  " << summary.collisions << '\n'
-       << "  scans sent  " << summary.scans_sent << '\n'
+       << "  scans sent  " << summary.scans_sent << " sensor messages\n"
        << "  commands    " << summary.commands_received
        << " (last state: " << (summary.last_state.empty() ? "-" : summary.last_state)
        << ", deadlock reported: " << (summary.deadlock_reported ? "yes" : "no") << ")\n"

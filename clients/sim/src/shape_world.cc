@@ -121,7 +121,7 @@ Eigen::Vector2d MovingObstacle::center_at(double time_s) const {
   return loop ? waypoints.front() : waypoints.back();
 }
 
-std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W) {
+std::optional<RayHit> ray_hit(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W) {
   if (shape.kind == Shape::Kind::circle) {
     const Eigen::Vector2d m = p_W - shape.center;
     const double b = m.dot(direction_W);
@@ -131,11 +131,16 @@ std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_
     const double root = std::sqrt(discriminant);
     const double exit = -b + root;
     if (!(exit > 0.0)) return std::nullopt;
-    return std::max(-b - root, 0.0);
+    const double enter = -b - root;
+    if (!(enter > 0.0)) return RayHit{.distance_m = 0.0, .pixels = {}, .normal_W = -direction_W};
+    const Eigen::Vector2d radial = p_W + enter * direction_W - shape.center;
+    return RayHit{.distance_m = enter, .pixels = {}, .normal_W = radial.normalized()};
   }
-  // Cyrus-Beck clipping against the open half-planes of a counter-clockwise convex polygon.
+  // Cyrus-Beck clipping against the open half-planes of a counter-clockwise convex polygon; the edge that sets the
+  // entry distance is the one entered.
   double enter = 0.0;
   double exit = std::numeric_limits<double>::infinity();
+  std::optional<Eigen::Vector2d> entered_normal;
   for (std::size_t i = 0; i < shape.points.size(); ++i) {
     const Eigen::Vector2d normal = outward_normal(shape.points, i);
     const double offset = normal.dot(p_W - shape.points[i]);  // < 0 inside this edge's half-plane
@@ -143,13 +148,26 @@ std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_
     if (rate == 0.0) {
       if (offset >= 0.0) return std::nullopt;  // parallel, outside or along the edge
     } else if (rate < 0.0) {
-      enter = std::max(enter, -offset / rate);
+      const double t = -offset / rate;
+      const Eigen::Vector2d unit_normal = normal.normalized();
+      // On a tie (through a vertex, or a start on an edge line) keep the edge the ray meets more head-on.
+      if (t > enter ||
+          (t == enter && (!entered_normal || unit_normal.dot(direction_W) < entered_normal->dot(direction_W)))) {
+        enter = t;
+        entered_normal = unit_normal;
+      }
     } else {
       exit = std::min(exit, -offset / rate);
     }
   }
   if (!(enter < exit)) return std::nullopt;
-  return enter;
+  return RayHit{.distance_m = enter, .pixels = {}, .normal_W = entered_normal.value_or(-direction_W)};
+}
+
+std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W) {
+  const auto hit = ray_hit(shape, p_W, direction_W);
+  if (!hit) return std::nullopt;
+  return hit->distance_m;
 }
 
 bool footprint_overlaps(const Shape& shape, const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB) {
@@ -173,16 +191,16 @@ std::optional<RayHit> ShapeWorld::cast(const Eigen::Vector2d& p_W, const Eigen::
   if (!p_W.allFinite() || !direction_W.allFinite() || !(max_range_m >= 0.0) || !std::isfinite(time_s)) {
     throw std::invalid_argument("cast: inputs must be finite and max_range_m >= 0");
   }
-  std::optional<double> best;
+  std::optional<RayHit> best;
   const auto consider = [&](const Shape& shape) {
     if (!shape.spans_height(height_m)) return;
-    const auto distance = ray_distance(shape, p_W, direction_W);
-    if (distance && (!best || *distance < *best)) best = distance;
+    auto hit = ray_hit(shape, p_W, direction_W);
+    if (hit && (!best || hit->distance_m < best->distance_m)) best = std::move(hit);
   };
   for (const Shape& shape : shapes_) consider(shape);
   for (const MovingObstacle& obstacle : moving_) consider(obstacle.shape_at(time_s));
-  if (!best || !(*best < max_range_m)) return std::nullopt;
-  return RayHit{.distance_m = *best, .pixels = {}};
+  if (!best || !(best->distance_m < max_range_m)) return std::nullopt;
+  return best;
 }
 
 std::optional<std::string> ShapeWorld::find_collision(const geometry::BoxFootprint& footprint,

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "occgeo/sim/messages.h"
@@ -10,18 +11,34 @@ namespace occgeo::sim {
 
 namespace {
 
-// The laser's scan period in physics steps; throws unless it is a positive whole number of them.
-std::int64_t scan_period_steps(const LaserPreset& laser) {
-  const double steps = laser.scan_period_s / kPhysicsStep_s;
+// period_s in physics steps; throws naming the sensor unless it is a positive whole number of them.
+std::int64_t period_steps(const std::string& sensor, double period_s) {
+  const double steps = period_s / kPhysicsStep_s;
   const std::int64_t whole_steps = std::llround(steps);
   if (!(whole_steps >= 1 && std::abs(steps - static_cast<double>(whole_steps)) < 1e-9)) {
-    throw std::invalid_argument("laser '" + laser.name + "': scan period " + std::to_string(laser.scan_period_s) +
+    throw std::invalid_argument("sensor '" + sensor + "': period " + std::to_string(period_s) +
                                 " s is not a whole number of " + std::to_string(kPhysicsStep_s) + " s physics steps");
   }
   return whole_steps;
 }
 
+// Each sensor's noise stream gets its own seed; the first sensor keeps the run's seed, so a one-laser robot's noise
+// is what it was before robots had several sensors.
+std::uint64_t sensor_seed(std::uint64_t seed, std::size_t index) {
+  constexpr std::uint64_t kGoldenRatio64 = 0x9e3779b97f4a7c15ULL;
+  return seed ^ (static_cast<std::uint64_t>(index) * kGoldenRatio64);
+}
+
 }  // namespace
+
+const v1::LaserScan* SensorBatch::laser_scan(const std::string& sensor) const {
+  for (const v1::ClientMessage& message : messages) {
+    if (message.has_laser_scan() && (sensor.empty() || message.laser_scan().sensor() == sensor)) {
+      return &message.laser_scan();
+    }
+  }
+  return nullptr;
+}
 
 Simulation::Simulation(World world, const RobotPreset& preset, const geometry::Pose2& X_WB_start, std::uint64_t seed)
     : Simulation(std::make_unique<PixelWorld>(std::move(world)), preset, X_WB_start, seed) {}
@@ -29,30 +46,146 @@ Simulation::Simulation(World world, const RobotPreset& preset, const geometry::P
 Simulation::Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& preset, const geometry::Pose2& X_WB_start,
                        std::uint64_t seed)
     : world_(world ? std::move(world) : throw std::invalid_argument("Simulation: the world must not be null")),
-      sensor_name_(preset.laser.name),
-      scan_period_steps_(scan_period_steps(preset.laser)),
-      robot_(*world_, preset, X_WB_start),
-      laser_(preset.laser, seed) {}
-
-bool Simulation::scan_due() const {
-  return robot_.step_count() % scan_period_steps_ == 0 && robot_.step_count() != last_scan_step_;
+      kinematics_(preset.kinematics),
+      steering_laser_(preset.laser() != nullptr ? preset.laser()->name : std::string()),
+      has_encoders_(preset.encoders.has_value()),
+      robot_(*world_, preset, X_WB_start) {
+  for (std::size_t i = 0; i < preset.sensors.size(); ++i) {
+    const std::uint64_t noise_seed = sensor_seed(seed, i);
+    std::visit(
+        [&](const auto& sensor) {
+          using Preset = std::decay_t<decltype(sensor)>;
+          if constexpr (std::is_same_v<Preset, LaserPreset>) {
+            sensors_.push_back(
+                {sensor.name, period_steps(sensor.name, sensor.scan_period_s), LaserSimulator(sensor, noise_seed)});
+          } else if constexpr (std::is_same_v<Preset, RangeArrayPreset>) {
+            sensors_.push_back(
+                {sensor.name, period_steps(sensor.name, sensor.period_s), RangeArraySimulator(sensor, noise_seed)});
+          } else {
+            sensors_.push_back({sensor.name, period_steps(sensor.name, sensor.step_period_s),
+                                ServoRangeSimulator(sensor, noise_seed)});
+          }
+        },
+        preset.sensors[i]);
+  }
+  if (has_encoders_) {
+    // The encoders are read with every servo step (the ActivityBot reads them between LIDAR readings), else at 50 Hz.
+    encoder_period_steps_ = period_steps("wheel encoders", kEncoderPeriod_s);
+    for (const SensorPreset& sensor : preset.sensors) {
+      if (const auto* servo = std::get_if<ServoRangePreset>(&sensor)) {
+        encoder_period_steps_ = period_steps(servo->name, servo->step_period_s);
+        break;
+      }
+    }
+  }
 }
 
-ScanMessages Simulation::take_scan() {
-  last_scan_step_ = robot_.step_count();
-  ++scan_count_;
-  SimulatedScan scan = laser_.scan(*world_, robot_.pose(), robot_.time_s());
-  visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
-  return ScanMessages{.seq = scan_count_,
-                      .odometry = make_odometry_message(scan_count_, robot_.time_s(), robot_.pose(), robot_.velocity()),
-                      .laser_scan = make_laser_scan_message(sensor_name_, scan_count_, robot_.time_s(), scan.ranges_m)};
+void Simulation::set_drive_script(DriveScript script) {
+  if (script.empty()) throw std::invalid_argument("drive script: has no segments");
+  std::vector<std::int64_t> segment_steps;
+  std::int64_t period_steps = 0;
+  for (std::size_t i = 0; i < script.size(); ++i) {
+    const DriveSegment& segment = script[i];
+    if (!std::isfinite(segment.linear_mps) || !std::isfinite(segment.angular_radps) ||
+        !std::isfinite(segment.duration_s) || segment.duration_s <= 0.0) {
+      throw std::invalid_argument("drive script: segment " + std::to_string(i + 1) +
+                                  " needs finite speeds and a positive duration");
+    }
+    // Whole physics steps, so segment boundaries do not drift with floating-point time.
+    const std::int64_t steps = std::llround(segment.duration_s / kPhysicsStep_s);
+    if (steps < 1) {
+      throw std::invalid_argument("drive script: segment " + std::to_string(i + 1) + " is shorter than one " +
+                                  std::to_string(kPhysicsStep_s) + " s physics step");
+    }
+    segment_steps.push_back(steps);
+    period_steps += steps;
+  }
+  script_ = std::move(script);
+  script_segment_steps_ = std::move(segment_steps);
+  script_period_steps_ = period_steps;
+}
+
+bool Simulation::batch_due() const {
+  const std::int64_t step = robot_.step_count();
+  if (step == last_batch_step_) return false;
+  if (encoder_period_steps_ > 0 && step % encoder_period_steps_ == 0) return true;
+  for (const ScheduledSensor& sensor : sensors_) {
+    if (step % sensor.period_steps == 0) return true;
+  }
+  return false;
+}
+
+SensorBatch Simulation::take_batch() {
+  const std::int64_t step = robot_.step_count();
+  const double stamp_s = robot_.time_s();
+  last_batch_step_ = step;
+  SensorBatch batch;
+  if (has_encoders_) {
+    if (step % encoder_period_steps_ == 0) {
+      batch.messages.push_back(make_wheel_encoders_message(++encoder_seq_, stamp_s, robot_.encoder_ticks()));
+      ++message_counts_["wheel_encoders"];
+    }
+  } else {
+    batch.messages.push_back(make_odometry_message(++odometry_seq_, stamp_s, robot_.pose(), robot_.velocity()));
+    ++message_counts_["odometry"];
+  }
+  for (ScheduledSensor& sensor : sensors_) {
+    if (step % sensor.period_steps != 0) continue;
+    const std::uint64_t seq = ++sensor_seq_;
+    batch.last_sensor_seq = seq;
+    if (auto* laser = std::get_if<LaserSimulator>(&sensor.simulator)) {
+      const SimulatedScan scan = laser->scan(*world_, robot_.pose(), stamp_s);
+      visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
+      batch.messages.push_back(make_laser_scan_message(sensor.name, seq, stamp_s, scan.ranges_m));
+      ++message_counts_["laser_scan"];
+      if (sensor.name == steering_laser_) batch.steering_scan_seq = seq;
+    } else if (auto* array = std::get_if<RangeArraySimulator>(&sensor.simulator)) {
+      const SimulatedScan scan = array->fire(*world_, robot_.pose(), stamp_s);
+      visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
+      batch.messages.push_back(make_range_array_message(sensor.name, seq, stamp_s, scan.ranges_m));
+      ++message_counts_["range_array"];
+    } else {
+      auto& servo = std::get<ServoRangeSimulator>(sensor.simulator);
+      const ServoReading reading = servo.measure(*world_, robot_.pose(), stamp_s);
+      visible_pixels_.insert(reading.hit_pixels.begin(), reading.hit_pixels.end());
+      batch.messages.push_back(
+          make_servo_range_message(sensor.name, seq, stamp_s, reading.servo_angle_rad, reading.range_m));
+      ++message_counts_["servo_range"];
+    }
+  }
+  return batch;
 }
 
 void Simulation::apply_command(const v1::MotionCommand& command) {
+  if (has_drive_script()) {
+    ++ignored_command_count_;
+    return;
+  }
   robot_.command(to_wheel_command(command));
   ++command_count_;
   ++state_counts_[command.state()];
   last_state_ = command.state();
+}
+
+void Simulation::step() {
+  if (has_drive_script()) {
+    std::int64_t phase_steps = robot_.step_count() % script_period_steps_;
+    const DriveSegment* current = &script_.back();
+    for (std::size_t i = 0; i < script_.size(); ++i) {
+      if (phase_steps < script_segment_steps_[i]) {
+        current = &script_[i];
+        break;
+      }
+      phase_steps -= script_segment_steps_[i];
+    }
+    const geometry::BodyVelocity body{current->linear_mps, current->angular_radps};
+    const geometry::WheelSpeeds wheels =
+        std::holds_alternative<SkidSteerPreset>(kinematics_)
+            ? geometry::to_wheels(body, std::get<SkidSteerPreset>(kinematics_).params)
+            : geometry::to_wheels(body, std::get<geometry::DifferentialDriveParams>(kinematics_));
+    robot_.command(WheelCommand{.left_mps = wheels.left_mps, .right_mps = wheels.right_mps});
+  }
+  robot_.step();
 }
 
 }  // namespace occgeo::sim

@@ -11,6 +11,7 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/sim/presets.h"
+#include "occgeo/sim/simulation.h"
 
 namespace occgeo::sim {
 
@@ -25,7 +26,8 @@ struct SimOptions {
   std::optional<double> duration_s;     // --duration S: sim seconds to run; unset runs until a signal
   geometry::Pose2 start;                // --start X,Y,THETA: base_link start pose, metres and radians
   std::optional<double> laser_range_m;  // --laser-range M: overrides the preset laser's range_max, metres
-  std::optional<double> noise_sigma_m;  // --noise SIGMA: overrides the preset's range noise, metres
+  std::optional<double> noise_sigma_m;  // --noise SIGMA: overrides the preset's range noise, metres (see usage())
+  std::optional<DriveScript> drive;     // --drive V,W,T;...: a looped body-velocity script the robot follows itself
   std::uint64_t seed = 1;               // --seed N: seeds the range noise
   bool json = false;                    // --json: print the summary as one JSON object
   std::optional<std::filesystem::path> visible_out;  // --visible-out FILE: obstacle pixels the beams hit
@@ -45,7 +47,13 @@ SimOptions parse_args(const std::vector<std::string_view>& args);
 // The text --help prints.
 std::string usage();
 
-// The preset the options name, with --laser-range and --noise applied.
+// Parses a --drive script "V,W,T;V,W,T;...": forward speed m/s, yaw rate rad/s, duration s per segment. Throws
+// ArgsError starting "--drive: " and naming the segment at fault.
+DriveScript parse_drive_script(std::string_view text);
+
+// The preset the options name, with --laser-range (the first laser's range) and --noise (every sensor's noise: σ of
+// lasers and servo beams, σ at 1 m of range arrays, whose noise grows with range) applied. Throws ArgsError naming
+// --laser-range when the preset has no laser.
 RobotPreset configured_preset(const SimOptions& options);
 
 }  // namespace occgeo::sim

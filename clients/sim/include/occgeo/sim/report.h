@@ -16,22 +16,25 @@ namespace occgeo::sim {
 struct RunSummary {
   std::string robot_id;
   std::string world_file;
-  double distance_m = 0.0;       // path length driven, metres
-  std::uint64_t collisions = 0;  // times the robot ran into an obstacle
-  double sim_time_s = 0.0;       // sim time simulated, seconds
-  std::uint64_t scans_sent = 0;
-  std::uint64_t commands_received = 0;                // motion commands applied
-  geometry::Pose2 final_pose;                         // true base_link pose at the end
-  bool deadlock_reported = false;                     // any command's behaviour state was "deadlock"
-  std::string last_state;                             // behaviour state of the last command
-  std::map<std::string, std::uint64_t> state_counts;  // applied commands per behaviour state
+  double distance_m = 0.0;                             // path length driven, metres
+  std::uint64_t collisions = 0;                        // times the robot ran into an obstacle
+  double sim_time_s = 0.0;                             // sim time simulated, seconds
+  std::uint64_t scans_sent = 0;                        // sensor messages of every kind
+  std::uint64_t commands_received = 0;                 // motion commands applied
+  geometry::Pose2 final_pose;                          // true base_link pose at the end
+  bool deadlock_reported = false;                      // any command's behaviour state was "deadlock"
+  std::string last_state;                              // behaviour state of the last command
+  std::map<std::string, std::uint64_t> state_counts;   // applied commands per behaviour state
+  std::map<std::string, std::uint64_t> messages_sent;  // messages per kind (odometry, laser_scan, range_array, ...)
+  std::uint64_t commands_ignored = 0;                  // motion commands not applied because --drive steered
 };
 
 // The summary of a simulation run for the robot and world file given.
 RunSummary summarize(const Simulation& simulation, const std::string& robot_id, const std::string& world_file);
 
 // One JSON object on one line: robot, world, distance_m, collisions, sim_time_s, scans_sent, commands_received,
-// final_pose {x, y, theta}, deadlock_reported, last_state, state_counts {state: commands}.
+// final_pose {x, y, theta}, deadlock_reported, last_state, state_counts {state: commands}, messages_sent {kind: count},
+// commands_ignored.
 std::string to_json(const RunSummary& summary);
 
 // A few lines for people.

@@ -64,6 +64,12 @@ struct MovingObstacle {
 // is inside), or nullopt when it never does (a tangent ray, or one running along an edge, passes). Ignores heights.
 std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W);
 
+// The same entry as ray_distance, with the surface normal there (RayHit::pixels stays empty): a circle's is radial, a
+// polygon's is the outward normal of the edge the ray entered through. Through a polygon vertex it is the normal of the
+// adjoining edge the ray meets more head-on; from a start inside the shape, where no surface was crossed, it is
+// -direction_W.
+std::optional<RayHit> ray_hit(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W);
+
 // True when the box footprint at base_link pose X_WB and the shape overlap with positive area (ignoring heights).
 bool footprint_overlaps(const Shape& shape, const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB);
 
