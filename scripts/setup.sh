@@ -9,6 +9,7 @@ packages=(
   libprotobuf-dev protobuf-compiler
   libeigen3-dev libccd-dev libfcl-dev liboctomap-dev libdynamicedt3d-dev
   libcgal-dev libgmp-dev libmpfr-dev
+  libpcl-dev
   libyaml-cpp-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3

@@ -1,0 +1,142 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "occgeo/geometry/cell.h"
+#include "occgeo/geometry/collision.h"
+#include "occgeo/mapping/grid_snapshot.h"
+#include "occgeo/mapping/tiles.h"
+
+namespace occgeo::mapping {
+
+// Parameters of a DistanceField.
+struct DistanceFieldParams {
+  // Distances are exact up to this and read "at least this" beyond it, metres; finite, > 0, and at most 2000 cells of
+  // the grid. It bounds the work per changed cell (the wavefront stops there), so keep it near the largest clearance
+  // queries ask for.
+  double max_distance_m = 3.0;
+  // Largest side of the square of space the field covers, metres; finite, > 2 * growth_margin_m, and at most 32000
+  // cells of the grid. Memory is 12 bytes per covered cell in the field plus 4 per cell in each live snapshot.
+  double max_extent_m = 200.0;
+  // Room left around the grid's tiles when the field is (re)built, so that a growing grid does not rebuild it at every
+  // scan, metres; finite, >= 0.
+  double growth_margin_m = 8.0;
+
+  // Throws std::invalid_argument naming the first field that breaks its documented range.
+  void validate() const;
+};
+
+// The distance field of one grid version: for each cell of bounds(), the nearest occupied cell and the distance from
+// the cell's centre to that cell's square. Immutable; any number of threads may read it without locks.
+class DistanceFieldSnapshot {
+ public:
+  // The grid snapshot this field matches (same version).
+  [[nodiscard]] const GridSnapshot& grid() const { return *grid_; }
+  // The grid version the field matches.
+  [[nodiscard]] std::uint64_t version() const { return grid_->version(); }
+  // The cells the field covers; nullopt while the grid is empty.
+  [[nodiscard]] std::optional<CellBox> bounds() const { return bounds_; }
+  // Side of a cell, metres.
+  [[nodiscard]] double cell_size() const { return grid_->cell_size(); }
+  // DistanceFieldParams::max_distance_m of the field.
+  [[nodiscard]] double max_distance() const { return max_distance_m_; }
+
+  // Distance from the centre of cell c to the nearest occupied cell's square, metres (0 for an occupied cell);
+  // max_distance() when there is none within max_distance() or c lies outside bounds(). One array read.
+  [[nodiscard]] double distance(const geometry::CellIndex& c) const;
+  // The occupied cell nearest to the centre of cell c, when one lies within max_distance() and c is inside bounds().
+  [[nodiscard]] std::optional<geometry::CellIndex> nearest_occupied(const geometry::CellIndex& c) const;
+
+  // The clearance of request.footprint at request.pose, from the field: never below the exact clearance
+  // (geometry::compute_clearance on grid()) and at most one cell_size() above it. The field gives an upper bound (the
+  // exact distance to the occupied cells that the cell centres within half a cell diagonal of the footprint refer to;
+  // equal to the exact clearance in most queries) and a lower bound (the smallest distance at those centres minus half
+  // a cell diagonal, the distance being 1-Lipschitz). When they are more than a cell apart (up to 1.2 cells even for
+  // an exact upper bound) the occupied cells within (upper bound - one cell) of the footprint are checked exactly, a
+  // box query on grid(). When the footprint grown by request.max_distance_m reaches beyond bounds(), or
+  // request.max_distance_m > max_distance(), geometry::compute_clearance answers. Throws std::invalid_argument naming
+  // the field like geometry::compute_clearance.
+  [[nodiscard]] geometry::ClearanceResult compute_clearance(const geometry::ClearanceRequest& request) const;
+
+  // The direction in which moving the footprint (translation only, world frame) increases its clearance fastest: the
+  // unit vector from the nearest occupied point to the footprint's nearest point; in contact, from the nearest
+  // cell's centre to the footprint's centre. Zero when no occupied cell lies within request.max_distance_m or the
+  // direction is undefined. Throws like compute_clearance.
+  [[nodiscard]] Eigen::Vector2d clearance_gradient(const geometry::ClearanceRequest& request) const;
+
+  // Number of compute_clearance and clearance_gradient calls so far that needed an exact check (local or global).
+  [[nodiscard]] std::uint64_t exact_fallback_count() const { return fallbacks_.load(std::memory_order_relaxed); }
+
+ private:
+  friend class DistanceField;
+  // A reference to the nearest occupied cell, as offsets inside bounds(); kNone when there is none in range.
+  struct Ref {
+    std::int16_t x;
+    std::int16_t y;
+  };
+  static constexpr std::int16_t kNone = -1;
+
+  DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, std::vector<Ref> refs,
+                        double max_distance_m);
+
+  struct Answer;
+  [[nodiscard]] Answer answer(const geometry::ClearanceRequest& request) const;
+  [[nodiscard]] const Ref* ref_of(const geometry::CellIndex& c) const;
+
+  std::shared_ptr<const GridSnapshot> grid_;
+  std::optional<CellBox> bounds_;
+  std::int32_t width_ = 0;
+  std::vector<Ref> refs_;
+  double max_distance_m_;
+  mutable std::atomic<std::uint64_t> fallbacks_{0};
+};
+
+// What one DistanceField::update did.
+struct DistanceFieldUpdate {
+  bool rebuilt = false;             // The field was built from scratch (first update, growth, or focus moved).
+  std::size_t changed_cells = 0;    // Cells whose occupancy flipped and were fed to the field (0 when rebuilt).
+  std::size_t processed_cells = 0;  // Cells taken off the wavefront's queue.
+};
+
+// A 2D Euclidean distance field over a HIMM grid's occupied cells, kept in step with it by an incremental brushfire
+// (Lau, Sprunk & Burgard 2013, "Efficient grid-based spatial representations for robot navigation in dynamic
+// environments", the algorithm of dynamicEDT): each cell refers to its nearest occupied cell, and only the cells
+// whose occupancy flipped start a wavefront, which stops at max_distance_m. It is dense over a box of cells around
+// the grid's tiles, rebuilt from scratch when the tiles outgrow the box (cost: one full build, see
+// tests/bench/bench_distance_field.cc). Not thread-safe: one thread updates it and publishes snapshots.
+class DistanceField {
+ public:
+  // An empty field; throws std::invalid_argument naming the bad field of params.
+  explicit DistanceField(const DistanceFieldParams& params);
+  ~DistanceField();
+  DistanceField(const DistanceField&) = delete;
+  DistanceField& operator=(const DistanceField&) = delete;
+
+  // Brings the field in step with grid, which must come from the same HimmGrid as the previous update's, and publishes
+  // a snapshot for it. Only cells inside `touched` are compared with the previous version, so it must hold every cell
+  // whose occupancy may have flipped since (for a scan: the sensor's position +- range_max, plus one cell for the
+  // growth-rate operator); nullopt compares the whole field (O(cells in the field)). focus_W (world, metres; e.g. the
+  // robot) centres the field when the grid is larger than max_extent_m; the centre of the grid's tiles otherwise.
+  // Throws std::invalid_argument when grid is null or its cell size differs from the previous one's.
+  DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched = std::nullopt,
+                             std::optional<Eigen::Vector2d> focus_W = std::nullopt);
+
+  // The field of the last update; nullptr before the first. Costs one shared pointer copy.
+  [[nodiscard]] std::shared_ptr<const DistanceFieldSnapshot> snapshot() const { return snapshot_; }
+  // The parameters the field was made with.
+  [[nodiscard]] const DistanceFieldParams& params() const { return params_; }
+
+ private:
+  class Brushfire;
+
+  DistanceFieldParams params_;
+  std::unique_ptr<Brushfire> brushfire_;
+  std::shared_ptr<const DistanceFieldSnapshot> snapshot_;
+};
+
+}  // namespace occgeo::mapping

@@ -1,0 +1,467 @@
+#include "occgeo/mapping/distance_field.h"
+
+#include <fcl/geometry/shape/box.h>
+#include <fcl/narrowphase/distance.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "occgeo/mapfile/map_file.h"
+#include "occgeo/mapping/himm_grid.h"
+
+namespace occgeo::mapping {
+namespace {
+
+using geometry::CellIndex;
+
+constexpr double kCell = 0.1;
+
+// A world of width x height cells from cell (0, 0), each occupied or free.
+struct World {
+  int width;
+  int height;
+  std::vector<bool> occupied;
+
+  World(int w, int h) : width(w), height(h), occupied(static_cast<std::size_t>(w) * h, false) {}
+  std::vector<bool>::reference at(int x, int y) { return occupied[static_cast<std::size_t>(y) * width + x]; }
+
+  // The world as a map_server image whose grey levels HimmGrid::from_image reads as certainty 15 or 0.
+  [[nodiscard]] mapfile::OccupancyImage image() const {
+    mapfile::OccupancyImage image;
+    image.width = static_cast<std::uint32_t>(width);
+    image.height = static_cast<std::uint32_t>(height);
+    image.resolution = kCell;
+    image.pixels.resize(occupied.size());
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        image.pixels[static_cast<std::size_t>(height - 1 - y) * width + x] =
+            occupied[static_cast<std::size_t>(y) * width + x] ? 0 : 254;
+      }
+    }
+    return image;
+  }
+  [[nodiscard]] std::shared_ptr<const GridSnapshot> snapshot() const {
+    return HimmGrid::from_image(image(), HimmParams{}).snapshot();
+  }
+};
+
+// Random occupied cells and boxes.
+World random_world(std::mt19937& rng, int width, int height, int boxes, int singles) {
+  World world(width, height);
+  std::uniform_int_distribution<int> x_of(0, width - 1);
+  std::uniform_int_distribution<int> y_of(0, height - 1);
+  std::uniform_int_distribution<int> side(1, 12);
+  for (int b = 0; b < boxes; ++b) {
+    const int x0 = x_of(rng), y0 = y_of(rng), w = side(rng), h = side(rng);
+    for (int y = y0; y < std::min(y0 + h, height); ++y) {
+      for (int x = x0; x < std::min(x0 + w, width); ++x) world.at(x, y) = true;
+    }
+  }
+  for (int s = 0; s < singles; ++s) world.at(x_of(rng), y_of(rng)) = true;
+  return world;
+}
+
+// Distance from the centre of cell c to the nearest occupied cell's square by brute force, capped at cap; metres.
+double brute_force_distance(const GridSnapshot& grid, const CellBox& box, const CellIndex& c, double cap) {
+  double best = cap;
+  grid.for_each_occupied(box.min, box.max, [&](const CellIndex& o) {
+    const double dx = std::max(std::abs(c.ix - o.ix) - 0.5, 0.0) * kCell;
+    const double dy = std::max(std::abs(c.iy - o.iy) - 0.5, 0.0) * kCell;
+    best = std::min(best, std::hypot(dx, dy));
+    return true;
+  });
+  return best;
+}
+
+// Every cell of the field against brute force.
+void expect_field_exact(const DistanceFieldSnapshot& field) {
+  const CellBox box = *field.bounds();
+  const CellBox all = *field.grid().tile_bounds();
+  int mismatches = 0;
+  for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+    for (int ix = box.min.ix; ix <= box.max.ix; ++ix) {
+      const double expected = brute_force_distance(field.grid(), all, {ix, iy}, field.max_distance());
+      if (std::abs(field.distance({ix, iy}) - expected) > 1e-12 && ++mismatches < 5) {
+        ADD_FAILURE() << "cell (" << ix << ", " << iy << "): field " << field.distance({ix, iy}) << ", brute force "
+                      << expected;
+      }
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+void expect_same_field(const DistanceFieldSnapshot& a, const DistanceFieldSnapshot& b) {
+  ASSERT_EQ(a.bounds(), b.bounds());
+  const CellBox box = *a.bounds();
+  int mismatches = 0;
+  for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+    for (int ix = box.min.ix; ix <= box.max.ix; ++ix) {
+      if (a.distance({ix, iy}) != b.distance({ix, iy}) && ++mismatches < 5) {
+        ADD_FAILURE() << "cell (" << ix << ", " << iy << "): " << a.distance({ix, iy}) << " vs "
+                      << b.distance({ix, iy});
+      }
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(DistanceFieldParamsTest, ValidationNamesTheField) {
+  const auto message = [](DistanceFieldParams params) {
+    try {
+      params.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  DistanceFieldParams params;
+  params.max_distance_m = 0.0;
+  EXPECT_NE(message(params).find("max_distance_m"), std::string::npos) << message(params);
+  params = {};
+  params.growth_margin_m = -1.0;
+  EXPECT_NE(message(params).find("growth_margin_m"), std::string::npos) << message(params);
+  params = {};
+  params.max_extent_m = 2.0 * params.growth_margin_m;
+  EXPECT_NE(message(params).find("max_extent_m"), std::string::npos) << message(params);
+  params = {};
+  params.max_extent_m = std::nan("");
+  EXPECT_THROW(DistanceField{params}, std::invalid_argument);
+  EXPECT_NO_THROW(DistanceFieldParams{}.validate());
+
+  // Limits in cells are checked against the grid's cell size at the first update.
+  params = {};
+  params.max_extent_m = 5000.0;
+  DistanceField field(params);
+  try {
+    static_cast<void>(field.update(World(4, 4).snapshot()));
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("max_extent_m"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(static_cast<void>(DistanceField(DistanceFieldParams{}).update(nullptr)), std::invalid_argument);
+}
+
+TEST(DistanceFieldTest, QueryValidationNamesTheField) {
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(World(8, 8).snapshot()));
+  const auto message = [&](const geometry::ClearanceRequest& request) {
+    try {
+      static_cast<void>(field.snapshot()->compute_clearance(request));
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  geometry::ClearanceRequest request;
+  request.pose.x = std::nan("");
+  EXPECT_EQ(message(request), "ClearanceRequest.pose must be finite");
+  request = {};
+  request.footprint = geometry::BoxFootprint{.length = -1.0};
+  EXPECT_NE(message(request).find("ClearanceRequest.footprint.length"), std::string::npos);
+  request = {};
+  request.footprint = geometry::CylinderFootprint{.radius = 0.0};
+  EXPECT_NE(message(request).find("ClearanceRequest.footprint.radius"), std::string::npos);
+  request = {};
+  request.max_distance_m = -1.0;
+  EXPECT_NE(message(request).find("ClearanceRequest.max_distance_m"), std::string::npos);
+}
+
+TEST(DistanceFieldTest, EmptyGridHasNoBounds) {
+  DistanceField field(DistanceFieldParams{});
+  EXPECT_EQ(field.snapshot(), nullptr);
+  static_cast<void>(field.update(HimmGrid(HimmParams{}).snapshot()));
+  ASSERT_NE(field.snapshot(), nullptr);
+  EXPECT_FALSE(field.snapshot()->bounds());
+  EXPECT_EQ(field.snapshot()->distance({0, 0}), DistanceFieldParams{}.max_distance_m);
+}
+
+TEST(DistanceFieldTest, DistancesEqualBruteForce) {
+  std::mt19937 rng(7);
+  DistanceFieldParams params;
+  params.max_distance_m = 1.5;
+  params.growth_margin_m = 0.5;
+  for (int trial = 0; trial < 3; ++trial) {
+    DistanceField field(params);
+    static_cast<void>(field.update(random_world(rng, 70, 50, 8, 40).snapshot()));
+    SCOPED_TRACE(trial);
+    expect_field_exact(*field.snapshot());
+  }
+}
+
+// Random insertions and deletions, fed incrementally, end where a field built from scratch on the same grid does, and
+// where brute force does.
+TEST(DistanceFieldTest, IncrementalUpdatesEqualFromScratch) {
+  std::mt19937 rng(11);
+  DistanceFieldParams params;
+  params.max_distance_m = 2.0;
+  params.growth_margin_m = 0.5;
+  World world = random_world(rng, 80, 60, 6, 30);
+  DistanceField field(params);
+  ASSERT_TRUE(field.update(world.snapshot()).rebuilt);
+  std::uniform_int_distribution<int> x_of(0, world.width - 1);
+  std::uniform_int_distribution<int> y_of(0, world.height - 1);
+  std::uniform_int_distribution<int> count_of(1, 60);
+  for (int step = 0; step < 30; ++step) {
+    // Flip cells in a random window (insertions and deletions, both), sometimes in clumps.
+    const int x0 = x_of(rng), y0 = y_of(rng);
+    const CellBox touched{{std::max(x0 - 10, 0), std::max(y0 - 10, 0)},
+                          {std::min(x0 + 10, world.width - 1), std::min(y0 + 10, world.height - 1)}};
+    std::uniform_int_distribution<int> tx(touched.min.ix, touched.max.ix);
+    std::uniform_int_distribution<int> ty(touched.min.iy, touched.max.iy);
+    for (int n = count_of(rng); n > 0; --n) {
+      auto cell = world.at(tx(rng), ty(rng));
+      cell = !cell;
+    }
+    const auto grid = world.snapshot();
+    const DistanceFieldUpdate update = field.update(grid, step % 3 == 0 ? std::nullopt : std::optional(touched));
+    EXPECT_FALSE(update.rebuilt);
+    DistanceField scratch(params);
+    static_cast<void>(scratch.update(grid));
+    SCOPED_TRACE(step);
+    expect_same_field(*field.snapshot(), *scratch.snapshot());
+  }
+  expect_field_exact(*field.snapshot());
+}
+
+// Scans into a HimmGrid, the field fed only the box each scan can touch, agree with a rebuild after every scan.
+TEST(DistanceFieldTest, FollowsHimmScans) {
+  HimmGrid grid(HimmParams{});
+  DistanceFieldParams params;
+  params.max_distance_m = 1.0;
+  DistanceField field(params);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> range(0.5F, 4.0F);
+  std::size_t changed = 0;
+  for (int scan = 0; scan < 40; ++scan) {
+    const geometry::Pose2 X_WS{0.05 * scan, 0.02 * scan, 0.3 * scan};
+    std::vector<float> ranges(91);
+    for (float& r : ranges) r = range(rng);
+    constexpr float kRangeMax = 4.5F;
+    grid.insert_scan(X_WS, -std::numbers::pi_v<float> / 2, std::numbers::pi_v<float> / 90, ranges, kRangeMax);
+    const geometry::GridGeometry cells(grid.params().cell_size_m);
+    const double reach = static_cast<double>(kRangeMax) + grid.params().cell_size_m;
+    const CellBox touched{cells.cell_of(X_WS.position() - Eigen::Vector2d::Constant(reach)),
+                          cells.cell_of(X_WS.position() + Eigen::Vector2d::Constant(reach))};
+    changed += field.update(grid.snapshot(), touched, X_WS.position()).changed_cells;
+    EXPECT_EQ(field.snapshot()->version(), grid.version());
+  }
+  EXPECT_GT(changed, 0U);
+  DistanceField scratch(params);
+  static_cast<void>(scratch.update(grid.snapshot()));
+  expect_same_field(*field.snapshot(), *scratch.snapshot());
+}
+
+TEST(DistanceFieldTest, OldSnapshotsStayUnchanged) {
+  World world(30, 30);
+  world.at(10, 10) = true;
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(world.snapshot()));
+  const auto before = field.snapshot();
+  world.at(10, 10) = false;
+  world.at(20, 20) = true;
+  static_cast<void>(field.update(world.snapshot()));
+  EXPECT_EQ(before->distance({10, 10}), 0.0);
+  EXPECT_EQ(before->nearest_occupied({11, 11}), (CellIndex{10, 10}));
+  EXPECT_EQ(field.snapshot()->nearest_occupied({11, 11}), (CellIndex{20, 20}));
+}
+
+// Grows the grid beyond the field's box: the field is rebuilt to cover it; with a small max_extent_m it covers the
+// part around the focus only, and queries beyond it fall back to the exact search.
+TEST(DistanceFieldTest, FollowsGridGrowth) {
+  HimmGrid grid(HimmParams{});
+  const auto hit = [&grid](double x, double y) {
+    for (int i = 0; i < 3; ++i) grid.insert_ray({x - 0.5, y}, {x, y}, true);
+  };
+  hit(1.0, 1.0);
+  DistanceFieldParams params;
+  params.max_distance_m = 1.0;
+  params.growth_margin_m = 1.0;
+  params.max_extent_m = 30.0;
+  DistanceField field(params);
+  EXPECT_TRUE(field.update(grid.snapshot()).rebuilt);
+  const CellBox first = *field.snapshot()->bounds();
+  hit(1.2, 1.3);
+  EXPECT_FALSE(field.update(grid.snapshot()).rebuilt);
+  hit(20.0, 1.0);  // A new tile far east.
+  EXPECT_TRUE(field.update(grid.snapshot()).rebuilt);
+  const CellBox grown = *field.snapshot()->bounds();
+  EXPECT_GT(grown.max.ix, first.max.ix);
+  expect_field_exact(*field.snapshot());
+
+  hit(60.0, 1.0);  // Now wider than max_extent_m: the field covers 30 m around the focus.
+  EXPECT_TRUE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(60.0, 1.0)).rebuilt);
+  const CellBox clipped = *field.snapshot()->bounds();
+  EXPECT_LE(clipped.max.ix - clipped.min.ix + 1, 300);
+  EXPECT_EQ(field.snapshot()->distance(grid.grid_geometry().cell_of({60.0, 1.0})), 0.0);
+  geometry::ClearanceRequest far;
+  far.footprint = geometry::CylinderFootprint{.radius = 0.3};
+  far.pose = {1.0, 2.0, 0.0};
+  far.max_distance_m = 1.0;
+  const auto snapshot = field.snapshot();
+  const std::uint64_t fallbacks = snapshot->exact_fallback_count();
+  EXPECT_EQ(snapshot->compute_clearance(far).clearance_m,
+            geometry::compute_clearance(far, snapshot->grid()).clearance_m);
+  EXPECT_EQ(snapshot->exact_fallback_count(), fallbacks + 1);
+  // Moving a little keeps the field; moving far re-centres it.
+  EXPECT_FALSE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(59.0, 1.0)).rebuilt);
+  EXPECT_TRUE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(20.0, 1.0)).rebuilt);
+}
+
+// FCL's distance between the footprint box and the cell prisms near it (GST_INDEP: FCL 0.7's libccd GJK is off by up
+// to 0.45 m for two boxes, its own GJK by up to 0.03 m; see geometry/src/collision.cc). 0 in contact.
+double fcl_box_clearance(const geometry::BoxFootprint& box, const geometry::Pose2& pose, const GridSnapshot& grid,
+                         double max_distance) {
+  const fcl::Boxd footprint(box.length, box.width, box.height);
+  fcl::Transform3d X_WF = fcl::Transform3d::Identity();
+  X_WF.linear() = Eigen::AngleAxisd(pose.theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  X_WF.translation() << pose.x + box.center_x * std::cos(pose.theta), pose.y + box.center_x * std::sin(pose.theta),
+      box.height / 2.0;
+  const fcl::Boxd cell(kCell, kCell, box.height + 1.0);
+  fcl::DistanceRequestd request;
+  request.gjk_solver_type = fcl::GST_INDEP;
+  const double reach = std::hypot(box.length / 2 + std::abs(box.center_x), box.width / 2) + max_distance;
+  const geometry::GridGeometry cells(kCell);
+  double best = max_distance;
+  grid.for_each_occupied(cells.cell_of({pose.x - reach, pose.y - reach}),
+                         cells.cell_of({pose.x + reach, pose.y + reach}), [&](const CellIndex& c) {
+                           fcl::Transform3d X_WC = fcl::Transform3d::Identity();
+                           X_WC.translation() << cells.center_of(c), box.height / 2.0;
+                           fcl::DistanceResultd result;
+                           fcl::distance(&footprint, X_WF, &cell, X_WC, request, result);
+                           best = std::min(best, std::max(result.min_distance, 0.0));
+                           return true;
+                         });
+  return best;
+}
+
+struct Agreement {
+  int queries = 0;
+  int fcl_queries = 0;
+  double worst_over_exact = 0.0;
+  double worst_vs_fcl = 0.0;
+};
+
+// Field clearance against the exact search on random poses and footprints inside [lo, hi]^2, and against FCL for
+// boxes; the field may exceed the exact value by one cell at most and never be below it.
+Agreement check_clearances(const DistanceFieldSnapshot& field, std::mt19937& rng, double lo, double hi, int poses) {
+  std::uniform_real_distribution<double> coordinate(lo, hi);
+  std::uniform_real_distribution<double> angle(-std::numbers::pi, std::numbers::pi);
+  std::uniform_real_distribution<double> size(0.2, 1.5);
+  std::uniform_real_distribution<double> offset(-0.3, 0.3);
+  Agreement agreement;
+  for (int i = 0; i < poses; ++i) {
+    geometry::ClearanceRequest request;
+    request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
+    request.max_distance_m = 2.0;
+    if (i % 4 == 3) {
+      request.footprint = geometry::CylinderFootprint{.radius = size(rng) / 2.0};
+    } else {
+      request.footprint = geometry::BoxFootprint{.length = size(rng), .width = size(rng), .center_x = offset(rng)};
+    }
+    const geometry::ClearanceResult fast = field.compute_clearance(request);
+    const geometry::ClearanceResult exact = geometry::compute_clearance(request, field.grid());
+    ++agreement.queries;
+    // Tolerance: one cell, the documented bound, plus rounding of the two closed forms.
+    EXPECT_GE(fast.clearance_m, exact.clearance_m - 1e-9) << "pose " << i;
+    EXPECT_LE(fast.clearance_m, exact.clearance_m + kCell + 1e-9) << "pose " << i;
+    agreement.worst_over_exact = std::max(agreement.worst_over_exact, fast.clearance_m - exact.clearance_m);
+    if (const auto* box = std::get_if<geometry::BoxFootprint>(&request.footprint)) {
+      const double fcl = fcl_box_clearance(*box, request.pose, field.grid(), request.max_distance_m);
+      ++agreement.fcl_queries;
+      // One cell for the field plus FCL GST_INDEP's measured box-box error of 0.03 m.
+      EXPECT_NEAR(fast.clearance_m, fcl, kCell + 0.03 + 1e-9) << "pose " << i;
+      agreement.worst_vs_fcl = std::max(agreement.worst_vs_fcl, std::abs(fast.clearance_m - fcl));
+    }
+  }
+  return agreement;
+}
+
+TEST(DistanceFieldClearanceTest, AgreesWithExactAndFclOnRandomWorld) {
+  std::mt19937 rng(5);
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(random_world(rng, 200, 200, 60, 300).snapshot()));
+  const Agreement agreement = check_clearances(*field.snapshot(), rng, 1.0, 19.0, 1200);
+  EXPECT_GE(agreement.fcl_queries, 800);
+  RecordProperty("worst_over_exact_m", std::to_string(agreement.worst_over_exact));
+  RecordProperty("worst_vs_fcl_m", std::to_string(agreement.worst_vs_fcl));
+  RecordProperty("exact_fallbacks", std::to_string(field.snapshot()->exact_fallback_count()));
+  // The exact check near the footprint settles the cases where the field's bounds are over a cell apart.
+  EXPECT_LT(field.snapshot()->exact_fallback_count(), 600U);
+}
+
+TEST(DistanceFieldClearanceTest, AgreesWithExactAndFclOnOpenField) {
+  const mapfile::OccupancyImage image =
+      mapfile::read_map_yaml(std::string(OCCGEO_SOURCE_DIR) + "/clients/sim/worlds/open_field.yaml");
+  const HimmGrid grid = HimmGrid::from_image(image, HimmParams{});
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(grid.snapshot()));
+  std::mt19937 rng(17);
+  const Agreement agreement = check_clearances(*field.snapshot(), rng, -29.0, 29.0, 1200);
+  RecordProperty("worst_over_exact_m", std::to_string(agreement.worst_over_exact));
+  RecordProperty("worst_vs_fcl_m", std::to_string(agreement.worst_vs_fcl));
+  RecordProperty("exact_fallbacks", std::to_string(field.snapshot()->exact_fallback_count()));
+  EXPECT_LT(field.snapshot()->exact_fallback_count(), 600U);
+}
+
+TEST(DistanceFieldClearanceTest, ContactAndNothingInRange) {
+  World world(40, 40);
+  world.at(20, 20) = true;
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(world.snapshot()));
+  geometry::ClearanceRequest request;
+  request.footprint = geometry::BoxFootprint{.length = 0.4, .width = 0.4};
+  request.pose = {2.05, 2.05, 0.3};
+  const geometry::ClearanceResult contact = field.snapshot()->compute_clearance(request);
+  EXPECT_TRUE(contact.found);
+  EXPECT_EQ(contact.clearance_m, 0.0);
+  EXPECT_EQ(contact.nearest_cell, (CellIndex{20, 20}));
+  request.pose = {0.5, 0.5, 0.0};
+  request.max_distance_m = 0.5;
+  const geometry::ClearanceResult none = field.snapshot()->compute_clearance(request);
+  EXPECT_FALSE(none.found);
+  EXPECT_EQ(none.clearance_m, 0.5);
+  EXPECT_EQ(field.snapshot()->clearance_gradient(request), Eigen::Vector2d::Zero());
+}
+
+// Moving the footprint a little along the gradient raises the exact clearance by about that much.
+TEST(DistanceFieldClearanceTest, GradientPointsAwayFromTheNearestObstacle) {
+  std::mt19937 rng(23);
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(random_world(rng, 150, 150, 30, 100).snapshot()));
+  const auto snapshot = field.snapshot();
+  std::uniform_real_distribution<double> coordinate(1.0, 14.0);
+  std::uniform_real_distribution<double> angle(-std::numbers::pi, std::numbers::pi);
+  int tested = 0;
+  int rising = 0;
+  for (int i = 0; i < 500; ++i) {
+    geometry::ClearanceRequest request;
+    request.footprint = geometry::BoxFootprint{.length = 0.8, .width = 0.5, .center_x = 0.1};
+    request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
+    request.max_distance_m = 2.0;
+    const geometry::ClearanceResult here = geometry::compute_clearance(request, snapshot->grid());
+    if (!here.found || here.clearance_m < 0.05 || here.clearance_m > 1.9) continue;
+    const Eigen::Vector2d gradient = snapshot->clearance_gradient(request);
+    EXPECT_NEAR(gradient.norm(), 1.0, 1e-9);
+    constexpr double kStep = 0.01;
+    request.pose.x += kStep * gradient.x();
+    request.pose.y += kStep * gradient.y();
+    const double there = geometry::compute_clearance(request, snapshot->grid()).clearance_m;
+    ++tested;
+    // The field's nearest cell may be a near-tie of the exact one, a cell away, whose direction still raises the
+    // clearance, if not at the full rate.
+    if (there - here.clearance_m > 0.5 * kStep) ++rising;
+  }
+  EXPECT_GT(tested, 100);
+  EXPECT_GE(rising, tested * 9 / 10);
+}
+
+}  // namespace
+}  // namespace occgeo::mapping
