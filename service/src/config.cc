@@ -31,6 +31,36 @@ class Section {
     return *this;
   }
 
+  // Like field, for a key that may be left out: target stays nullopt then.
+  template <typename T>
+  Section& optional_field(const std::string& key, std::optional<T>& target) {
+    known_.push_back(key);
+    if (!node_ || !node_[key]) return *this;
+    try {
+      target = node_[key].as<T>();
+    } catch (const YAML::Exception&) {
+      throw ConfigError(where(key) + " has a value of the wrong type");
+    }
+    return *this;
+  }
+
+  // A mapping from names the user chooses (e.g. world names) to sections; read is called for each.
+  Section& named_sections(const std::string& key, const std::function<void(const std::string&, Section&)>& read) {
+    known_.push_back(key);
+    if (!node_ || !node_[key]) return *this;
+    const YAML::Node map = node_[key];
+    if (!map.IsMap()) throw ConfigError(where(key) + " must be a mapping");
+    for (const auto& entry : map) {
+      const auto name = entry.first.as<std::string>();
+      Section child(entry.second, where(key) + "." + name);
+      read(name, child);
+      child.reject_unknown();
+    }
+    return *this;
+  }
+
+  [[nodiscard]] const std::string& path() const { return path_; }
+
   Section& section(const std::string& key, const std::function<void(Section&)>& read) {
     known_.push_back(key);
     Section child(node_ ? node_[key] : YAML::Node(), where(key));
@@ -64,7 +94,36 @@ void require(bool ok, const std::string& key, const std::string& rule) {
   if (!ok) throw ConfigError("configuration '" + key + "' " + rule);
 }
 
+// Reads a construction name at key into target (left alone when the key is absent).
+void read_construction(Section& s, const std::string& key, std::optional<mapping::PtemConstruction>& target) {
+  std::optional<std::string> name;
+  s.optional_field(key, name);
+  if (!name) return;
+  target = parse_ptem_construction(*name);
+  const std::string path = s.path().empty() ? key : s.path() + "." + key;
+  require(target.has_value(), path, "must be cumulative or single_scan, got '" + *name + "'");
+}
+
 }  // namespace
+
+std::string ptem_construction_name(mapping::PtemConstruction construction) {
+  return construction == mapping::PtemConstruction::kCumulative ? "cumulative" : "single_scan";
+}
+
+std::optional<mapping::PtemConstruction> parse_ptem_construction(const std::string& name) {
+  if (name == "cumulative") return mapping::PtemConstruction::kCumulative;
+  if (name == "single_scan") return mapping::PtemConstruction::kSingleScan;
+  return std::nullopt;
+}
+
+mapping::PtemParams PtemConfig::params_for(const std::string& world) const {
+  mapping::PtemParams out = params;
+  if (const auto it = worlds.find(world); it != worlds.end()) {
+    if (it->second.construction) out.construction = *it->second.construction;
+    if (it->second.cluster_distance_m) out.cluster_distance_m = *it->second.cluster_distance_m;
+  }
+  return out;
+}
 
 std::pair<std::string, std::uint16_t> split_host_port(const std::string& text, const std::string& what) {
   const auto colon = text.rfind(':');
@@ -105,6 +164,7 @@ void ServerConfig::validate() const {
           "must be in (0, 10000] metres");
   require(limits.max_grid_reply_cells > 0, "limits.max_grid_reply_cells", "must be positive");
   require(limits.max_point_cloud_points > 0, "limits.max_point_cloud_points", "must be positive");
+  require(limits.max_ptem_query_points > 0, "limits.max_ptem_query_points", "must be positive");
   require(queries.clearance_max_distance_m <= limits.max_query_distance_m, "queries.clearance_max_distance_m",
           "must not exceed limits.max_query_distance_m");
   require(control.command_expiry_s > 0 && control.command_expiry_s <= 10, "control.command_expiry_s",
@@ -119,6 +179,18 @@ void ServerConfig::validate() const {
     bearcat.validate();
   } catch (const std::invalid_argument& e) {
     throw ConfigError(std::string("configuration 'bearcat': ") + e.what());
+  }
+  try {
+    ptem.params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("configuration 'ptem': ") + e.what());
+  }
+  for (const auto& [name, override_params] : ptem.worlds) {
+    try {
+      ptem.params_for(name).validate();
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError("configuration 'ptem.worlds." + name + "': " + e.what());
+    }
   }
 }
 
@@ -148,7 +220,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_sensor_range_m", config.limits.max_sensor_range_m)
                        .field("max_query_distance_m", config.limits.max_query_distance_m)
                        .field("max_grid_reply_cells", config.limits.max_grid_reply_cells)
-                       .field("max_point_cloud_points", config.limits.max_point_cloud_points);
+                       .field("max_point_cloud_points", config.limits.max_point_cloud_points)
+                       .field("max_ptem_query_points", config.limits.max_ptem_query_points);
                  })
         .section("control", [&](Section& s) { s.field("command_expiry_s", config.control.command_expiry_s); })
         .section("queries",
@@ -165,19 +238,35 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("occupied_threshold", h.occupied_threshold)
                        .field("tile_cells", h.tile_cells);
                  })
-        .section("bearcat", [&](Section& s) {
-          auto& b = config.bearcat;
-          s.field("zone_width_m", b.zone_width_m)
-              .field("zone_depth_m", b.zone_depth_m)
-              .field("gap_range_m", b.gap_range_m)
-              .field("gap_min_width_m", b.gap_min_width_m)
-              .field("straight_deadband_deg", b.straight_deadband_deg)
-              .field("base_speed_mps", b.base_speed_mps)
-              .field("speed_per_degree_mps", b.speed_per_degree_mps)
-              .field("max_wheel_speed_mps", b.max_wheel_speed_mps)
-              .field("wheel_separation_m", b.wheel_separation_m)
-              .field("turn_small_deg", b.turn_small_deg)
-              .field("turn_large_deg", b.turn_large_deg);
+        .section("bearcat",
+                 [&](Section& s) {
+                   auto& b = config.bearcat;
+                   s.field("zone_width_m", b.zone_width_m)
+                       .field("zone_depth_m", b.zone_depth_m)
+                       .field("gap_range_m", b.gap_range_m)
+                       .field("gap_min_width_m", b.gap_min_width_m)
+                       .field("straight_deadband_deg", b.straight_deadband_deg)
+                       .field("base_speed_mps", b.base_speed_mps)
+                       .field("speed_per_degree_mps", b.speed_per_degree_mps)
+                       .field("max_wheel_speed_mps", b.max_wheel_speed_mps)
+                       .field("wheel_separation_m", b.wheel_separation_m)
+                       .field("turn_small_deg", b.turn_small_deg)
+                       .field("turn_large_deg", b.turn_large_deg);
+                 })
+        .section("ptem", [&](Section& s) {
+          auto& p = config.ptem.params;
+          std::optional<mapping::PtemConstruction> construction;
+          read_construction(s, "construction", construction);
+          if (construction) p.construction = *construction;
+          s.field("cluster_distance_m", p.cluster_distance_m)
+              .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
+              .field("restricted_threshold", p.restricted_threshold)
+              .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
+              .named_sections("worlds", [&](const std::string& name, Section& w) {
+                PtemWorldOverride& world = config.ptem.worlds[name];
+                read_construction(w, "construction", world.construction);
+                w.optional_field("cluster_distance_m", world.cluster_distance_m);
+              });
         });
     top.reject_unknown();
   } catch (const ConfigError& e) {

@@ -1,19 +1,36 @@
 #include "core.h"
 
+#include <algorithm>
 #include <boost/asio/post.hpp>
 
 namespace occgeo::service {
 
-World::World(std::string name, mapping::HimmGrid grid, IngestStrand strand)
-    : name_(std::move(name)), grid_(std::move(grid)), strand_(std::move(strand)), snapshot_(grid_.snapshot()) {}
+World::World(std::string name, mapping::HimmGrid grid, const mapping::PtemParams& ptem, IngestStrand strand)
+    : name_(std::move(name)),
+      grid_(std::move(grid)),
+      ptem_params_(ptem),
+      ptem_(ptem),
+      strand_(std::move(strand)),
+      snapshot_{grid_.snapshot(), ptem_.snapshot()} {}
 
 void World::publish_on_strand() {
-  auto snapshot = grid_.snapshot();
+  WorldSnapshot snapshot{grid_.snapshot(), ptem_.snapshot()};
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_ = std::move(snapshot);
 }
 
+void World::insert_ptem_on_strand(mapping::PtemScan scan) {
+  if (ptem_latest_stamp_s_) scan.stamp_s = std::max(scan.stamp_s, *ptem_latest_stamp_s_);
+  ptem_.insert_scan(scan);
+  ptem_latest_stamp_s_ = scan.stamp_s;
+}
+
 std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
+  const std::lock_guard lock(snapshot_mutex_);
+  return snapshot_.grid;
+}
+
+WorldSnapshot World::snapshots() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_;
 }
@@ -70,8 +87,8 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot =
-        std::make_shared<World>(name, mapping::HimmGrid(config_.himm), asio::make_strand(ingest_pool_.get_executor()));
+    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), config_.ptem.params_for(name),
+                                   asio::make_strand(ingest_pool_.get_executor()));
   }
   return slot;
 }
@@ -92,7 +109,10 @@ std::vector<std::shared_ptr<World>> ServerCore::worlds() const {
 void ServerCore::add_world(const std::string& name, mapping::HimmGrid grid) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
-  if (!slot) slot = std::make_shared<World>(name, std::move(grid), asio::make_strand(ingest_pool_.get_executor()));
+  if (!slot) {
+    slot = std::make_shared<World>(name, std::move(grid), config_.ptem.params_for(name),
+                                   asio::make_strand(ingest_pool_.get_executor()));
+  }
 }
 
 std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {

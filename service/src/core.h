@@ -17,6 +17,7 @@
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/mapping/himm_grid.h"
+#include "occgeo/mapping/ptem.h"
 #include "occgeo/service/config.h"
 #include "occgeo/service/control/bearcat.h"
 #include "occgeo/v1/robot.pb.h"
@@ -26,27 +27,48 @@ namespace occgeo::service {
 namespace asio = boost::asio;
 using IngestStrand = asio::strand<asio::thread_pool::executor_type>;
 
-// One world: the HIMM grid all its robots' sensors update. The grid is only touched on the
-// world's ingest strand; readers take the latest published immutable snapshot.
+// The grid and the PTEM of a world as one publication made them: a reader holding it sees both
+// after the same sensor message.
+struct WorldSnapshot {
+  std::shared_ptr<const mapping::GridSnapshot> grid;
+  std::shared_ptr<const mapping::PtemSnapshot> ptem;
+};
+
+// One world: the HIMM grid all its robots' sensors update, and the PTEM (seed 004 §4) its robots'
+// laser scans build. Both are only touched on the world's ingest strand; readers take the latest
+// published immutable snapshots.
 class World {
  public:
-  World(std::string name, mapping::HimmGrid grid, IngestStrand strand);
+  World(std::string name, mapping::HimmGrid grid, const mapping::PtemParams& ptem, IngestStrand strand);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] IngestStrand& strand() { return strand_; }
   // The mutable grid; call only from the world's strand.
   mapping::HimmGrid& grid_on_strand() { return grid_; }
-  // Makes the grid's current state visible to readers; call only from the world's strand.
+  // Adds one laser scan to the PTEM; call only from the world's strand. Every laser of every robot
+  // in the world feeds the one model, so a stamp older than the model's latest (another robot's
+  // clock) is taken as the latest: cluster ages never run backwards. Throws std::invalid_argument
+  // (naming the field) for a scan the model refuses, changing nothing.
+  void insert_ptem_on_strand(mapping::PtemScan scan);
+  // The PTEM's parameters (fixed when the world is made); safe from any thread.
+  [[nodiscard]] const mapping::PtemParams& ptem_params() const { return ptem_params_; }
+  // Makes the grid's and the PTEM's current state visible to readers, together; call only from
+  // the world's strand.
   void publish_on_strand();
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
+  // The latest published grid and PTEM, from the same publication; safe from any thread.
+  [[nodiscard]] WorldSnapshot snapshots() const;
 
  private:
   std::string name_;
   mapping::HimmGrid grid_;
+  mapping::PtemParams ptem_params_;
+  mapping::PtemModel ptem_;
+  std::optional<double> ptem_latest_stamp_s_;
   IngestStrand strand_;
-  mutable std::mutex snapshot_mutex_;
-  std::shared_ptr<const mapping::GridSnapshot> snapshot_;
+  mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
+  WorldSnapshot snapshot_;
 };
 
 // A planar laser as declared in a RobotSpec, converted to SI geometry types.

@@ -62,5 +62,57 @@ TEST(Config, PointCloudLimitIsReadCheckedAndSpelledExactly) {
             std::string::npos);
 }
 
+TEST(Config, PtemSectionIsReadWithPerWorldOverrides) {
+  const ServerConfig defaults;
+  EXPECT_EQ(defaults.ptem.params.construction, mapping::PtemConstruction::kSingleScan);
+  EXPECT_DOUBLE_EQ(defaults.ptem.params.cluster_distance_m, 0.381);
+  EXPECT_DOUBLE_EQ(defaults.ptem.params.restricted_threshold, 0.04);
+  EXPECT_EQ(defaults.limits.max_ptem_query_points, 100000U);
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << "ptem:\n"
+                         "  construction: cumulative\n"
+                         "  cluster_distance_m: 0.5\n"
+                         "  initial_cluster_radius_m: 0.03\n"
+                         "  restricted_threshold: 0.05\n"
+                         "  first_cluster_sigma_m: 0.2\n"
+                         "  worlds:\n"
+                         "    lab: {construction: single_scan}\n"
+                         "    yard: {cluster_distance_m: 0.9}\n"
+                         "limits:\n  max_ptem_query_points: 10\n";
+  const ServerConfig config = load_config(file);
+  EXPECT_EQ(config.limits.max_ptem_query_points, 10U);
+  const mapping::PtemParams base = config.ptem.params_for("elsewhere");
+  EXPECT_EQ(base.construction, mapping::PtemConstruction::kCumulative);
+  EXPECT_DOUBLE_EQ(base.cluster_distance_m, 0.5);
+  EXPECT_DOUBLE_EQ(base.initial_cluster_radius_m, 0.03);
+  EXPECT_DOUBLE_EQ(base.restricted_threshold, 0.05);
+  ASSERT_TRUE(base.first_cluster_sigma_m);
+  EXPECT_DOUBLE_EQ(*base.first_cluster_sigma_m, 0.2);
+  const mapping::PtemParams lab = config.ptem.params_for("lab");
+  EXPECT_EQ(lab.construction, mapping::PtemConstruction::kSingleScan);
+  EXPECT_DOUBLE_EQ(lab.cluster_distance_m, 0.5);
+  const mapping::PtemParams yard = config.ptem.params_for("yard");
+  EXPECT_EQ(yard.construction, mapping::PtemConstruction::kCumulative);
+  EXPECT_DOUBLE_EQ(yard.cluster_distance_m, 0.9);
+  EXPECT_FALSE(ServerConfig{}.ptem.params.first_cluster_sigma_m);
+}
+
+TEST(Config, PtemErrorsNameTheKey) {
+  EXPECT_NE(load_error("ptem:\n  sigma: 1\n").find("'ptem.sigma'"), std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  worlds:\n    lab: {constructin: cumulative}\n").find("'ptem.worlds.lab.constructin'"),
+            std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  construction: incremental\n").find("'ptem.construction'"), std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  worlds:\n    lab: {construction: both}\n").find("'ptem.worlds.lab.construction'"),
+            std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  cluster_distance_m: -1\n").find("cluster_distance_m"), std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  restricted_threshold: many\n").find("ptem.restricted_threshold"), std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  worlds:\n    lab: {cluster_distance_m: -2}\n").find("ptem.worlds.lab"),
+            std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  worlds: [lab]\n").find("ptem.worlds"), std::string::npos);
+  EXPECT_NE(load_error("limits:\n  max_ptem_query_points: 0\n").find("limits.max_ptem_query_points"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace occgeo::service

@@ -101,6 +101,9 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
     case v1::ClientMessage::kGrid:
       handle_grid_request(session, message.grid());
       return;
+    case v1::ClientMessage::kPtem:
+      handle_ptem_query(session, message.ptem());
+      return;
     default:
       session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");
   }

@@ -57,6 +57,7 @@ void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery&
 void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query);
 void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request);
 void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
+void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query);
 
 // Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline).
 void handle_disconnect(SessionInfo& info);

@@ -1,7 +1,8 @@
+#include <algorithm>
 #include <boost/asio/post.hpp>
 #include <cmath>
-
 #include <variant>
+#include <vector>
 
 #include "occgeo/service/log.h"
 #include "sensor_ingest.h"
@@ -48,6 +49,34 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   }
 }
 
+// Feeds the scan's returns to the world's PTEM (seed 004 §4.2): the end points of the beams whose
+// reading lies in [range_min_m, range_max_m), placed in the world frame from the sensor's ground pose
+// exactly as the grid insertion places them, with the sector the scan covered (centred on the middle
+// beam, one angle increment per beam wide, out to range_max_m) for the single-scan rule.
+void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel& laser, const v1::LaserScan& scan) {
+  constexpr double kTwoPi = 2.0 * M_PI;
+  const double sign = sensor.mirrored ? -1.0 : 1.0;
+  const Eigen::Vector2d origin = sensor.X_WS.position();
+  std::vector<Eigen::Vector2d> points_W;
+  points_W.reserve(static_cast<std::size_t>(scan.ranges_size()));
+  for (int i = 0; i < scan.ranges_size(); ++i) {
+    const double reading = static_cast<double>(scan.ranges(i));
+    if (reading < laser.range_min_m || reading >= laser.range_max_m) continue;
+    const double bearing =
+        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+    points_W.push_back(origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)));
+  }
+  const double beams = static_cast<double>(laser.beam_count);
+  mapping::PtemScan ptem_scan;
+  ptem_scan.stamp_s = scan.stamp_s();
+  ptem_scan.p_WS = origin;
+  ptem_scan.yaw_WS = sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * (beams - 1.0) / 2.0);
+  ptem_scan.field_of_view_rad = std::clamp(std::abs(laser.angle_increment_rad) * beams, 1e-9, kTwoPi);
+  ptem_scan.max_range_m = laser.range_max_m;
+  ptem_scan.points_W = points_W;
+  world.insert_ptem_on_strand(ptem_scan);
+}
+
 // The decision as a command the robot's drive can execute: differential wheel speeds straight from
 // the behaviour, or, for skid steer, the track rim speeds that produce the decided body velocity
 // despite the declared slippage. Either way the speeds are clamped to the robot's maximum (keeping
@@ -83,11 +112,13 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
                       double expiry_s) {
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
-  const bool accepted =
-      ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s()},
-                                      [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
-                                        insert_scan(grid, planar_sensor_pose(X_WB, laser), laser, scan);
-                                      });
+  const bool accepted = ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s()},
+                                                        [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
+                                                          const PlanarSensorPose sensor =
+                                                              planar_sensor_pose(X_WB, laser);
+                                                          insert_ptem(robot->world(), sensor, laser, scan);
+                                                          insert_scan(grid, sensor, laser, scan);
+                                                        });
   if (!accepted) return;
 
   // The behaviour steers from the robot's first laser; other lasers and the other sensor kinds

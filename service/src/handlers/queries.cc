@@ -135,13 +135,17 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_last_angular_radps(state.last_angular_radps);
   }
   for (const auto& world : core.worlds()) {
-    const auto snapshot = world->snapshot();
+    const WorldSnapshot snapshots = world->snapshots();
+    const auto& snapshot = snapshots.grid;
     auto* out = status->add_worlds();
     out->set_name(world->name());
     out->set_cell_size_m(snapshot->cell_size());
     out->set_version(snapshot->version());
     out->set_tiles(snapshot->tile_count());
     out->set_occupied_cells(snapshot->occupied_cell_count());
+    out->set_ptem_construction(ptem_construction_name(world->ptem_params().construction));
+    out->set_ptem_clusters(static_cast<std::uint32_t>(snapshots.ptem->clusters().size()));
+    out->set_ptem_scans(snapshots.ptem->scan_count());
   }
   session->send(std::move(reply));
 }

@@ -3,10 +3,13 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "occgeo/mapping/himm_grid.h"
+#include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
 
 namespace occgeo::service {
@@ -29,6 +32,7 @@ struct LimitsConfig {
   double max_query_distance_m = 100.0;                       // clearance search radius limit
   std::size_t max_grid_reply_cells = std::size_t{16} << 20;  // whole-grid replies larger than this are refused
   std::size_t max_point_cloud_points = 200000;               // larger point clouds are rejected (each is a ray)
+  std::size_t max_ptem_query_points = 100000;                // points per PtemQuery
 };
 
 // Server-side control of the robots.
@@ -41,6 +45,36 @@ struct QueryConfig {
   double clearance_max_distance_m = 5.0;  // search radius when the query leaves it 0
 };
 
+// What one world's PTEM overrides of the `ptem:` section (`ptem.worlds.<name>`); unset fields take the section's.
+struct PtemWorldOverride {
+  std::optional<mapping::PtemConstruction> construction;
+  std::optional<double> cluster_distance_m;
+};
+
+// The PTEM (seed 004 §4, mapping/include/occgeo/mapping/ptem.h) every world builds from its laser scans. YAML:
+//   ptem:
+//     construction: single_scan      # or cumulative (seed §4.2.2); default single_scan (§4.2.3)
+//     cluster_distance_m: 0.381      # C_r, metres; default the seed UGV's width (15 in). One model serves every
+//                                    # robot of a world, so C_r is per world, not per robot: set it to the width of
+//                                    # the widest robot that must not pass between two obstacles
+//     initial_cluster_radius_m: 0.02 # radius of a new cluster, metres (the URG-04LX's ±20 mm)
+//     restricted_threshold: 0.04     # f_r, 1/m² (seed §4.3)
+//     first_cluster_sigma_m: 0.1     # optional: fix f_r from the first cluster instead (seed eq 4.2)
+//     worlds:                        # optional per-world overrides
+//       lab: {construction: cumulative, cluster_distance_m: 0.8}
+struct PtemConfig {
+  mapping::PtemParams params;
+  std::map<std::string, PtemWorldOverride> worlds;
+
+  // The parameters of the world with this name: the section's, with that world's overrides applied.
+  [[nodiscard]] mapping::PtemParams params_for(const std::string& world) const;
+};
+
+// "cumulative" / "single_scan", as the config and the protocol spell the constructions.
+[[nodiscard]] std::string ptem_construction_name(mapping::PtemConstruction construction);
+// The construction with this name; nullopt for anything else.
+[[nodiscard]] std::optional<mapping::PtemConstruction> parse_ptem_construction(const std::string& name);
+
 // Everything occgeod can be configured with; file keys mirror the field names.
 struct ServerConfig {
   std::string listen = "127.0.0.1:7700";
@@ -52,6 +86,7 @@ struct ServerConfig {
   QueryConfig queries;
   mapping::HimmParams himm;
   control::BearcatParams bearcat;
+  PtemConfig ptem;
 
   // Checks every field; throws ConfigError naming the first bad one.
   void validate() const;
