@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/error_message.h"
+
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -226,16 +228,7 @@ TEST(HimmGridTest, CustomIncrementsAndWeights) {
   EXPECT_EQ(grid.certainty({4, 0}), 0);
 }
 
-// The message of the std::invalid_argument that f throws, or "" when it does not throw.
-template <typename F>
-std::string invalid_argument_message(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
-}
+using occgeo::testing::invalid_argument_message;
 
 TEST(HimmGridTest, ParamsValidationNamesTheField) {
   const auto message_for = [](auto change) {

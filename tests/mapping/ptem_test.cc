@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/error_message.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -82,16 +84,7 @@ double gaussian(double d, double sigma) {
   return std::exp(-d * d / (2.0 * sigma * sigma)) / (2.0 * std::numbers::pi * sigma * sigma);
 }
 
-// The message of the std::invalid_argument that f throws, or "" when it does not throw.
-template <typename F>
-std::string invalid_argument_message(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
-}
+using occgeo::testing::invalid_argument_message;
 
 TEST(PtemTest, ParamsValidationNamesTheField) {
   const auto message_for = [](auto change) {

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/error_message.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -322,15 +324,7 @@ TEST(BearcatLayoutTest, Hokuyo240ScanGivesTheSameObFactorAsTheLms200) {
   }
 }
 
-// The message of the std::invalid_argument thrown by action, or a note that none was thrown.
-std::string invalid_argument_message(const std::function<void()>& action) {
-  try {
-    action();
-  } catch (const std::invalid_argument& error) {
-    return error.what();
-  }
-  return "no std::invalid_argument thrown";
-}
+using occgeo::testing::invalid_argument_message;
 
 TEST(BearcatParamsTest, DefaultsAreValid) { EXPECT_NO_THROW(BearcatParams{}.validate()); }
 
