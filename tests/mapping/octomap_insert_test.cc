@@ -1,4 +1,4 @@
-// OctoMapModel on the real data in /work/shared/datasets: the lazy fast path against OctoMap's plain insertPointCloud,
+// OctoMapModel on the real data in ../shared/datasets (beside the repository): the lazy fast path against OctoMap's plain insertPointCloud,
 // .bt files, PCL room scans and a Kinect frame. Skipped when the datasets are absent.
 
 #include <gtest/gtest.h>
