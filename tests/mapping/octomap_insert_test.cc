@@ -1,5 +1,5 @@
-// OctoMapModel on the real data in ../shared/datasets (beside the repository): the lazy fast path against OctoMap's plain insertPointCloud,
-// .bt files, PCL room scans and a Kinect frame. Skipped when the datasets are absent.
+// OctoMapModel on the real data in ../shared/datasets (beside the repository): the lazy fast path against OctoMap's
+// plain insertPointCloud, .bt files, PCL room scans and a Kinect frame. Skipped when the datasets are absent.
 
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
