@@ -1,6 +1,8 @@
 // occgeo: command-line client for occgeod (status, geometry queries, map export).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <sstream>
@@ -10,6 +12,7 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
+#include "occgeo/mapping/octomap_model.h"
 #include "occgeo/replay/replay.h"
 
 namespace {
@@ -22,12 +25,19 @@ namespace v1 = occgeo::v1;
 constexpr const char* kUsage = R"(usage: occgeo COMMAND [options]
 commands:
   status                                     robots, worlds and clients of the server
-  query collision --robot ID --x X --y Y [--theta T]
+  query collision --robot ID --x X --y Y [--theta T] [--models grid,octomap,ptem]
                                              is the robot's footprint at this pose in collision?
-  query clearance --robot ID --x X --y Y [--theta T] [--max-distance D]
+  query clearance --robot ID --x X --y Y [--theta T] [--max-distance D] [--models grid,octomap,ptem]
                                              distance from the footprint to the nearest obstacle
-  map export --world W --out PREFIX          write the world's grid as PREFIX.pgm + PREFIX.yaml
-                                             (ROS map_server format)
+                                             (--models: which of the world's models; default all three)
+  query ptem --world W --x X --y Y           the PTEM's threat, gradient and restricted flag at a point
+  map export [--format pgm|bt] --world W --out PREFIX
+                                             pgm (default): the world's grid as PREFIX.pgm + PREFIX.yaml
+                                             (ROS map_server format); bt: its OctoMap as PREFIX.bt
+  cloud insert FILE.pcd --pose x,y,z,roll,pitch,yaw --world W [--robot ID]
+                                             send a .pcd point cloud taken by a sensor at that pose
+                                             (world frame) into the world's maps, as driver robot ID
+                                             (default occgeo-cli-cloud, left registered and offline)
   replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
                                              stream a recorded laser log as a driver (occgeo replay --help)
 common options:
@@ -121,6 +131,38 @@ std::string fmt(double v) {
   return buffer;
 }
 
+// "grid,octomap,ptem" as Model values; throws UsageError for an unknown name.
+std::vector<v1::Model> models_from(const Options& options) {
+  std::vector<v1::Model> models;
+  std::stringstream list(options.text("models"));
+  std::string name;
+  while (std::getline(list, name, ',')) {
+    if (name == "grid") {
+      models.push_back(v1::MODEL_GRID);
+    } else if (name == "octomap") {
+      models.push_back(v1::MODEL_OCTOMAP);
+    } else if (name == "ptem") {
+      models.push_back(v1::MODEL_PTEM);
+    } else {
+      throw UsageError("option --models takes grid, octomap and ptem separated by commas, not '" + name + "'");
+    }
+  }
+  return models;
+}
+
+std::string model_name(v1::Model model) {
+  switch (model) {
+    case v1::MODEL_GRID:
+      return "grid";
+    case v1::MODEL_OCTOMAP:
+      return "octomap";
+    case v1::MODEL_PTEM:
+      return "ptem";
+    default:
+      return "";
+  }
+}
+
 v1::Pose2D pose_from(const Options& options) {
   v1::Pose2D pose;
   pose.set_x(options.number("x"));
@@ -152,7 +194,8 @@ int run_status(const Options& options) {
       const auto& w = status.worlds(i);
       out << (i ? "," : "") << "{\"name\":" << json_string(w.name()) << ",\"cell_size_m\":" << fmt(w.cell_size_m())
           << ",\"version\":" << w.version() << ",\"tiles\":" << w.tiles()
-          << ",\"occupied_cells\":" << w.occupied_cells() << "}";
+          << ",\"occupied_cells\":" << w.occupied_cells() << ",\"octomap_version\":" << w.octomap_version()
+          << ",\"octomap_nodes\":" << w.octomap_nodes() << ",\"octomap_leaves\":" << w.octomap_leaves() << "}";
     }
     out << "]}";
     std::cout << out.str() << "\n";
@@ -170,7 +213,8 @@ int run_status(const Options& options) {
   std::cout << "worlds:\n";
   for (const auto& w : status.worlds()) {
     std::cout << "  " << w.name() << ": " << w.occupied_cells() << " occupied cells of " << fmt(w.cell_size_m())
-              << " m in " << w.tiles() << " tiles, version " << w.version() << "\n";
+              << " m in " << w.tiles() << " tiles, version " << w.version() << "; octree " << w.octomap_leaves()
+              << " leaves of " << fmt(w.octomap_resolution_m()) << " m, version " << w.octomap_version() << "\n";
   }
   return 0;
 }
@@ -182,18 +226,26 @@ int run_query_collision(const Options& options) {
   query->set_request_id(1);
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
+  for (const v1::Model model : models_from(options)) query->add_models(model);
   const v1::CollisionReply reply = connection.call(request, 1).collision();
   if (options.json) {
     std::cout << "{\"hit\":" << (reply.hit() ? "true" : "false");
     if (reply.hit()) {
-      std::cout << ",\"cell\":{\"ix\":" << reply.cell().ix() << ",\"iy\":" << reply.cell().iy()
-                << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x())
-                << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
+      std::cout << ",\"model\":" << json_string(model_name(reply.model()))
+                << ",\"contact\":{\"x\":" << fmt(reply.contact().x()) << ",\"y\":" << fmt(reply.contact().y())
+                << ",\"z\":" << fmt(reply.contact().z()) << "}";
+      if (reply.has_cell()) {
+        std::cout << ",\"cell\":{\"ix\":" << reply.cell().ix() << ",\"iy\":" << reply.cell().iy()
+                  << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x())
+                  << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
+      }
     }
     std::cout << ",\"cells_tested\":" << reply.cells_tested() << "}\n";
   } else if (reply.hit()) {
-    std::cout << "hit: occupied cell (" << reply.cell().ix() << ", " << reply.cell().iy() << ") centred at ("
-              << fmt(reply.cell_center().x()) << ", " << fmt(reply.cell_center().y()) << ")\n";
+    std::cout << "hit (" << model_name(reply.model()) << ") at (" << fmt(reply.contact().x()) << ", "
+              << fmt(reply.contact().y()) << ", " << fmt(reply.contact().z()) << ")";
+    if (reply.has_cell()) std::cout << ": occupied cell (" << reply.cell().ix() << ", " << reply.cell().iy() << ")";
+    std::cout << "\n";
   } else {
     std::cout << "free\n";
   }
@@ -208,18 +260,23 @@ int run_query_clearance(const Options& options) {
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
   query->set_max_distance_m(options.number("max-distance", 0.0));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
   const v1::ClearanceReply reply = connection.call(request, 1).clearance();
   if (options.json) {
     std::cout << "{\"clearance_m\":" << fmt(reply.clearance_m()) << ",\"found\":" << (reply.found() ? "true" : "false");
     if (reply.found()) {
-      std::cout << ",\"nearest_cell\":{\"ix\":" << reply.nearest_cell().ix() << ",\"iy\":" << reply.nearest_cell().iy()
-                << "},\"nearest_point\":{\"x\":" << fmt(reply.nearest_point().x())
+      std::cout << ",\"model\":" << json_string(model_name(reply.model()));
+      if (reply.has_nearest_cell()) {
+        std::cout << ",\"nearest_cell\":{\"ix\":" << reply.nearest_cell().ix()
+                  << ",\"iy\":" << reply.nearest_cell().iy() << "}";
+      }
+      std::cout << ",\"nearest_point\":{\"x\":" << fmt(reply.nearest_point().x())
                 << ",\"y\":" << fmt(reply.nearest_point().y()) << "}";
     }
     std::cout << "}\n";
   } else if (reply.found()) {
-    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to occupied cell (" << reply.nearest_cell().ix()
-              << ", " << reply.nearest_cell().iy() << ")\n";
+    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to the " << model_name(reply.model()) << " at ("
+              << fmt(reply.nearest_point().x()) << ", " << fmt(reply.nearest_point().y()) << ")\n";
   } else {
     std::cout << "clearance at least " << fmt(reply.clearance_m())
               << " m (nothing occupied within the search radius)\n";
@@ -227,7 +284,63 @@ int run_query_clearance(const Options& options) {
   return 0;
 }
 
+int run_query_ptem(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_ptem();
+  query->set_request_id(1);
+  query->set_world(options.required("world"));
+  auto* point = query->add_points();
+  point->set_x(options.number("x"));
+  point->set_y(options.number("y"));
+  const v1::PtemReply reply = connection.call(request, 1).ptem();
+  if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
+  const v1::PtemSample& sample = reply.samples(0);
+  if (options.json) {
+    std::cout << "{\"world\":" << json_string(reply.world()) << ",\"version\":" << reply.version()
+              << ",\"threat\":" << fmt(sample.threat()) << ",\"gradient\":{\"x\":" << fmt(sample.gradient().x())
+              << ",\"y\":" << fmt(sample.gradient().y())
+              << "},\"restricted\":" << (sample.restricted() ? "true" : "false")
+              << ",\"threshold_f_r\":" << fmt(reply.threshold_f_r()) << ",\"clusters\":" << reply.cluster_count()
+              << ",\"scans\":" << reply.scans() << ",\"construction\":" << json_string(reply.construction()) << "}\n";
+  } else {
+    std::cout << "threat " << fmt(sample.threat()) << " /m^2 (f_r " << fmt(reply.threshold_f_r()) << "), gradient ("
+              << fmt(sample.gradient().x()) << ", " << fmt(sample.gradient().y()) << ") /m^3, "
+              << (sample.restricted() ? "restricted" : "not restricted") << "; " << reply.cluster_count()
+              << " cluster(s) from " << reply.scans() << " scan(s), " << reply.construction() << "\n";
+  }
+  return 0;
+}
+
+int run_octree_export(const Options& options) {
+  const std::string prefix = options.required("out");
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  request.mutable_octree()->set_request_id(1);
+  request.mutable_octree()->set_world(options.required("world"));
+  const v1::OctreeReply octree = connection.call(request, 1, std::chrono::seconds(60)).octree();
+  const std::string path = prefix + ".bt";
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(octree.bt().data(), static_cast<std::streamsize>(octree.bt().size()));
+    if (!out) throw ClientError("cannot write " + path);
+  }
+  if (options.json) {
+    std::cout << "{\"bt\":" << json_string(path) << ",\"bytes\":" << octree.bt().size()
+              << ",\"resolution_m\":" << fmt(octree.resolution_m()) << ",\"nodes\":" << octree.node_count()
+              << ",\"leaves\":" << octree.leaf_count() << ",\"version\":" << octree.version() << "}\n";
+  } else {
+    std::cout << "wrote " << path << " (" << octree.bt().size() << " bytes, " << octree.node_count() << " nodes, "
+              << octree.leaf_count() << " leaves of " << fmt(octree.resolution_m()) << " m, octree version "
+              << octree.version() << ")\n";
+  }
+  return 0;
+}
+
 int run_map_export(const Options& options) {
+  const std::string format = options.text("format", "pgm");
+  if (format == "bt") return run_octree_export(options);
+  if (format != "pgm") throw UsageError("option --format takes pgm or bt, not '" + format + "'");
   const std::string prefix = options.required("out");
   Connection connection = connect_query(options);
   v1::ClientMessage request;
@@ -250,6 +363,137 @@ int run_map_export(const Options& options) {
   return 0;
 }
 
+// "x,y,z,roll,pitch,yaw" (metres, radians) as a Pose3D; throws UsageError when malformed.
+v1::Pose3D pose3_from(const std::string& text) {
+  std::vector<double> values;
+  std::stringstream list(text);
+  std::string item;
+  while (std::getline(list, item, ',')) {
+    std::size_t used = 0;
+    double value = 0.0;
+    try {
+      value = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != item.size() || item.empty() || !std::isfinite(value)) {
+      throw UsageError("option --pose needs x,y,z,roll,pitch,yaw numbers, not '" + text + "'");
+    }
+    values.push_back(value);
+  }
+  if (values.size() != 6) throw UsageError("option --pose needs six numbers x,y,z,roll,pitch,yaw, not '" + text + "'");
+  v1::Pose3D pose;
+  pose.mutable_position()->set_x(values[0]);
+  pose.mutable_position()->set_y(values[1]);
+  pose.mutable_position()->set_z(values[2]);
+  pose.set_roll(values[3]);
+  pose.set_pitch(values[4]);
+  pose.set_yaw(values[5]);
+  return pose;
+}
+
+// Points per PointCloud message: 1.2 MB frames, well under the server's default 4 MiB frame limit.
+constexpr std::size_t kCloudChunkPoints = 100000;
+// The server's default limits.max_sensor_range_m: farther points are dropped here.
+constexpr double kCloudMaxRange_m = 200.0;
+
+// Sends a .pcd file as a driver robot whose only sensor is a point cloud mounted at the given pose
+// (the robot stands at the world origin, so the mount is the sensor's world pose): the server maps
+// it exactly as a depth camera's cloud (grid band and OctoMap with its PCL filters).
+int run_cloud_insert(const std::string& file, const Options& options) {
+  const v1::Pose3D mount = pose3_from(options.required("pose"));
+  const std::string world = options.required("world");
+  const std::string robot = options.text("robot", "occgeo-cli-cloud");
+  std::vector<Eigen::Vector3f> points;
+  std::size_t dropped = 0;
+  double farthest = 0.0;
+  for (const Eigen::Vector3f& p : occgeo::mapping::read_pcd_points(file)) {
+    const double range = p.cast<double>().norm();
+    if (!p.allFinite() || range > kCloudMaxRange_m) {
+      ++dropped;
+      continue;
+    }
+    farthest = std::max(farthest, range);
+    points.push_back(p);
+  }
+  if (points.empty()) throw ClientError(file + " holds no finite point within " + fmt(kCloudMaxRange_m) + " m");
+
+  Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
+  v1::Hello hello;
+  hello.set_protocol_version(1);
+  hello.set_role(v1::ROLE_DRIVER);
+  hello.set_robot_id(robot);
+  hello.set_world(world);
+  hello.set_client_name("occgeo-cli");
+  connection.hello(hello);
+
+  v1::ClientMessage spec_message;
+  v1::RobotSpec& spec = *spec_message.mutable_robot_spec();
+  spec.set_model("occgeo-cli-cloud");
+  auto* drive = spec.mutable_kinematics()->mutable_differential();
+  drive->set_wheel_separation_m(0.2);
+  drive->set_wheel_radius_m(0.05);
+  drive->set_max_wheel_speed_mps(0.1);
+  auto* box = spec.mutable_footprint()->mutable_box();
+  box->set_length_m(0.2);
+  box->set_width_m(0.2);
+  box->set_height_m(2.0);  // the 2D grid takes the cloud's points between 0.05 m and this height
+  spec.set_command_timeout_s(1.0);
+  auto* sensor = spec.add_sensors();
+  sensor->set_name("cloud");
+  *sensor->mutable_mount() = mount;
+  sensor->mutable_point_cloud()->set_range_max_m(std::min(kCloudMaxRange_m, farthest + 0.01));
+  sensor->mutable_point_cloud()->set_max_points(static_cast<std::uint32_t>(std::min(points.size(), kCloudChunkPoints)));
+  connection.send(spec_message);
+
+  v1::ClientMessage odometry;
+  odometry.mutable_odometry()->set_seq(1);
+  odometry.mutable_odometry()->set_stamp_s(0.0);
+  odometry.mutable_odometry()->mutable_pose();
+  connection.send(odometry);
+
+  std::uint64_t seq = 0;
+  std::uint64_t version = 0;
+  for (std::size_t first = 0; first < points.size(); first += kCloudChunkPoints) {
+    const std::size_t last = std::min(points.size(), first + kCloudChunkPoints);
+    v1::ClientMessage message;
+    auto* cloud = message.mutable_point_cloud();
+    cloud->set_sensor("cloud");
+    cloud->set_seq(++seq);
+    cloud->set_stamp_s(0.0);
+    cloud->mutable_xyz()->Reserve(static_cast<int>(3 * (last - first)));
+    for (std::size_t i = first; i < last; ++i) {
+      cloud->add_xyz(points[i].x());
+      cloud->add_xyz(points[i].y());
+      cloud->add_xyz(points[i].z());
+    }
+    connection.send(message);
+    // The ScanAck says the maps hold it; any error (the spec's or this cloud's) stops here.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (true) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= deadline) throw ClientError("timed out waiting for the server to take cloud " + std::to_string(seq));
+      auto reply = connection.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now));
+      if (!reply) continue;
+      if (reply->has_error()) throw ClientError(occgeo::client::describe(reply->error()));
+      if (reply->has_scan_ack() && reply->scan_ack().seq() == seq) {
+        version = reply->scan_ack().world_version();
+        break;
+      }
+    }
+  }
+  connection.close();
+  if (options.json) {
+    std::cout << "{\"points\":" << points.size() << ",\"dropped\":" << dropped << ",\"messages\":" << seq
+              << ",\"world\":" << json_string(world) << ",\"world_version\":" << version << "}\n";
+  } else {
+    std::cout << "sent " << points.size() << " points of " << file << " in " << seq << " message(s) to world '" << world
+              << "' (" << dropped << " non-finite or beyond " << fmt(kCloudMaxRange_m) << " m dropped), world version "
+              << version << "\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -268,13 +512,20 @@ int main(int argc, char** argv) {
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}));
     if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {
-      return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta"}));
+      return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "clearance") {
-      return run_query_clearance(parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance"}));
+      return run_query_clearance(parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance", "models"}));
+    }
+    if (args.size() >= 2 && args[0] == "query" && args[1] == "ptem") {
+      return run_query_ptem(parse_options(args, 2, {"world", "x", "y"}));
     }
     if (args.size() >= 2 && args[0] == "map" && args[1] == "export") {
-      return run_map_export(parse_options(args, 2, {"world", "out"}));
+      return run_map_export(parse_options(args, 2, {"world", "out", "format"}));
+    }
+    if (args.size() >= 2 && args[0] == "cloud" && args[1] == "insert") {
+      if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("cloud insert needs a FILE.pcd");
+      return run_cloud_insert(args[2], parse_options(args, 3, {"pose", "world", "robot"}));
     }
     throw UsageError("unknown command '" + args[0] + (args.size() > 1 ? " " + args[1] : "") + "'");
   } catch (const UsageError& e) {

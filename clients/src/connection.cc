@@ -167,7 +167,6 @@ std::optional<v1::ServerMessage> Connection::receive(std::chrono::milliseconds t
   return message;
 }
 
-namespace {
 std::uint64_t reply_request_id(const v1::ServerMessage& message) {
   switch (message.body_case()) {
     case v1::ServerMessage::kCollision:
@@ -178,13 +177,16 @@ std::uint64_t reply_request_id(const v1::ServerMessage& message) {
       return message.status().request_id();
     case v1::ServerMessage::kGrid:
       return message.grid().request_id();
+    case v1::ServerMessage::kPtem:
+      return message.ptem().request_id();
+    case v1::ServerMessage::kOctree:
+      return message.octree().request_id();
     case v1::ServerMessage::kError:
       return message.error().request_id();
     default:
       return 0;
   }
 }
-}  // namespace
 
 v1::ServerMessage Connection::call(const v1::ClientMessage& request, std::uint64_t request_id,
                                    std::chrono::milliseconds timeout) {

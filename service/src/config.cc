@@ -185,6 +185,17 @@ void ServerConfig::validate() const {
   } catch (const std::invalid_argument& e) {
     throw ConfigError(std::string("configuration 'ptem': ") + e.what());
   }
+  require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
+  try {
+    octomap.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("configuration 'octomap': ") + e.what());
+  }
+  try {
+    distance_field.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("configuration 'distance_field': ") + e.what());
+  }
   for (const auto& [name, override_params] : ptem.worlds) {
     try {
       ptem.params_for(name).validate();
@@ -221,7 +232,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_query_distance_m", config.limits.max_query_distance_m)
                        .field("max_grid_reply_cells", config.limits.max_grid_reply_cells)
                        .field("max_point_cloud_points", config.limits.max_point_cloud_points)
-                       .field("max_ptem_query_points", config.limits.max_ptem_query_points);
+                       .field("max_ptem_query_points", config.limits.max_ptem_query_points)
+                       .field("max_octree_reply_bytes", config.limits.max_octree_reply_bytes);
                  })
         .section("control", [&](Section& s) { s.field("command_expiry_s", config.control.command_expiry_s); })
         .section("queries",
@@ -253,20 +265,45 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("turn_small_deg", b.turn_small_deg)
                        .field("turn_large_deg", b.turn_large_deg);
                  })
-        .section("ptem", [&](Section& s) {
-          auto& p = config.ptem.params;
-          std::optional<mapping::PtemConstruction> construction;
-          read_construction(s, "construction", construction);
-          if (construction) p.construction = *construction;
-          s.field("cluster_distance_m", p.cluster_distance_m)
-              .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
-              .field("restricted_threshold", p.restricted_threshold)
-              .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
-              .named_sections("worlds", [&](const std::string& name, Section& w) {
-                PtemWorldOverride& world = config.ptem.worlds[name];
-                read_construction(w, "construction", world.construction);
-                w.optional_field("cluster_distance_m", world.cluster_distance_m);
-              });
+        .section("ptem",
+                 [&](Section& s) {
+                   auto& p = config.ptem.params;
+                   std::optional<mapping::PtemConstruction> construction;
+                   read_construction(s, "construction", construction);
+                   if (construction) p.construction = *construction;
+                   s.field("cluster_distance_m", p.cluster_distance_m)
+                       .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
+                       .field("restricted_threshold", p.restricted_threshold)
+                       .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
+                       .named_sections("worlds", [&](const std::string& name, Section& w) {
+                         PtemWorldOverride& world = config.ptem.worlds[name];
+                         read_construction(w, "construction", world.construction);
+                         w.optional_field("cluster_distance_m", world.cluster_distance_m);
+                       });
+                 })
+        .section("octomap",
+                 [&](Section& s) {
+                   auto& o = config.octomap;
+                   s.field("resolution_m", o.resolution_m)
+                       .field("prob_hit", o.prob_hit)
+                       .field("prob_miss", o.prob_miss)
+                       .field("clamping_min", o.clamping_min)
+                       .field("clamping_max", o.clamping_max)
+                       .field("occupancy_threshold", o.occupancy_threshold)
+                       .field("max_range_m", o.max_range_m)
+                       .field("discretize_endpoints", o.discretize_endpoints)
+                       .field("voxel_filter_enabled", o.voxel_filter_enabled)
+                       .field("voxel_leaf_m", o.voxel_leaf_m)
+                       .field("outlier_filter_enabled", o.outlier_filter_enabled)
+                       .field("outlier_mean_k", o.outlier_mean_k)
+                       .field("outlier_stddev_mul", o.outlier_stddev_mul)
+                       .field("min_publish_interval_s", o.min_publish_interval_s);
+                 })
+        .section("distance_field", [&](Section& s) {
+          auto& d = config.distance_field;
+          s.field("max_distance_m", d.max_distance_m)
+              .field("max_extent_m", d.max_extent_m)
+              .field("growth_margin_m", d.growth_margin_m);
         });
     top.reject_unknown();
   } catch (const ConfigError& e) {

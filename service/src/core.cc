@@ -5,18 +5,46 @@
 
 namespace occgeo::service {
 
-World::World(std::string name, mapping::HimmGrid grid, const mapping::PtemParams& ptem, IngestStrand strand)
+World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand)
     : name_(std::move(name)),
       grid_(std::move(grid)),
-      ptem_params_(ptem),
-      ptem_(ptem),
+      ptem_params_(params.ptem),
+      ptem_(params.ptem),
+      octomap_(params.octomap),
+      distance_field_(params.distance_field),
       strand_(std::move(strand)),
-      snapshot_{grid_.snapshot(), ptem_.snapshot()} {}
+      octomap_timer_(strand_) {
+  auto grid_snapshot = grid_.snapshot();
+  distance_field_.update(grid_snapshot);
+  snapshot_ = {std::move(grid_snapshot), ptem_.snapshot(), distance_field_.snapshot(), octomap_.publish()};
+}
 
-void World::publish_on_strand() {
-  WorldSnapshot snapshot{grid_.snapshot(), ptem_.snapshot()};
+void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::optional<Eigen::Vector2d> focus_W) {
+  auto grid = grid_.snapshot();
+  distance_field_.update(grid, touched, focus_W);
+  if (!octomap_.maybe_publish() && octomap_.version() != octomap_.snapshot()->version() && !octomap_timer_armed_) {
+    // The tree changed but its last snapshot is too recent: publish it once the interval has passed.
+    octomap_timer_armed_ = true;
+    octomap_timer_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(octomap_.params().min_publish_interval_s)));
+    octomap_timer_.async_wait([weak = weak_from_this()](const boost::system::error_code& error) {
+      if (error) return;
+      if (auto self = weak.lock()) {
+        self->octomap_timer_armed_ = false;
+        if (self->octomap_.version() != self->octomap_.snapshot()->version()) self->publish_octomap_on_strand();
+      }
+    });
+  }
+  WorldSnapshot snapshot{std::move(grid), ptem_.snapshot(), distance_field_.snapshot(), octomap_.snapshot()};
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_ = std::move(snapshot);
+}
+
+std::shared_ptr<const mapping::OctoMapSnapshot> World::publish_octomap_on_strand() {
+  auto octomap = octomap_.publish();
+  const std::lock_guard lock(snapshot_mutex_);
+  snapshot_.octomap = octomap;
+  return octomap;
 }
 
 void World::insert_ptem_on_strand(mapping::PtemScan scan) {
@@ -87,7 +115,7 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), config_.ptem.params_for(name),
+    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), world_params(name),
                                    asio::make_strand(ingest_pool_.get_executor()));
   }
   return slot;
@@ -106,13 +134,18 @@ std::vector<std::shared_ptr<World>> ServerCore::worlds() const {
   return all;
 }
 
-void ServerCore::add_world(const std::string& name, mapping::HimmGrid grid) {
+std::shared_ptr<World> ServerCore::add_world(const std::string& name, mapping::HimmGrid grid) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot = std::make_shared<World>(name, std::move(grid), config_.ptem.params_for(name),
+    slot = std::make_shared<World>(name, std::move(grid), world_params(name),
                                    asio::make_strand(ingest_pool_.get_executor()));
   }
+  return slot;
+}
+
+WorldParams ServerCore::world_params(const std::string& name) const {
+  return {config_.ptem.params_for(name), config_.octomap, config_.distance_field};
 }
 
 std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {

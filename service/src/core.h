@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
@@ -16,7 +17,9 @@
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
+#include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/config.h"
 #include "occgeo/service/control/bearcat.h"
@@ -27,19 +30,31 @@ namespace occgeo::service {
 namespace asio = boost::asio;
 using IngestStrand = asio::strand<asio::thread_pool::executor_type>;
 
-// The grid and the PTEM of a world as one publication made them: a reader holding it sees both
-// after the same sensor message.
+// The models of a world as one publication made them: a reader holding it sees the grid, its
+// distance field and the PTEM after the same sensor message. The OctoMap snapshot is published at
+// most every octomap.min_publish_interval_s (deep copies cost O(nodes)), so it may lag the others
+// by that long; its own version() says which insertions it holds.
 struct WorldSnapshot {
   std::shared_ptr<const mapping::GridSnapshot> grid;
   std::shared_ptr<const mapping::PtemSnapshot> ptem;
+  std::shared_ptr<const mapping::DistanceFieldSnapshot> distance;  // matches grid (same version)
+  std::shared_ptr<const mapping::OctoMapSnapshot> octomap;
 };
 
-// One world: the HIMM grid all its robots' sensors update, and the PTEM (seed 004 §4) its robots'
-// laser scans build. Both are only touched on the world's ingest strand; readers take the latest
-// published immutable snapshots.
-class World {
+// The models a world keeps, and their parameters.
+struct WorldParams {
+  mapping::PtemParams ptem;
+  mapping::OctoMapParams octomap;
+  mapping::DistanceFieldParams distance_field;
+};
+
+// One world: the HIMM grid and the 3D OctoMap all its robots' sensors update, the distance field
+// kept in step with the grid, and the PTEM (seed 004 §4) its robots' laser scans build. All are
+// only touched on the world's ingest strand; readers take the latest published immutable
+// snapshots.
+class World : public std::enable_shared_from_this<World> {
  public:
-  World(std::string name, mapping::HimmGrid grid, const mapping::PtemParams& ptem, IngestStrand strand);
+  World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] IngestStrand& strand() { return strand_; }
@@ -52,9 +67,18 @@ class World {
   void insert_ptem_on_strand(mapping::PtemScan scan);
   // The PTEM's parameters (fixed when the world is made); safe from any thread.
   [[nodiscard]] const mapping::PtemParams& ptem_params() const { return ptem_params_; }
-  // Makes the grid's and the PTEM's current state visible to readers, together; call only from
-  // the world's strand.
-  void publish_on_strand();
+  // The mutable OctoMap; call only from the world's strand (or before any work reaches it).
+  mapping::OctoMapModel& octomap_on_strand() { return octomap_; }
+  // Makes the grid's and the PTEM's current state visible to readers, together, after bringing the
+  // distance field in step with the grid: only cells inside `touched` are compared (it must hold
+  // every cell whose occupancy may have flipped since the last publication; nullopt compares the
+  // whole field). The OctoMap is published too when its last snapshot is older than
+  // octomap.min_publish_interval_s; otherwise a timer on the strand publishes it when that
+  // interval has passed, so readers never see it lag by more. Call only from the world's strand.
+  void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt,
+                         std::optional<Eigen::Vector2d> focus_W = std::nullopt);
+  // Publishes the OctoMap now (e.g. before an export); call only from the world's strand.
+  std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
   // The latest published grid and PTEM, from the same publication; safe from any thread.
@@ -66,7 +90,11 @@ class World {
   mapping::PtemParams ptem_params_;
   mapping::PtemModel ptem_;
   std::optional<double> ptem_latest_stamp_s_;
+  mapping::OctoMapModel octomap_;
+  mapping::DistanceField distance_field_;
   IngestStrand strand_;
+  asio::steady_timer octomap_timer_;
+  bool octomap_timer_armed_ = false;
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
 };
@@ -207,8 +235,11 @@ class ServerCore {
   std::shared_ptr<World> world(const std::string& name);
   [[nodiscard]] std::shared_ptr<World> find_world(const std::string& name) const;
   [[nodiscard]] std::vector<std::shared_ptr<World>> worlds() const;
-  // Adds a world restored from storage; replaces nothing that exists.
-  void add_world(const std::string& name, mapping::HimmGrid grid);
+  // Adds a world restored from storage and returns it; replaces nothing that exists (then returns
+  // the existing world).
+  std::shared_ptr<World> add_world(const std::string& name, mapping::HimmGrid grid);
+  // The models' parameters of the world with this name.
+  [[nodiscard]] WorldParams world_params(const std::string& name) const;
 
   [[nodiscard]] std::shared_ptr<Robot> find_robot(const std::string& id) const;
   [[nodiscard]] std::vector<std::shared_ptr<Robot>> robots() const;

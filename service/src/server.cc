@@ -23,37 +23,51 @@ std::filesystem::path world_dir(const std::filesystem::path& data_dir, const std
   return data_dir / "worlds" / world;
 }
 
-// Loads every world saved in the data directory; a damaged map stops the start with its name.
+// Loads every world saved in the data directory (grid.yaml and/or octomap.bt; a world whose grid
+// saw nothing has only the octree); a damaged map stops the start with its name.
 void restore_worlds(ServerCore& core) {
   const auto worlds_dir = core.config().data_dir / "worlds";
   if (!std::filesystem::is_directory(worlds_dir)) return;
   for (const auto& entry : std::filesystem::directory_iterator(worlds_dir)) {
     const auto yaml = entry.path() / "grid.yaml";
-    if (!entry.is_directory() || !std::filesystem::exists(yaml)) continue;
+    const bool has_grid = std::filesystem::exists(yaml);
+    if (!entry.is_directory() || (!has_grid && !std::filesystem::exists(entry.path() / "octomap.bt"))) continue;
     const std::string name = entry.path().filename().string();
     if (!valid_name(name)) {
       log::warn("restore_skipped", {{"path", entry.path().string()}, {"reason", "not a valid world name"}});
       continue;
     }
-    const mapfile::OccupancyImage image = mapfile::read_map_yaml(yaml);
-    auto grid = mapping::HimmGrid::from_image(image, core.config().himm);
-    log::info("world_restored",
-              {{"world", name}, {"file", yaml.string()}, {"occupied_cells", grid.occupied_cell_count()}});
-    core.add_world(name, std::move(grid));
+    mapping::HimmGrid grid = has_grid ? mapping::HimmGrid::from_image(mapfile::read_map_yaml(yaml), core.config().himm)
+                                      : mapping::HimmGrid(core.config().himm);
+    if (has_grid) {
+      log::info("world_restored",
+                {{"world", name}, {"file", yaml.string()}, {"occupied_cells", grid.occupied_cell_count()}});
+    }
+    auto world = core.add_world(name, std::move(grid));
+    // The OctoMap saved beside the grid, if any; no strand work exists yet, so this is the writer's thread.
+    if (const auto bt = entry.path() / "octomap.bt"; std::filesystem::exists(bt)) {
+      world->octomap_on_strand().load_bt(bt);
+      const auto snapshot = world->publish_octomap_on_strand();
+      log::info("octomap_restored", {{"world", name}, {"file", bt.string()}, {"leaves", snapshot->leaf_count()}});
+    }
   }
 }
 
-// Writes each world's grid as PGM+YAML, via a temporary folder renamed into place. Runs after
-// the worker pools have been joined, so no strand is mutating the grids any more.
+// Writes each world's grid as PGM+YAML and its OctoMap as octomap.bt, via a temporary folder renamed into place. Runs
+// after the worker pools have been joined, so no strand is mutating the grids any more.
 void save_worlds(ServerCore& core) {
   for (const auto& world : core.worlds()) {
-    if (world->grid_on_strand().tile_count() == 0) continue;  // nothing observed, nothing to keep
+    const bool has_octomap = world->octomap_on_strand().leaf_count() > 0;
+    if (world->grid_on_strand().tile_count() == 0 && !has_octomap) continue;  // nothing observed, nothing to keep
     const auto final_dir = world_dir(core.config().data_dir, world->name());
     const auto temp_dir = final_dir.string() + ".saving";
     try {
       std::filesystem::remove_all(temp_dir);
       std::filesystem::create_directories(temp_dir);
-      mapfile::write_map(std::filesystem::path(temp_dir) / "grid", world->grid_on_strand().to_image());
+      if (world->grid_on_strand().tile_count() > 0) {
+        mapfile::write_map(std::filesystem::path(temp_dir) / "grid", world->grid_on_strand().to_image());
+      }
+      if (has_octomap) world->octomap_on_strand().save_bt(std::filesystem::path(temp_dir) / "octomap.bt");
       std::filesystem::remove_all(final_dir);
       std::filesystem::rename(temp_dir, final_dir);
       log::info("world_saved", {{"world", world->name()}, {"dir", final_dir.string()}});

@@ -205,6 +205,9 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   v1::ClearanceQuery clearance;
   clearance.set_request_id(4);
   clearance.set_robot_id("r1");
+  // The grid only: with every model (no `models`), the PTEM answers 0, as the scan's arc of returns chains into one
+  // cluster whose circle is too large for any sigma and so is wholly restricted, robot included.
+  clearance.add_models(v1::MODEL_GRID);
   handle_clearance_query(query, clearance);
   reply = query->next_of(v1::ServerMessage::kClearance);
   ASSERT_TRUE(reply);
@@ -212,6 +215,15 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   // The nearest returns are the ±90° beams ending at (0.45, ±3.0); their cells start at |y| = 2.9,
   // 2.5 m from the box's sides at |y| = 0.4. One cell of tolerance for where the endpoint falls.
   EXPECT_NEAR(reply->clearance().clearance_m(), 2.5, 0.1);
+  EXPECT_EQ(reply->clearance().model(), v1::MODEL_GRID);
+  v1::ClearanceQuery every = clearance;
+  every.clear_models();
+  every.set_request_id(5);
+  handle_clearance_query(query, every);
+  reply = query->next_of(v1::ServerMessage::kClearance);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->clearance().model(), v1::MODEL_PTEM);
+  EXPECT_EQ(reply->clearance().clearance_m(), 0.0);
 
   clearance.set_max_distance_m(1.0e9);
   handle_clearance_query(query, clearance);

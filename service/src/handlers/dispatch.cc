@@ -104,6 +104,9 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
     case v1::ClientMessage::kPtem:
       handle_ptem_query(session, message.ptem());
       return;
+    case v1::ClientMessage::kOctree:
+      handle_octree_request(session, message.octree());
+      return;
     default:
       session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");
   }

@@ -58,6 +58,7 @@ void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery&
 void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request);
 void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
 void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query);
+void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& request);
 
 // Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline).
 void handle_disconnect(SessionInfo& info);

@@ -49,6 +49,23 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   }
 }
 
+// Inserts the scan into the world's OctoMap from the laser's full 6-DoF pose X_WS = X_WB (at z = 0)
+// ∘ mount, so a pitched or rolled laser maps what it sees in 3D (an upside-down mount needs no
+// mirroring here: the rotation does it). Readings below range_min_m become 0, which the model skips.
+void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
+                    const v1::LaserScan& scan) {
+  const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
+  target.touch(X_WS.translation().head<2>(), laser.range_max_m);
+  std::vector<float> ranges(scan.ranges().begin(), scan.ranges().end());
+  const auto range_min = static_cast<float>(laser.range_min_m);
+  for (float& r : ranges) {
+    if (r < range_min) r = 0.0F;
+  }
+  target.octomap.insert_scan(X_WS, static_cast<float>(laser.angle_min_rad),
+                             static_cast<float>(laser.angle_increment_rad), ranges,
+                             static_cast<float>(laser.range_max_m));
+}
+
 // Feeds the scan's returns to the world's PTEM (seed 004 §4.2): the end points of the beams whose
 // reading lies in [range_min_m, range_max_m), placed in the world frame from the sensor's ground pose
 // exactly as the grid insertion places them, with the sector the scan covered (centred on the middle
@@ -113,11 +130,12 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
   const bool accepted = ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s()},
-                                                        [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
+                                                        [&](const geometry::Pose2& X_WB, IngestTarget& target) {
                                                           const PlanarSensorPose sensor =
                                                               planar_sensor_pose(X_WB, laser);
                                                           insert_ptem(robot->world(), sensor, laser, scan);
-                                                          insert_scan(grid, sensor, laser, scan);
+                                                          insert_scan(target.grid, sensor, laser, scan);
+                                                          insert_scan_3d(target, X_WB, laser, scan);
                                                         });
   if (!accepted) return;
 

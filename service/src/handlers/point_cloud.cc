@@ -1,5 +1,6 @@
 #include <boost/asio/post.hpp>
 #include <variant>
+#include <vector>
 
 #include "sensor_ingest.h"
 
@@ -19,17 +20,24 @@ double footprint_height_m(const geometry::Footprint& footprint) {
 // Each is ray-cast from the sensor's position on the ground, clearing the cells before it and
 // marking its own. Points above the robot (overhangs it passes under) or on the ground are left
 // for a 3D model.
-void insert_point_cloud(mapping::HimmGrid& grid, const geometry::Pose2& X_WB, const RobotModel& model,
+//
+// The OctoMap takes every point (floor and overhangs too), through the PCL filters the `octomap:`
+// config enables, each a 3D ray from the sensor's full 6-DoF pose.
+void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const RobotModel& model,
                         const PointCloudModel& cloud, const v1::PointCloud& message) {
   const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(cloud.X_BS);
   const Eigen::Vector2d origin_W = X_WS.translation().head<2>();
+  target.touch(origin_W, cloud.range_max_m);
   const double top_m = footprint_height_m(model.footprint);
+  std::vector<Eigen::Vector3f> points_S;
+  points_S.reserve(static_cast<std::size_t>(message.xyz_size() / 3));
   for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
-    const Eigen::Vector3d p_S(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2));
-    const Eigen::Vector3d p_W = X_WS.transform * p_S;
+    points_S.emplace_back(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2));
+    const Eigen::Vector3d p_W = X_WS.transform * points_S.back().cast<double>();
     if (p_W.z() < kGroundClearance_m || p_W.z() > top_m) continue;
-    grid.insert_ray(origin_W, p_W.head<2>(), true);
+    target.grid.insert_ray(origin_W, p_W.head<2>(), true);
   }
+  target.octomap.insert_cloud(X_WS, points_S);
 }
 
 }  // namespace
@@ -45,8 +53,8 @@ void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
       const RobotModel& model = robot->model();
       const PointCloudModel& cloud = *model.find_point_cloud(message.sensor());
       ingest_sensor_message_on_strand(session, *robot, {"point_cloud", message.seq(), message.stamp_s()},
-                                      [&](const geometry::Pose2& X_WB, mapping::HimmGrid& grid) {
-                                        insert_point_cloud(grid, X_WB, model, cloud, message);
+                                      [&](const geometry::Pose2& X_WB, IngestTarget& target) {
+                                        insert_point_cloud(target, X_WB, model, cloud, message);
                                       });
     });
   });

@@ -1,7 +1,11 @@
+#include <algorithm>
 #include <boost/asio/post.hpp>
+#include <variant>
+#include <vector>
 
 #include "../validation.h"
 #include "handlers.h"
+#include "model_geometry.h"
 #include "occgeo/geometry/collision.h"
 
 namespace occgeo::service {
@@ -47,26 +51,79 @@ void set_cell(const geometry::CellIndex& cell, v1::CellIndex& out) {
   out.set_iy(cell.iy);
 }
 
+void set_vector(const Eigen::Vector3d& v, v1::Vector3& out) {
+  out.set_x(v.x());
+  out.set_y(v.y());
+  out.set_z(v.z());
+}
+
+double footprint_height(const geometry::Footprint& footprint) {
+  return std::visit([](const auto& shape) { return shape.height; }, footprint);
+}
+
+// The models a query asks about, in its order without repeats; all three (GRID, OCTOMAP, PTEM)
+// when it names none. An unknown value is answered with ERROR_INVALID_ARGUMENT naming
+// `<kind>.models[i]`, and nullopt is returned.
+std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, const char* kind,
+                                                     std::uint64_t request_id,
+                                                     const google::protobuf::RepeatedField<int>& asked) {
+  if (asked.empty()) return std::vector<v1::Model>{v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM};
+  std::vector<v1::Model> models;
+  for (int i = 0; i < asked.size(); ++i) {
+    const int value = asked.Get(i);
+    if (value != v1::MODEL_GRID && value != v1::MODEL_OCTOMAP && value != v1::MODEL_PTEM) {
+      session->send_error(v1::ERROR_INVALID_ARGUMENT, std::string(kind) + ".models[" + std::to_string(i) + "]",
+                          "must be MODEL_GRID, MODEL_OCTOMAP or MODEL_PTEM, got " + std::to_string(value), request_id);
+      return std::nullopt;
+    }
+    const auto model = static_cast<v1::Model>(value);
+    if (std::find(models.begin(), models.end(), model) == models.end()) models.push_back(model);
+  }
+  return models;
+}
+
 }  // namespace
 
 void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
   auto target = resolve_target(session, "collision", query.request_id(), query.robot_id(), query.pose(),
                                query.has_footprint(), query.footprint());
   if (!target) return;
-  asio::post(session->core().query_pool(), [session, target = std::move(*target), request_id = query.request_id()] {
+  auto models = resolve_models(session, "collision", query.request_id(), query.models());
+  if (!models) return;
+  asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
+                                            request_id = query.request_id()] {
     run_guarded(session, "collision", request_id, [&] {
-      const auto snapshot = target.robot->world().snapshot();
-      const geometry::CollisionResult result = geometry::check_collision({target.footprint, target.pose}, *snapshot);
+      const WorldSnapshot snapshot = target.robot->world().snapshots();
       v1::ServerMessage reply;
       auto* out = reply.mutable_collision();
       out->set_request_id(request_id);
-      out->set_hit(result.hit);
-      out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
-      if (result.cell) {
-        set_cell(*result.cell, *out->mutable_cell());
-        const Eigen::Vector2d center = geometry::GridGeometry(snapshot->cell_size()).center_of(*result.cell);
-        out->mutable_cell_center()->set_x(center.x());
-        out->mutable_cell_center()->set_y(center.y());
+      for (const v1::Model model : models) {
+        if (model == v1::MODEL_GRID) {
+          const geometry::CollisionResult result =
+              geometry::check_collision({target.footprint, target.pose}, *snapshot.grid);
+          out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
+          if (!result.hit) continue;
+          out->set_hit(true);
+          if (result.cell) {
+            set_cell(*result.cell, *out->mutable_cell());
+            const Eigen::Vector2d center = geometry::GridGeometry(snapshot.grid->cell_size()).center_of(*result.cell);
+            out->mutable_cell_center()->set_x(center.x());
+            out->mutable_cell_center()->set_y(center.y());
+            set_vector(Eigen::Vector3d(center.x(), center.y(), 0.0), *out->mutable_contact());
+          }
+        } else if (model == v1::MODEL_OCTOMAP) {
+          const mapping::OctoCollision result = collide_octomap(*snapshot.octomap, target.footprint, target.pose);
+          if (!result.hit) continue;
+          out->set_hit(true);
+          set_vector(result.contact_W, *out->mutable_contact());
+        } else {
+          const PtemContact result = collide_ptem(*snapshot.ptem, target.footprint, target.pose);
+          if (!result.hit) continue;
+          out->set_hit(true);
+          set_vector(Eigen::Vector3d(result.point_W.x(), result.point_W.y(), 0.0), *out->mutable_contact());
+        }
+        out->set_model(model);
+        break;
       }
       session->send(std::move(reply));
     });
@@ -85,26 +142,51 @@ void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery&
                         query.request_id());
     return;
   }
+  auto models = resolve_models(session, "clearance", query.request_id(), query.models());
+  if (!models) return;
   if (max_distance == 0.0) max_distance = session->core().config().queries.clearance_max_distance_m;
-  asio::post(session->core().query_pool(),
-             [session, target = std::move(*target), request_id = query.request_id(), max_distance] {
-               run_guarded(session, "clearance", request_id, [&] {
-                 const auto snapshot = target.robot->world().snapshot();
-                 const geometry::ClearanceResult result =
-                     geometry::compute_clearance({target.footprint, target.pose, max_distance}, *snapshot);
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_clearance();
-                 out->set_request_id(request_id);
-                 out->set_found(result.found);
-                 out->set_clearance_m(result.clearance_m);
-                 if (result.nearest_cell) {
-                   set_cell(*result.nearest_cell, *out->mutable_nearest_cell());
-                   out->mutable_nearest_point()->set_x(result.nearest_point_W.x());
-                   out->mutable_nearest_point()->set_y(result.nearest_point_W.y());
-                 }
-                 session->send(std::move(reply));
-               });
-             });
+  asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
+                                            request_id = query.request_id(), max_distance] {
+    run_guarded(session, "clearance", request_id, [&] {
+      const WorldSnapshot snapshot = target.robot->world().snapshots();
+      const geometry::ClearanceRequest request{target.footprint, target.pose, max_distance};
+      v1::ServerMessage reply;
+      auto* out = reply.mutable_clearance();
+      out->set_request_id(request_id);
+      out->set_clearance_m(max_distance);
+      // Keeps the nearest answer over the models; ties go to the model asked first.
+      const auto offer = [&](v1::Model model, bool found, double clearance_m, const Eigen::Vector2d& point_W,
+                             const std::optional<geometry::CellIndex>& cell) {
+        if (!found || (out->found() && clearance_m >= out->clearance_m())) return;
+        out->set_found(true);
+        out->set_clearance_m(clearance_m);
+        out->set_model(model);
+        out->mutable_nearest_point()->set_x(point_W.x());
+        out->mutable_nearest_point()->set_y(point_W.y());
+        if (cell) {
+          set_cell(*cell, *out->mutable_nearest_cell());
+        } else {
+          out->clear_nearest_cell();
+        }
+      };
+      for (const v1::Model model : models) {
+        if (model == v1::MODEL_GRID) {
+          // The distance field answers (within one cell of exact, falling back to the exact search itself
+          // when the query reaches beyond the field).
+          const geometry::ClearanceResult result = snapshot.distance->compute_clearance(request);
+          offer(model, result.found, result.clearance_m, result.nearest_point_W, result.nearest_cell);
+        } else if (model == v1::MODEL_OCTOMAP) {
+          const OctoMapColumns columns(*snapshot.octomap, footprint_height(target.footprint));
+          const geometry::ClearanceResult result = geometry::compute_clearance(request, columns);
+          offer(model, result.found, result.clearance_m, result.nearest_point_W, result.nearest_cell);
+        } else {
+          const PtemClearance result = ptem_clearance(*snapshot.ptem, target.footprint, target.pose, max_distance);
+          offer(model, result.found, result.clearance_m, result.nearest_point_W, std::nullopt);
+        }
+      }
+      session->send(std::move(reply));
+    });
+  });
 }
 
 void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request) {
@@ -146,6 +228,10 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_ptem_construction(ptem_construction_name(world->ptem_params().construction));
     out->set_ptem_clusters(static_cast<std::uint32_t>(snapshots.ptem->clusters().size()));
     out->set_ptem_scans(snapshots.ptem->scan_count());
+    out->set_octomap_version(snapshots.octomap->version());
+    out->set_octomap_nodes(snapshots.octomap->node_count());
+    out->set_octomap_leaves(snapshots.octomap->leaf_count());
+    out->set_octomap_resolution_m(snapshots.octomap->resolution());
   }
   session->send(std::move(reply));
 }

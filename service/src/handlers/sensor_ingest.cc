@@ -1,5 +1,6 @@
 #include "sensor_ingest.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -12,7 +13,7 @@ void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldE
 
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
-    const std::function<void(const geometry::Pose2& X_WB, mapping::HimmGrid& grid)>& insert) {
+    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert) {
   const RobotState before = robot.state();
   const std::string kind(header.kind);
   std::string order_error;
@@ -37,20 +38,43 @@ bool ingest_sensor_message_on_strand(
   }
 
   World& world = robot.world();
-  insert(*before.X_WB, world.grid_on_strand());
-  world.publish_on_strand();
+  IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
+  insert(*before.X_WB, target);
+  world.publish_on_strand(target.touched, before.X_WB->position());
 
-  v1::ServerMessage ack;
-  ack.mutable_scan_ack()->set_seq(header.seq);
-  ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-  session->send(std::move(ack));
-
+  // The robot's state first: a client that saw the ack and then asks for the status must find the message counted.
   robot.update_state([&](RobotState& state) {
     state.last_scan_stamp_s = header.stamp_s;
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
+
+  v1::ServerMessage ack;
+  ack.mutable_scan_ack()->set_seq(header.seq);
+  ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
+  session->send(std::move(ack));
   return true;
+}
+
+void IngestTarget::touch(const Eigen::Vector2d& p_W, double radius_m) {
+  const geometry::GridGeometry cells(grid.params().cell_size_m);
+  const Eigen::Vector2d reach(radius_m, radius_m);
+  geometry::CellIndex lo = cells.cell_of(p_W - reach);
+  geometry::CellIndex hi = cells.cell_of(p_W + reach);
+  lo = {lo.ix - 1, lo.iy - 1};
+  hi = {hi.ix + 1, hi.iy + 1};
+  if (touched) {
+    lo = {std::min(lo.ix, touched->min.ix), std::min(lo.iy, touched->min.iy)};
+    hi = {std::max(hi.ix, touched->max.ix), std::max(hi.iy, touched->max.iy)};
+  }
+  touched = mapping::CellBox{lo, hi};
+}
+
+void insert_beam_3d(IngestTarget& target, const geometry::Pose3& X_WE, double reading_m, double range_min_m,
+                    double range_max_m) {
+  target.touch(X_WE.translation().head<2>(), range_max_m);
+  if (reading_m < range_min_m) return;
+  target.octomap.insert_ray(X_WE, reading_m, range_max_m);
 }
 
 geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Pose3& X_BS,

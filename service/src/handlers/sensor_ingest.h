@@ -20,16 +20,29 @@ struct SensorMessageHeader {
 // and sends ERROR_INVALID_ARGUMENT naming the field. Nothing reaches the map.
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq);
 
+// What one sensor message's insertion updates, on the world's strand: the 2D grid and the 3D
+// OctoMap, and the box of grid cells whose occupancy may have flipped (for the distance field).
+struct IngestTarget {
+  mapping::HimmGrid& grid;
+  mapping::OctoMapModel& octomap;
+  std::optional<mapping::CellBox> touched;
+
+  // Adds the cells within radius_m of p_W (world, metres), plus one for the growth-rate operator,
+  // to `touched`: call it with a sensor's position and its range_max_m.
+  void touch(const Eigen::Vector2d& p_W, double radius_m);
+};
+
 // Updates the map from one validated sensor message; runs on the robot's world strand. Sensor
 // messages share one order per robot whatever their kind, so a range array cannot slip in
 // between a laser scan and the next with a stale seq or stamp. When the robot has a pose and the
-// message's seq increases and its stamp does not go backwards, calls insert(X_WB, grid) with the
-// robot's latest pose, publishes one snapshot, sends the ScanAck and records the message in the
+// message's seq increases and its stamp does not go backwards, calls insert(X_WB, target) with the
+// robot's latest pose (the grid and the OctoMap to update), publishes one snapshot (bringing the
+// distance field in step over target.touched), sends the ScanAck and records the message in the
 // robot's state, then returns true. Otherwise sends ERROR_OUT_OF_ORDER naming the field, counts
 // the rejection and returns false, leaving the map alone.
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
-    const std::function<void(const geometry::Pose2& X_WB, mapping::HimmGrid& grid)>& insert);
+    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert);
 
 // The ground-plane pose of a beam that lies in a sensor's x-y plane at X_SE (metres, radians) and
 // measures along its own x axis, for a robot at X_WB carrying the sensor at X_BS. Composed in 3D
@@ -42,5 +55,10 @@ geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Po
 // beam up to range_max_m without marking; others clear up to the reading and mark its cell.
 void insert_beam(mapping::HimmGrid& grid, const geometry::Pose2& X_WE, double reading_m, double range_min_m,
                  double range_max_m);
+
+// The same reading in the OctoMap, along the x axis of the beam's full 6-DoF pose X_WE (robot pose
+// at z = 0 ∘ mount ∘ element), and marks the cells it may touch in target.touched.
+void insert_beam_3d(IngestTarget& target, const geometry::Pose3& X_WE, double reading_m, double range_min_m,
+                    double range_max_m);
 
 }  // namespace occgeo::service

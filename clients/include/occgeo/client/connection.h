@@ -62,6 +62,10 @@ class Connection {
   std::unique_ptr<Impl> impl_;
 };
 
+// The request_id a server message answers (a reply's or an Error's); 0 for messages that answer no
+// request (Welcome, ScanAck, MotionCommand).
+std::uint64_t reply_request_id(const v1::ServerMessage& message);
+
 // "field: message" text for a server Error, for printing and exceptions.
 std::string describe(const v1::Error& error);
 

@@ -8,7 +8,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
+#include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
 
@@ -22,17 +24,19 @@ class ConfigError : public std::runtime_error {
 
 // Resource limits that protect the server from bad or slow clients.
 struct LimitsConfig {
-  std::size_t max_frame_bytes = std::size_t{4} << 20;        // larger frames close the connection
-  std::size_t max_send_queue_bytes = std::size_t{32} << 20;  // a client whose unread replies exceed this is dropped
-  std::size_t max_clients = 1024;                            // concurrent sessions of any role
-  std::size_t max_robots = 256;                              // registered robots
-  std::uint32_t max_beams = 100000;                          // beams per laser in a RobotSpec
-  double max_abs_coordinate_m = 1.0e5;                       // odometry and query poses beyond this are rejected
-  double max_sensor_range_m = 200.0;                         // a RobotSpec's range_max_m above this is rejected
-  double max_query_distance_m = 100.0;                       // clearance search radius limit
-  std::size_t max_grid_reply_cells = std::size_t{16} << 20;  // whole-grid replies larger than this are refused
-  std::size_t max_point_cloud_points = 200000;               // larger point clouds are rejected (each is a ray)
-  std::size_t max_ptem_query_points = 100000;                // points per PtemQuery
+  std::size_t max_frame_bytes = std::size_t{4} << 20;          // larger frames close the connection
+  std::size_t max_send_queue_bytes = std::size_t{32} << 20;    // a client whose unread replies exceed this is dropped
+  std::size_t max_clients = 1024;                              // concurrent sessions of any role
+  std::size_t max_robots = 256;                                // registered robots
+  std::uint32_t max_beams = 100000;                            // beams per laser in a RobotSpec
+  double max_abs_coordinate_m = 1.0e5;                         // odometry and query poses beyond this are rejected
+  double max_sensor_range_m = 200.0;                           // a RobotSpec's range_max_m above this is rejected
+  double max_query_distance_m = 100.0;                         // clearance search radius limit
+  std::size_t max_grid_reply_cells = std::size_t{16} << 20;    // whole-grid replies larger than this are refused
+  std::size_t max_point_cloud_points = 200000;                 // larger point clouds are rejected (each is a ray)
+  std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
+  std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
+                                                               // max_send_queue_bytes / 2) is refused
 };
 
 // Server-side control of the robots.
@@ -75,6 +79,14 @@ struct PtemConfig {
 // The construction with this name; nullopt for anything else.
 [[nodiscard]] std::optional<mapping::PtemConstruction> parse_ptem_construction(const std::string& name);
 
+// The distance field's defaults in the server: the library's, with max_distance_m = 5 m (the default clearance search
+// radius).
+inline mapping::DistanceFieldParams default_distance_field_params() {
+  mapping::DistanceFieldParams params;
+  params.max_distance_m = 5.0;
+  return params;
+}
+
 // Everything occgeod can be configured with; file keys mirror the field names.
 struct ServerConfig {
   std::string listen = "127.0.0.1:7700";
@@ -87,6 +99,13 @@ struct ServerConfig {
   mapping::HimmParams himm;
   control::BearcatParams bearcat;
   PtemConfig ptem;
+  // Every world's OctoMap (section `octomap:`, keys as the fields of mapping::OctoMapParams, e.g. resolution_m,
+  // prob_hit, voxel_filter_enabled, outlier_mean_k, min_publish_interval_s).
+  mapping::OctoMapParams octomap;
+  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m, max_extent_m,
+  // growth_margin_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
+  // clearance queries are answered from the field.
+  mapping::DistanceFieldParams distance_field = default_distance_field_params();
 
   // Checks every field; throws ConfigError naming the first bad one.
   void validate() const;

@@ -1,0 +1,143 @@
+#include "model_geometry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <variant>
+#include <vector>
+
+namespace occgeo::service {
+
+double octomap_ground_band_m(double resolution_m) { return std::max(0.05, resolution_m) + 0.01; }
+
+OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m)
+    : octomap_(octomap), bottom_m_(octomap_ground_band_m(octomap.resolution())), top_m_(top_m) {}
+
+void OctoMapColumns::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                                       const std::function<bool(const geometry::CellIndex&)>& visit) const {
+  if (top_m_ < bottom_m_) return;
+  const double r = octomap_.resolution();
+  const Eigen::Vector3d min_W(min.ix * r, min.iy * r, bottom_m_);
+  const Eigen::Vector3d max_W((max.ix + 1.0) * r, (max.iy + 1.0) * r, top_m_);
+  octomap_.for_each_occupied(min_W, max_W, [&](const mapping::OctoVoxel& voxel) {
+    const double half = voxel.size_m / 2.0;
+    // Voxel faces lie on multiples of r: round, not floor, against the centre's float error.
+    const auto first = [&](double c) { return static_cast<std::int32_t>(std::lround((c - half) / r)); };
+    const auto last = [&](double c) { return static_cast<std::int32_t>(std::lround((c + half) / r)) - 1; };
+    const std::int32_t x0 = std::max(first(voxel.center_W.x()), min.ix);
+    const std::int32_t x1 = std::min(last(voxel.center_W.x()), max.ix);
+    const std::int32_t y0 = std::max(first(voxel.center_W.y()), min.iy);
+    const std::int32_t y1 = std::min(last(voxel.center_W.y()), max.iy);
+    for (std::int32_t ix = x0; ix <= x1; ++ix) {
+      for (std::int32_t iy = y0; iy <= y1; ++iy) {
+        if (!visit({ix, iy})) return false;
+      }
+    }
+    return true;
+  });
+}
+
+mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, const geometry::Footprint& footprint,
+                                       const geometry::Pose2& X_WB) {
+  const double band = octomap_ground_band_m(octomap.resolution());
+  geometry::Footprint lifted = footprint;
+  bool too_short = false;
+  std::visit(
+      [&](auto& shape) {
+        if (shape.height <= band) too_short = true;
+        shape.height -= band;
+      },
+      lifted);
+  if (too_short) return {};
+  geometry::Pose3 X_WL = geometry::Pose3::from_pose2(X_WB);
+  X_WL.transform.translation().z() = band;
+  return octomap.collide(lifted, X_WL);
+}
+
+namespace {
+
+// The point of the footprint (a filled rectangle or disc on the ground) nearest to p_W, world frame.
+Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                        const Eigen::Vector2d& p_W) {
+  const Eigen::Vector2d p_B = X_WB.inverse().transform(p_W);
+  Eigen::Vector2d q_B;
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
+    q_B = {std::clamp(p_B.x(), box->center_x - box->length / 2, box->center_x + box->length / 2),
+           std::clamp(p_B.y(), -box->width / 2, box->width / 2)};
+  } else {
+    const double radius = std::get<geometry::CylinderFootprint>(footprint).radius;
+    const double n = p_B.norm();
+    q_B = n <= radius ? p_B : Eigen::Vector2d(p_B * (radius / n));
+  }
+  return X_WB.transform(q_B);
+}
+
+// Points of the footprint every step metres on its boundary and on a grid inside, world frame.
+std::vector<Eigen::Vector2d> footprint_samples(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                               double step) {
+  std::vector<Eigen::Vector2d> points_B;
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
+    const int nx = std::max(1, static_cast<int>(std::ceil(box->length / step)));
+    const int ny = std::max(1, static_cast<int>(std::ceil(box->width / step)));
+    for (int i = 0; i <= nx; ++i) {
+      for (int j = 0; j <= ny; ++j) {
+        points_B.emplace_back(box->center_x - box->length / 2 + box->length * i / nx,
+                              -box->width / 2 + box->width * j / ny);
+      }
+    }
+  } else {
+    const double radius = std::get<geometry::CylinderFootprint>(footprint).radius;
+    const int rings = std::max(1, static_cast<int>(std::ceil(radius / step)));
+    points_B.emplace_back(0.0, 0.0);
+    for (int k = 1; k <= rings; ++k) {
+      const double rho = radius * k / rings;
+      const int around = std::max(6, static_cast<int>(std::ceil(2 * M_PI * rho / step)));
+      for (int a = 0; a < around; ++a) {
+        const double angle = 2 * M_PI * a / around;
+        points_B.emplace_back(rho * std::cos(angle), rho * std::sin(angle));
+      }
+    }
+  }
+  std::vector<Eigen::Vector2d> points_W;
+  points_W.reserve(points_B.size());
+  for (const auto& p_B : points_B) points_W.push_back(X_WB.transform(p_B));
+  return points_W;
+}
+
+}  // namespace
+
+PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                         const geometry::Pose2& X_WB) {
+  if (!ptem.restricted_threshold()) return {};
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, X_WB, cluster.centre_W);
+    if ((q_W - cluster.centre_W).norm() <= cluster.radius_m) return {true, q_W};
+  }
+  for (const Eigen::Vector2d& p_W : footprint_samples(footprint, X_WB, kPtemSampleStep_m)) {
+    if (ptem.restricted(p_W)) return {true, p_W};
+  }
+  return {};
+}
+
+PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                             const geometry::Pose2& X_WB, double max_distance_m) {
+  PtemClearance out;
+  out.clearance_m = max_distance_m;
+  if (!ptem.restricted_threshold()) return out;
+  if (const PtemContact contact = collide_ptem(ptem, footprint, X_WB); contact.hit) {
+    return {true, 0.0, contact.point_W};
+  }
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, X_WB, cluster.centre_W);
+    const Eigen::Vector2d away = q_W - cluster.centre_W;
+    const double d = std::max(0.0, away.norm() - cluster.radius_m);
+    if (d <= out.clearance_m && (!out.found || d < out.clearance_m)) {
+      out.found = true;
+      out.clearance_m = d;
+      out.nearest_point_W = cluster.centre_W + away.normalized() * cluster.radius_m;
+    }
+  }
+  return out;
+}
+
+}  // namespace occgeo::service

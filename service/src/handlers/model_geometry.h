@@ -1,0 +1,77 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+
+#include "occgeo/geometry/collision.h"
+#include "occgeo/geometry/footprint.h"
+#include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/octomap_model.h"
+#include "occgeo/mapping/ptem.h"
+
+// Collision and clearance of a robot's footprint against the models other than the HIMM grid: the
+// OctoMap (in the footprint's height band) and the PTEM's restricted region. Used by the query
+// handlers (queries.cc).
+
+namespace occgeo::service {
+
+// The OctoMap's voxels below this height are the floor for footprint queries, metres: a depth
+// camera sees the floor as occupied voxels in [0, resolution) (and, with noise, the one above), so
+// the footprint is checked over z in [ground_band, height]: max(0.05 m, resolution) + 0.01 m.
+double octomap_ground_band_m(double resolution_m);
+
+// The OctoMap's occupied voxels whose z range overlaps [ground_band, top_m], projected on the
+// ground as grid cells of the octree's resolution (cell (ix, iy) covers [ix r, (ix+1) r) x
+// [iy r, (iy+1) r), the same squares as the voxels' columns), so that geometry::compute_clearance
+// and check_collision can measure against them exactly as against the HIMM grid. A pruned voxel
+// covers several cells; a column holding several voxels is visited once per voxel.
+class OctoMapColumns final : public geometry::OccupiedCellSource {
+ public:
+  OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m);
+  [[nodiscard]] double cell_size() const override { return octomap_.resolution(); }
+  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                         const std::function<bool(const geometry::CellIndex&)>& visit) const override;
+
+ private:
+  const mapping::OctoMapSnapshot& octomap_;
+  double bottom_m_;
+  double top_m_;
+};
+
+// The 3D footprint (box or cylinder standing on base_link's z = 0) at the planar pose X_WB against
+// the OctoMap's occupied voxels with FCL, over z in [octomap_ground_band_m, height] (the footprint is
+// lifted and shortened accordingly; a footprint no taller than the band hits nothing).
+mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, const geometry::Footprint& footprint,
+                                       const geometry::Pose2& X_WB);
+
+// Spacing of the points of the footprint sampled against the PTEM's restricted test, metres.
+inline constexpr double kPtemSampleStep_m = 0.05;
+
+// Where a footprint meets the PTEM's restricted region (threat >= f_r, see ptem.h).
+struct PtemContact {
+  bool hit = false;
+  Eigen::Vector2d point_W = Eigen::Vector2d::Zero();  // a restricted point of the footprint, world, metres
+};
+
+// Does the footprint at X_WB overlap the PTEM's restricted region? Exact for each cluster on its
+// own (its circle is where its own PDF equals f_r, or is wholly restricted when f_r is unreachable:
+// a circle–box or circle–circle overlap test); the sum of several PDFs can reach f_r outside the
+// circles, which is caught by testing restricted() on the footprint's boundary and interior every
+// kPtemSampleStep_m (so a restricted sliver thinner than that between sample points can be
+// missed). Nothing is restricted while f_r is not fixed.
+PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                         const geometry::Pose2& X_WB);
+
+// Distance from the footprint at X_WB to the PTEM's restricted region, looking no farther than
+// max_distance_m: 0 when collide_ptem hits, else the distance to the nearest cluster circle
+// (exact for separate clusters; overlapping PDFs can make the true region larger, so then this is
+// an upper bound).
+struct PtemClearance {
+  bool found = false;
+  double clearance_m = 0.0;
+  Eigen::Vector2d nearest_point_W = Eigen::Vector2d::Zero();  // of the restricted region, world, metres
+};
+PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                             const geometry::Pose2& X_WB, double max_distance_m);
+
+}  // namespace occgeo::service
