@@ -28,6 +28,44 @@ TEST(Config, DefaultsAreValidAndListenOnLoopback) {
   EXPECT_DOUBLE_EQ(config.himm.cell_size_m, 0.1);
 }
 
+// docs/CONFIG.md lists every key with its default; loading that block must work and change nothing.
+TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
+  std::ifstream doc(testing::source("docs/CONFIG.md"));
+  ASSERT_TRUE(doc) << "docs/CONFIG.md is missing";
+  std::string line;
+  std::string yaml;
+  bool inside = false;
+  while (std::getline(doc, line)) {
+    if (line == "```yaml") {
+      inside = true;
+    } else if (inside && line == "```") {
+      break;
+    } else if (inside) {
+      yaml += line + "\n";
+    }
+  }
+  ASSERT_FALSE(yaml.empty()) << "no yaml block in docs/CONFIG.md";
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << yaml;
+  ServerConfig loaded;
+  ASSERT_NO_THROW(loaded = load_config(file)) << load_error(yaml);
+  const ServerConfig defaults;
+  EXPECT_EQ(loaded.listen, defaults.listen);
+  EXPECT_EQ(loaded.data_dir, defaults.data_dir);
+  EXPECT_EQ(loaded.limits.max_frame_bytes, defaults.limits.max_frame_bytes);
+  EXPECT_EQ(loaded.limits.max_octree_reply_bytes, defaults.limits.max_octree_reply_bytes);
+  EXPECT_EQ(loaded.control.command_expiry_s, defaults.control.command_expiry_s);
+  EXPECT_EQ(loaded.himm.increment, defaults.himm.increment);
+  EXPECT_EQ(loaded.himm.tile_cells, defaults.himm.tile_cells);
+  EXPECT_DOUBLE_EQ(loaded.bearcat.speed_per_degree_mps, defaults.bearcat.speed_per_degree_mps);
+  EXPECT_EQ(loaded.bearcat.max_wheel_speed_mps, defaults.bearcat.max_wheel_speed_mps);
+  EXPECT_EQ(loaded.ptem.params.cluster_distance_m, defaults.ptem.params.cluster_distance_m);
+  EXPECT_EQ(loaded.octomap.resolution_m, defaults.octomap.resolution_m);
+  EXPECT_EQ(loaded.octomap.clamping_min, defaults.octomap.clamping_min);
+  EXPECT_EQ(loaded.distance_field.max_distance_m, defaults.distance_field.max_distance_m);
+}
+
 TEST(Config, FileOverridesDefaults) {
   testing::TempDir dir;
   const auto file = dir.path() / "occgeod.yaml";
