@@ -16,6 +16,7 @@
 #include "occgeo/sim/args.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/report.h"
+#include "occgeo/sim/run_picture.h"
 #include "occgeo/sim/simulation.h"
 
 namespace {
@@ -51,6 +52,8 @@ class RunError : public std::runtime_error {
 struct OutputFiles {
   std::optional<std::ofstream> trace;
   std::optional<std::ofstream> visible;
+  // The true pose at each scan, kept for --png-out only.
+  std::optional<std::vector<occgeo::geometry::Pose2>> trajectory;
 };
 
 std::ofstream open_output(const std::filesystem::path& path, const char* flag) {
@@ -66,6 +69,7 @@ occgeo::sim::SensorBatch send_batch(Connection& connection, Simulation& simulati
   if (files.trace) {
     *files.trace << occgeo::sim::trace_csv_row(simulation.robot().time_s(), simulation.robot().pose()) << '\n';
   }
+  if (files.trajectory) files.trajectory->push_back(simulation.robot().pose());
   return batch;
 }
 
@@ -197,6 +201,11 @@ int main(int argc, char** argv) {
       *files.trace << occgeo::sim::kTraceCsvHeader << '\n';
     }
     if (options.visible_out) files.visible = open_output(*options.visible_out, "--visible-out");
+    // Opened (and left empty) now so a bad path fails before the run, like the other outputs.
+    if (options.png_out) {
+      open_output(*options.png_out, "--png-out");
+      files.trajectory.emplace();
+    }
   } catch (const occgeo::sim::ArgsError& error) {
     std::cerr << "occgeo-sim: " << error.what() << "\n(see occgeo-sim --help)\n";
     return kExitUsage;
@@ -215,6 +224,17 @@ int main(int argc, char** argv) {
   }
 
   if (files.visible) occgeo::sim::write_visible_pixels(*files.visible, simulation->visible_pixels());
+  if (options.png_out) {
+    // The pose after the last step too, so the marker shows where the robot stopped.
+    files.trajectory->push_back(simulation->robot().pose());
+    try {
+      occgeo::sim::run_picture(simulation->world(), *files.trajectory, simulation->robot().time_s())
+          .write_png(*options.png_out);
+    } catch (const std::exception& error) {
+      std::cerr << "occgeo-sim: --png-out: " << error.what() << '\n';
+      return kExitFailure;
+    }
+  }
   const auto summary = occgeo::sim::summarize(*simulation, options.robot_id, options.world_file.string());
   std::cout << (options.json ? occgeo::sim::to_json(summary) + "\n" : occgeo::sim::to_text(summary));
   return 0;

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <numbers>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
+#include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/replay/replay.h"
 
@@ -31,9 +34,15 @@ commands:
                                              distance from the footprint to the nearest obstacle
                                              (--models: which of the world's models; default all three)
   query ptem --world W --x X --y Y           the PTEM's threat, gradient and restricted flag at a point
-  map export [--format pgm|bt] --world W --out PREFIX
+  map export [--format pgm|png|bt] --world W --out PREFIX [--ptem] [--trajectory FILE.csv] [--scale N]
                                              pgm (default): the world's grid as PREFIX.pgm + PREFIX.yaml
-                                             (ROS map_server format); bt: its OctoMap as PREFIX.bt
+                                             (ROS map_server format); bt: its OctoMap as PREFIX.bt;
+                                             png: a picture of the grid as PREFIX.png only (white free,
+                                             black occupied, mid-grey unknown; less certain cells greyer), each
+                                             cell N x N pixels (--scale, default 1, at most 16), with
+                                             the world's PTEM clusters (--ptem: magenta circles, orange
+                                             restricted discs) and a trajectory (--trajectory: red line
+                                             and blue final pose; occgeo-sim --trace-out's CSV) drawn on it
   cloud insert FILE.pcd --pose x,y,z,roll,pitch,yaw --world W [--robot ID]
                                              send a .pcd point cloud taken by a sensor at that pose
                                              (world frame) into the world's maps, as driver robot ID
@@ -55,6 +64,7 @@ class UsageError : public std::runtime_error {
 // --name value options and bare --flags after the command words.
 struct Options {
   std::map<std::string, std::string> values;
+  std::set<std::string> switches;  // bare --flags other than --json that the command allows, without the dashes
   bool json = false;
 
   [[nodiscard]] std::string text(const std::string& name, const std::string& fallback = {}) const {
@@ -86,8 +96,9 @@ struct Options {
   }
 };
 
-Options parse_options(const std::vector<std::string>& args, std::size_t first,
-                      const std::vector<std::string>& allowed) {
+// `allowed` are the options that take a value, `switches` the bare flags (besides --json) the command accepts.
+Options parse_options(const std::vector<std::string>& args, std::size_t first, const std::vector<std::string>& allowed,
+                      const std::vector<std::string>& switches = {}) {
   Options options;
   for (std::size_t i = first; i < args.size(); ++i) {
     const std::string& arg = args[i];
@@ -97,6 +108,10 @@ Options parse_options(const std::vector<std::string>& args, std::size_t first,
     }
     if (arg.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + arg + "'");
     const std::string name = arg.substr(2);
+    if (std::find(switches.begin(), switches.end(), name) != switches.end()) {
+      options.switches.insert(name);
+      continue;
+    }
     if (name != "server" && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
       throw UsageError("unknown option '" + arg + "'");
     }
@@ -337,10 +352,151 @@ int run_octree_export(const Options& options) {
   return 0;
 }
 
+// Largest --scale of a png export: a 1000 x 1000 cell grid is then 16000 pixels a side, 768 MB of RGB.
+constexpr std::uint32_t kMaxPictureScale = 16;
+
+// The --scale of a png export: a whole number from 1 to kMaxPictureScale; throws UsageError naming --scale.
+std::uint32_t picture_scale(const Options& options) {
+  const std::string text = options.text("scale", "1");
+  std::size_t used = 0;
+  long value = 0;
+  try {
+    value = std::stol(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || value < 1 || value > static_cast<long>(kMaxPictureScale)) {
+    throw UsageError("option --scale needs a whole number from 1 to " + std::to_string(kMaxPictureScale) + ", not '" +
+                     text + "'");
+  }
+  return static_cast<std::uint32_t>(value);
+}
+
+// The base_link poses of an occgeo-sim --trace-out CSV (header t,x,y,theta, then one line per scan; metres and
+// radians). Throws std::runtime_error naming --trajectory, the file and the line at fault.
+std::vector<occgeo::mapfile::PicturePose> read_trajectory(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("option --trajectory: cannot read '" + path + "'");
+  const auto fail = [&](std::size_t line_number, const std::string& problem) {
+    return std::runtime_error("option --trajectory: " + path + " line " + std::to_string(line_number) + ": " + problem);
+  };
+  std::vector<occgeo::mapfile::PicturePose> poses;
+  std::string line;
+  std::size_t line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line_number == 1) {
+      if (line != "t,x,y,theta")
+        throw fail(1, "expected the header 't,x,y,theta' (occgeo-sim --trace-out), got '" + line + "'");
+      continue;
+    }
+    if (line.empty()) continue;
+    std::vector<double> values;
+    std::stringstream fields(line);
+    std::string field;
+    while (std::getline(fields, field, ',')) {
+      std::size_t used = 0;
+      double value = 0.0;
+      try {
+        value = std::stod(field, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != field.size() || !std::isfinite(value)) {
+        throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
+      }
+      values.push_back(value);
+    }
+    if (values.size() != 4) throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
+    poses.push_back({values[1], values[2], values[3]});
+  }
+  if (line_number == 0) throw std::runtime_error("option --trajectory: '" + path + "' is empty");
+  return poses;
+}
+
+// The restricted disc of one PTEM cluster on its own: where its Gaussian reaches f_r (sigma * sqrt(2 ln(peak / f_r))),
+// or its whole circle when no sigma puts f_r on it. Overlapping clusters add up and can restrict more than this.
+double restricted_radius(const v1::PtemCluster& cluster, double f_r) {
+  if (!cluster.threshold_reachable()) return cluster.radius_m();
+  const double sigma = cluster.sigma_m();
+  if (!(f_r > 0.0) || !(sigma > 0.0)) return 0.0;
+  const double peak = 1.0 / (2.0 * std::numbers::pi * sigma * sigma);
+  return peak > f_r ? sigma * std::sqrt(2.0 * std::log(peak / f_r)) : 0.0;
+}
+
+// map export --format png: the grid as a picture, with PTEM clusters and a trajectory when asked.
+int run_picture_export(const Options& options) {
+  const std::string prefix = options.required("out");
+  const std::string world = options.required("world");
+  const std::uint32_t scale = picture_scale(options);
+  occgeo::mapfile::PictureOverlays overlays;
+  // Read before connecting so a bad file fails before any network work.
+  if (options.values.contains("trajectory")) {
+    const auto poses = read_trajectory(options.values.at("trajectory"));
+    for (const auto& pose : poses) overlays.trajectory.push_back({pose.x, pose.y});
+    if (!poses.empty()) overlays.markers.push_back(poses.back());
+  }
+  overlays.line_width_px = std::max<std::uint32_t>(1, scale / 2);
+
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  request.mutable_grid()->set_request_id(1);
+  request.mutable_grid()->set_world(world);
+  const v1::GridReply grid = connection.call(request, 1, std::chrono::seconds(60)).grid();
+  if (grid.width() == 0 || grid.height() == 0) {
+    std::cerr << "occgeo: world '" << grid.world() << "' has no cells observed yet; nothing written\n";
+    return 1;
+  }
+  std::size_t clusters = 0;
+  if (options.switches.contains("ptem")) {
+    v1::ClientMessage ptem_request;
+    ptem_request.mutable_ptem()->set_request_id(2);
+    ptem_request.mutable_ptem()->set_world(world);
+    ptem_request.mutable_ptem()->set_include_clusters(true);
+    const v1::PtemReply ptem = connection.call(ptem_request, 2, std::chrono::seconds(60)).ptem();
+    for (const v1::PtemCluster& cluster : ptem.clusters()) {
+      overlays.circles.push_back({{cluster.center().x(), cluster.center().y()},
+                                  cluster.radius_m(),
+                                  restricted_radius(cluster, ptem.threshold_f_r())});
+    }
+    clusters = static_cast<std::size_t>(ptem.clusters_size());
+  }
+  occgeo::mapfile::MapPicture picture =
+      occgeo::mapfile::render_certainty(occgeo::client::certainty_window(grid), scale);
+  occgeo::mapfile::draw_overlays(picture, overlays);
+  const std::string path = prefix + ".png";
+  picture.write_png(path);
+  if (options.json) {
+    std::cout << "{\"png\":" << json_string(path) << ",\"width\":" << picture.image.width()
+              << ",\"height\":" << picture.image.height() << ",\"scale\":" << scale
+              << ",\"cells_width\":" << grid.width() << ",\"cells_height\":" << grid.height();
+    // Only what was asked for: a 0 would not tell "no clusters" from "not fetched".
+    if (options.switches.contains("ptem")) std::cout << ",\"clusters\":" << clusters;
+    if (options.values.contains("trajectory")) std::cout << ",\"trajectory_points\":" << overlays.trajectory.size();
+    std::cout << ",\"version\":" << grid.version() << "}\n";
+  } else {
+    std::cout << "wrote " << path << " (" << picture.image.width() << " x " << picture.image.height()
+              << " pixels: " << grid.width() << " x " << grid.height() << " cells of " << fmt(grid.cell_size_m())
+              << " m at scale " << scale << ", map version " << grid.version();
+    if (options.switches.contains("ptem")) std::cout << ", " << clusters << " PTEM cluster(s)";
+    if (options.values.contains("trajectory"))
+      std::cout << ", " << overlays.trajectory.size() << " trajectory point(s)";
+    std::cout << ")\n";
+  }
+  return 0;
+}
+
 int run_map_export(const Options& options) {
   const std::string format = options.text("format", "pgm");
+  if (format == "png") return run_picture_export(options);
+  // The picture options draw on the png only; silently ignoring them would hide a mistake.
+  for (const char* name : {"trajectory", "scale"}) {
+    if (options.values.contains(name)) throw UsageError(std::string("option --") + name + " needs --format png");
+  }
+  if (options.switches.contains("ptem")) throw UsageError("option --ptem needs --format png");
   if (format == "bt") return run_octree_export(options);
-  if (format != "pgm") throw UsageError("option --format takes pgm or bt, not '" + format + "'");
+  if (format != "pgm") throw UsageError("option --format takes pgm, png or bt, not '" + format + "'");
   const std::string prefix = options.required("out");
   Connection connection = connect_query(options);
   v1::ClientMessage request;
@@ -521,7 +677,7 @@ int main(int argc, char** argv) {
       return run_query_ptem(parse_options(args, 2, {"world", "x", "y"}));
     }
     if (args.size() >= 2 && args[0] == "map" && args[1] == "export") {
-      return run_map_export(parse_options(args, 2, {"world", "out", "format"}));
+      return run_map_export(parse_options(args, 2, {"world", "out", "format", "trajectory", "scale"}, {"ptem"}));
     }
     if (args.size() >= 2 && args[0] == "cloud" && args[1] == "insert") {
       if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("cloud insert needs a FILE.pcd");

@@ -14,8 +14,8 @@
 #include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_file.h"
+#include "occgeo/mapfile/png.h"
 #include "occgeo/replay/line_source.h"
-#include "occgeo/replay/png.h"
 
 namespace occgeo::replay {
 namespace {
@@ -360,7 +360,7 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
     } else {
       const mapfile::OccupancyImage image = mapfile::image_from_certainty(client::certainty_window(grid));
       mapfile::write_map(options.out_prefix, image);
-      write_png_gray8(options.out_prefix + ".png", image.width, image.height, image.pixels);
+      mapfile::write_png_gray8(options.out_prefix + ".png", image.width, image.height, image.pixels);
       summary.files_written = {options.out_prefix + ".pgm", options.out_prefix + ".yaml", options.out_prefix + ".png"};
     }
   }

@@ -15,7 +15,7 @@ const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", 
 // Flags that take one value.
 const std::set<std::string_view> kValueFlags = {
     "--world",       "--robot", "--id",   "--world-name",  "--server",    "--duration", "--start",
-    "--laser-range", "--noise", "--seed", "--visible-out", "--trace-out", "--drive"};
+    "--laser-range", "--noise", "--seed", "--visible-out", "--trace-out", "--drive",    "--png-out"};
 
 [[noreturn]] void fail(std::string_view flag, const std::string& problem) {
   throw ArgsError(std::string(flag) + ": " + problem);
@@ -98,6 +98,8 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
     options.visible_out = parse_name(flag, value);
   } else if (flag == "--trace-out") {
     options.trace_out = parse_name(flag, value);
+  } else if (flag == "--png-out") {
+    options.png_out = parse_name(flag, value);
   } else if (flag == "--drive") {
     options.drive = parse_drive_script(value);
   }
@@ -196,6 +198,9 @@ std::string usage() {
          "  --visible-out FILE    write the obstacle pixels the sensors hit, one \"col row\" line each\n"
          "                        (pixel worlds only; empty for shape worlds)\n"
          "  --trace-out FILE      write the pose at each scan as CSV t,x,y,theta\n"
+         "  --png-out FILE        at the end of a clean run, write a PNG of the world (pixel worlds: one picture\n"
+         "                        pixel per world pixel; shape worlds: rasterised at 0.05 m) with obstacles black,\n"
+         "                        the true trajectory (pose at each scan) red and the final pose a blue triangle\n"
          "  --help                print this help\n";
 }
 

@@ -32,6 +32,7 @@ struct SimOptions {
   bool json = false;                    // --json: print the summary as one JSON object
   std::optional<std::filesystem::path> visible_out;  // --visible-out FILE: obstacle pixels the beams hit
   std::optional<std::filesystem::path> trace_out;    // --trace-out FILE: CSV of t,x,y,theta at each scan
+  std::optional<std::filesystem::path> png_out;      // --png-out FILE: picture of the world and the true trajectory
   bool help = false;                                 // --help, -h: print usage and exit
 };
 

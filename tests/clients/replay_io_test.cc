@@ -1,5 +1,5 @@
-// The replay library's PNG encoder (checked by decoding with zlib), line reader (gzip and plain), argument parser
-// and map-consistency measure.
+// The replay library's line reader (gzip and plain), argument parser, map-consistency measure and summary. (Its PNG
+// encoder is occgeo_mapfile's, tested in tests/mapping/png_test.cc.)
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -7,85 +7,14 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
-#include <random>
 #include <stdexcept>
 
 #include "../support/temp_dir.h"
 #include "occgeo/replay/line_source.h"
-#include "occgeo/replay/png.h"
 #include "occgeo/replay/replay.h"
 
 namespace occgeo::replay {
 namespace {
-
-std::uint32_t read_u32(const std::vector<std::uint8_t>& bytes, std::size_t at) {
-  return (std::uint32_t{bytes.at(at)} << 24U) | (std::uint32_t{bytes.at(at + 1)} << 16U) |
-         (std::uint32_t{bytes.at(at + 2)} << 8U) | std::uint32_t{bytes.at(at + 3)};
-}
-
-struct Chunk {
-  std::string type;
-  std::vector<std::uint8_t> data;
-};
-
-// Splits a PNG into chunks, checking the signature and every CRC.
-std::vector<Chunk> chunks_of(const std::vector<std::uint8_t>& png) {
-  const std::vector<std::uint8_t> signature = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  EXPECT_TRUE(std::equal(signature.begin(), signature.end(), png.begin()));
-  std::vector<Chunk> chunks;
-  std::size_t at = signature.size();
-  while (at + 12 <= png.size()) {
-    const std::uint32_t length = read_u32(png, at);
-    Chunk chunk;
-    chunk.type.assign(png.begin() + static_cast<std::ptrdiff_t>(at + 4),
-                      png.begin() + static_cast<std::ptrdiff_t>(at + 8));
-    chunk.data.assign(png.begin() + static_cast<std::ptrdiff_t>(at + 8),
-                      png.begin() + static_cast<std::ptrdiff_t>(at + 8 + length));
-    const uLong crc = crc32(0L, png.data() + at + 4, static_cast<uInt>(4 + length));
-    EXPECT_EQ(read_u32(png, at + 8 + length), static_cast<std::uint32_t>(crc)) << chunk.type;
-    chunks.push_back(std::move(chunk));
-    at += 12 + length;
-  }
-  EXPECT_EQ(at, png.size());
-  return chunks;
-}
-
-TEST(Png, HeaderAndInflatedRowsMatchThePixels) {
-  constexpr std::uint32_t kWidth = 37, kHeight = 5;
-  std::vector<std::uint8_t> pixels(kWidth * kHeight);
-  std::mt19937 rng(3);
-  for (auto& p : pixels) p = static_cast<std::uint8_t>(rng() % 256);
-  const auto chunks = chunks_of(encode_png_gray8(kWidth, kHeight, pixels));
-  ASSERT_EQ(chunks.size(), 3U);
-  ASSERT_EQ(chunks[0].type, "IHDR");
-  ASSERT_EQ(chunks[0].data.size(), 13U);
-  EXPECT_EQ(read_u32(chunks[0].data, 0), kWidth);
-  EXPECT_EQ(read_u32(chunks[0].data, 4), kHeight);
-  EXPECT_EQ(chunks[0].data[8], 8);   // bit depth
-  EXPECT_EQ(chunks[0].data[9], 0);   // greyscale
-  EXPECT_EQ(chunks[0].data[10], 0);  // deflate
-  EXPECT_EQ(chunks[0].data[11], 0);  // adaptive filtering method
-  EXPECT_EQ(chunks[0].data[12], 0);  // not interlaced
-  ASSERT_EQ(chunks[1].type, "IDAT");
-  EXPECT_EQ(chunks[2].type, "IEND");
-  EXPECT_TRUE(chunks[2].data.empty());
-
-  std::vector<std::uint8_t> raw((kWidth + 1) * kHeight + 16);
-  uLongf raw_size = static_cast<uLongf>(raw.size());
-  ASSERT_EQ(uncompress(raw.data(), &raw_size, chunks[1].data.data(), static_cast<uLong>(chunks[1].data.size())), Z_OK);
-  ASSERT_EQ(raw_size, (kWidth + 1) * kHeight);
-  for (std::uint32_t row = 0; row < kHeight; ++row) {
-    EXPECT_EQ(raw[row * (kWidth + 1)], 0) << "row " << row << " filter";
-    for (std::uint32_t col = 0; col < kWidth; ++col) {
-      ASSERT_EQ(raw[row * (kWidth + 1) + 1 + col], pixels[row * kWidth + col]) << row << ", " << col;
-    }
-  }
-}
-
-TEST(Png, RejectsInconsistentSizes) {
-  EXPECT_THROW(encode_png_gray8(3, 2, std::vector<std::uint8_t>(5)), std::invalid_argument);
-  EXPECT_THROW(encode_png_gray8(0, 2, {}), std::invalid_argument);
-}
 
 // A directory under the system temp dir, removed afterwards.
 TEST(LineSource, ReadsGzipDetectedByMagicBytesAndPlainTextAlike) {
