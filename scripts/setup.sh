@@ -13,6 +13,7 @@ packages=(
   libyaml-cpp-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
+  python3-protobuf
 )
 
 missing=()

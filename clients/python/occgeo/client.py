@@ -1,0 +1,564 @@
+"""The occgeo.v1 client: one TCP connection to occgeod, varint-delimited protobuf frames.
+
+Every message on the stream is a protobuf message preceded by its length as a base-128 varint
+(protobuf's delimited format); the client sends ``ClientMessage``s and receives ``ServerMessage``s
+(see docs/PROTOCOL.md). Queries carry a ``request_id`` chosen here and their replies are matched by
+it; ``Error`` replies raise :class:`ServerError`.
+
+Frames and units: poses are ``base_link`` in the ``world`` frame (x, y in metres, theta in radians
+counter-clockwise from +x); points are world-frame metres; all values are SI.
+"""
+
+import collections
+import socket
+import time
+
+from occgeo.v1 import common_pb2, query_pb2, robot_pb2, sensors_pb2, session_pb2
+
+#: The protocol version this client speaks.
+PROTOCOL_VERSION = 1
+#: Largest frame accepted from the server (whole-map replies can be large), as the C++ client.
+MAX_FRAME_BYTES = 256 * 1024 * 1024
+
+_ROLES = {
+    "driver": session_pb2.ROLE_DRIVER,
+    "query": session_pb2.ROLE_QUERY,
+    "controller": session_pb2.ROLE_CONTROLLER,
+    "observer": session_pb2.ROLE_OBSERVER,
+}
+_MODELS = {"grid": query_pb2.MODEL_GRID, "octomap": query_pb2.MODEL_OCTOMAP, "ptem": query_pb2.MODEL_PTEM}
+# ServerMessage bodies that answer a query (they carry request_id).
+_REPLY_BODIES = ("collision", "clearance", "status", "grid", "ptem", "octree")
+
+
+class ClientError(Exception):
+    """A transport problem: cannot connect, connection closed, undecodable frame."""
+
+
+class Timeout(ClientError):
+    """No answer within the timeout."""
+
+
+class ServerError(Exception):
+    """An ``Error`` from the server.
+
+    Attributes: ``code`` (``occgeo.v1.ErrorCode`` value, e.g. ``session_pb2.ERROR_UNKNOWN_ROBOT``),
+    ``code_name`` (e.g. ``"ERROR_UNKNOWN_ROBOT"``), ``field`` (path of the offending field, e.g.
+    ``"collision.robot_id"``), ``message`` (text), ``request_id`` (the query's id, 0 otherwise) and
+    ``seq`` (the rejected sensor/odometry message's seq, 0 otherwise).
+    """
+
+    def __init__(self, code, field, message, request_id=0, seq=0):
+        self.code = int(code)
+        self.field = field
+        self.message = message
+        self.request_id = request_id
+        self.seq = seq
+        super().__init__(self.__str__())
+
+    @property
+    def code_name(self):
+        try:
+            return session_pb2.ErrorCode.Name(self.code)
+        except ValueError:
+            return "ERROR_%d" % self.code
+
+    @classmethod
+    def from_proto(cls, error):
+        return cls(error.code, error.field, error.message, error.request_id, error.seq)
+
+    def __str__(self):
+        text = self.code_name
+        if self.field:
+            text += " " + self.field
+        return text + ": " + self.message
+
+
+class CertaintyWindow:
+    """A rectangle of HIMM grid cells (from ``GridReply``).
+
+    ``cells`` is ``bytes``, row-major, row 0 at ``min_iy`` (the lowest y), column 0 at ``min_ix``;
+    each byte a certainty 0..``max_certainty``, or 255 for a cell never observed. Cell (ix, iy) covers
+    [ix*s, (ix+1)*s) x [iy*s, (iy+1)*s) in the world frame for cell size s = ``cell_size_m`` (metres).
+    Cells with certainty >= ``occupied_threshold`` are occupied. ``version`` is the world version.
+    """
+
+    UNOBSERVED = 255
+
+    def __init__(self, world, cell_size_m, min_ix, min_iy, width, height, cells, occupied_threshold,
+                 max_certainty, version):
+        self.world = world
+        self.cell_size_m = cell_size_m
+        self.min_ix = min_ix
+        self.min_iy = min_iy
+        self.width = width
+        self.height = height
+        self.cells = cells
+        self.occupied_threshold = occupied_threshold
+        self.max_certainty = max_certainty
+        self.version = version
+
+    @classmethod
+    def from_proto(cls, reply):
+        return cls(reply.world, reply.cell_size_m, reply.min_cell.ix, reply.min_cell.iy, reply.width,
+                   reply.height, bytes(reply.cells), reply.occupied_threshold, reply.max_certainty or 15,
+                   reply.version)
+
+    def rows(self):
+        """The cells as a list of rows (lists of ints), row 0 at ``min_iy``."""
+        w = self.width
+        return [list(self.cells[r * w:(r + 1) * w]) for r in range(self.height)]
+
+    def value(self, ix, iy):
+        """Cell value at grid index (ix, iy), or None outside the window."""
+        col, row = ix - self.min_ix, iy - self.min_iy
+        if 0 <= col < self.width and 0 <= row < self.height:
+            return self.cells[row * self.width + col]
+        return None
+
+    def is_occupied(self, ix, iy):
+        v = self.value(ix, iy)
+        return v is not None and v != self.UNOBSERVED and v >= self.occupied_threshold
+
+    def occupied_cells(self):
+        """Set of (ix, iy) of the occupied cells."""
+        out = set()
+        t = self.occupied_threshold
+        for i, v in enumerate(self.cells):
+            if v != self.UNOBSERVED and v >= t:
+                out.add((self.min_ix + i % self.width, self.min_iy + i // self.width))
+        return out
+
+    def cell_center(self, ix, iy):
+        """World-frame centre (x, y), metres, of cell (ix, iy)."""
+        return ((ix + 0.5) * self.cell_size_m, (iy + 0.5) * self.cell_size_m)
+
+
+def _varint(value):
+    out = bytearray()
+    while True:
+        byte = value & 0x7F
+        value >>= 7
+        if value:
+            out.append(byte | 0x80)
+        else:
+            out.append(byte)
+            return bytes(out)
+
+
+def _model_list(models):
+    if models is None:
+        return []
+    if isinstance(models, str):
+        models = [m for m in models.split(",") if m]
+    out = []
+    for m in models:
+        if isinstance(m, str):
+            key = m.lower().replace("model_", "")
+            if key not in _MODELS:
+                raise ValueError("unknown model %r (grid, octomap, ptem)" % m)
+            out.append(_MODELS[key])
+        else:
+            out.append(int(m))
+    return out
+
+
+def _pose2d(x, y, theta):
+    return common_pb2.Pose2D(x=float(x), y=float(y), theta=float(theta))
+
+
+class Client:
+    """A session with occgeod. Create it with :meth:`Client.connect`; use it as a context manager
+    or call :meth:`close`.
+
+    Not thread-safe: use one Client per thread. Messages that answer no request (``ScanAck``,
+    ``MotionCommand``, errors about sensor data) received while waiting are kept in
+    :attr:`scan_acks`, :attr:`motion_commands` and :attr:`errors`.
+    """
+
+    def __init__(self, sock, welcome, role, robot_id, world, timeout_s):
+        self._sock = sock
+        self._buffer = bytearray()
+        self._replies = {}  # request_id -> ServerMessage
+        self._next_request_id = 1
+        self._next_seq = 1  # one increasing sequence per robot across all sensor kinds
+        self._next_odometry_seq = 1
+        self._last_stamp_s = 0.0
+        self.welcome = welcome  #: the server's ``Welcome`` (protocol_version, server_version, session_id)
+        self.role = role
+        self.robot_id = robot_id
+        self.world = world
+        self.timeout_s = timeout_s
+        self.scan_acks = collections.deque(maxlen=10000)  #: ``ScanAck``s not yet consumed
+        self.motion_commands = collections.deque(maxlen=10000)  #: ``MotionCommand``s, oldest first
+        self.errors = collections.deque(maxlen=10000)  #: ``Error``s naming no request (as ServerError)
+
+    # ----------------------------------------------------------------------------- connection
+
+    @classmethod
+    def connect(cls, host="127.0.0.1", port=7700, role="query", robot_id=None, world=None, timeout_s=5.0,
+                client_name="occgeo-python", auth_token=""):
+        """Connects to occgeod at ``host:port`` and does the hello/welcome exchange.
+
+        ``role``: ``"query"`` (queries only) or ``"driver"`` (a robot: ``robot_id`` required, 1-64
+        characters of ``A-Z a-z 0-9 _ . -``; ``world`` the world it maps into, None for "default").
+        ``timeout_s`` (seconds) bounds the connect, the hello and, by default, every later call.
+        Raises :class:`ServerError` when the server refuses the hello, :class:`Timeout` or
+        :class:`ClientError` on transport problems.
+        """
+        role_value = _ROLES[role] if isinstance(role, str) else int(role)
+        if role_value == session_pb2.ROLE_DRIVER and not robot_id:
+            raise ValueError("a driver session needs a robot_id")
+        try:
+            sock = socket.create_connection((host, int(port)), timeout=timeout_s)
+        except socket.timeout as e:
+            raise Timeout("timed out connecting to %s:%s" % (host, port)) from e
+        except OSError as e:
+            raise ClientError("cannot connect to %s:%s: %s" % (host, port, e)) from e
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client = cls(sock, None, role, robot_id, world, timeout_s)
+        try:
+            message = session_pb2.ClientMessage()
+            hello = message.hello
+            hello.protocol_version = PROTOCOL_VERSION
+            hello.role = role_value
+            hello.robot_id = robot_id or ""
+            hello.world = world or ""
+            hello.auth_token = auth_token
+            hello.client_name = client_name
+            client._send(message)
+            deadline = time.monotonic() + timeout_s
+            while True:
+                reply = client._receive(deadline)
+                if reply is None:
+                    raise Timeout("timed out waiting for the server's welcome")
+                kind = reply.WhichOneof("body")
+                if kind == "welcome":
+                    client.welcome = reply.welcome
+                    return client
+                if kind == "error":
+                    raise ServerError.from_proto(reply.error)
+        except BaseException:
+            client.close()
+            raise
+
+    def close(self):
+        """Closes the connection (a driver's robot stays registered, offline)."""
+        if self._sock is not None:
+            try:
+                self._sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # ----------------------------------------------------------------------------- framing
+
+    def _send(self, message):
+        if self._sock is None:
+            raise ClientError("the connection is closed")
+        payload = message.SerializeToString()
+        try:
+            self._sock.sendall(_varint(len(payload)) + payload)
+        except OSError as e:
+            raise ClientError("send failed: %s" % e) from e
+
+    def _decode_one(self):
+        """Decodes one ServerMessage from the buffer, or returns None if incomplete."""
+        length, shift, pos = 0, 0, 0
+        while True:
+            if pos >= len(self._buffer):
+                return None
+            byte = self._buffer[pos]
+            pos += 1
+            length |= (byte & 0x7F) << shift
+            if not byte & 0x80:
+                break
+            shift += 7
+            if shift > 63:
+                raise ClientError("server sent a malformed length prefix")
+        if length > MAX_FRAME_BYTES:
+            raise ClientError("server sent a frame over %d bytes" % MAX_FRAME_BYTES)
+        if len(self._buffer) - pos < length:
+            return None
+        message = session_pb2.ServerMessage()
+        try:
+            message.ParseFromString(bytes(self._buffer[pos:pos + length]))
+        except Exception as e:  # google.protobuf.message.DecodeError
+            raise ClientError("server sent an undecodable frame: %s" % e) from e
+        del self._buffer[:pos + length]
+        return message
+
+    def _receive(self, deadline):
+        """The next ServerMessage, or None when ``deadline`` (time.monotonic()) passes."""
+        while True:
+            message = self._decode_one()
+            if message is not None:
+                return message
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            if self._sock is None:
+                raise ClientError("the connection is closed")
+            self._sock.settimeout(remaining)
+            try:
+                chunk = self._sock.recv(1 << 16)
+            except socket.timeout:
+                return None
+            except OSError as e:
+                raise ClientError("receive failed: %s" % e) from e
+            if not chunk:
+                raise ClientError("server closed the connection")
+            self._buffer += chunk
+
+    def _file(self, message):
+        """Files a message that is not the one being waited for."""
+        kind = message.WhichOneof("body")
+        if kind == "scan_ack":
+            self.scan_acks.append(message.scan_ack)
+        elif kind == "motion_command":
+            self.motion_commands.append(message.motion_command)
+        elif kind == "error" and message.error.request_id == 0:
+            self.errors.append(ServerError.from_proto(message.error))
+        elif kind == "error" or kind in _REPLY_BODIES:
+            request_id = message.error.request_id if kind == "error" else getattr(message, kind).request_id
+            self._replies[request_id] = message
+
+    def _wait(self, predicate, timeout_s, what):
+        """Receives until ``predicate(message)`` is true for a message, which is returned (others
+        are filed). Raises :class:`Timeout` after ``timeout_s`` seconds."""
+        deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
+        while True:
+            message = self._receive(deadline)
+            if message is None:
+                raise Timeout("timed out waiting for " + what)
+            if predicate(message):
+                return message
+            self._file(message)
+
+    def _new_request_id(self):
+        request_id = self._next_request_id
+        self._next_request_id += 1
+        return request_id
+
+    def _call(self, body, fill, timeout_s=None):
+        """Sends a query (``ClientMessage.<body>``), waits for the reply with its request_id and
+        returns the reply's body; raises :class:`ServerError` for an ``Error`` reply."""
+        request_id = self._new_request_id()
+        message = session_pb2.ClientMessage()
+        request = getattr(message, body)
+        request.request_id = request_id
+        fill(request)
+        self._send(message)
+        reply = self._replies.pop(request_id, None)
+        if reply is None:
+            def matches(m):
+                kind = m.WhichOneof("body")
+                if kind == "error":
+                    return m.error.request_id == request_id
+                return kind in _REPLY_BODIES and getattr(m, kind).request_id == request_id
+            reply = self._wait(matches, timeout_s, "the reply to request %d (%s)" % (request_id, body))
+        if reply.WhichOneof("body") == "error":
+            raise ServerError.from_proto(reply.error)
+        return getattr(reply, reply.WhichOneof("body"))
+
+    # ----------------------------------------------------------------------------- queries
+
+    def status(self, timeout_s=None):
+        """The server's ``StatusReply``: ``robots`` (id, world, pose, scans ...), ``worlds`` (name,
+        cell_size_m, version, occupied_cells, PTEM and OctoMap counts), ``clients``, ``uptime_s``."""
+        return self._call("status", lambda r: None, timeout_s)
+
+    def collision(self, robot, x, y, theta=0.0, models=None, footprint=None, timeout_s=None):
+        """Is robot ``robot``'s footprint at pose (x, y, theta) — ``base_link`` in the world frame,
+        metres and radians — in collision with its world's models?
+
+        ``models``: None or empty for all three (grid, octomap, ptem), else a list of ``"grid"``,
+        ``"octomap"``, ``"ptem"`` (or ``query_pb2.MODEL_*`` values), or a comma-separated string.
+        ``footprint``: an optional ``robot_pb2.Footprint`` overriding the robot's own.
+        Returns the ``CollisionReply``: ``hit``, ``model`` (first model hit), ``contact`` (world,
+        metres), ``cell`` / ``cell_center`` (GRID hit), ``cells_tested``.
+        Raises :class:`ServerError` (e.g. ``ERROR_UNKNOWN_ROBOT`` naming ``collision.robot_id``).
+        """
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.robot_id = robot
+            q.pose.CopyFrom(_pose2d(x, y, theta))
+            q.models.extend(model_values)
+            if footprint is not None:
+                q.footprint.CopyFrom(footprint)
+        return self._call("collision", fill, timeout_s)
+
+    def clearance(self, robot, x, y, theta=0.0, models=None, max_distance_m=0.0, footprint=None, timeout_s=None):
+        """Distance (metres) from robot ``robot``'s footprint at pose (x, y, theta) — ``base_link``
+        in the world frame — to the nearest obstacle of the asked models (see :meth:`collision` for
+        ``models`` and ``footprint``), searching up to ``max_distance_m`` (0: the server's default,
+        5 m). Returns the ``ClearanceReply``: ``found``, ``clearance_m`` (0 in collision,
+        ``max_distance_m`` when not found), ``model``, ``nearest_cell``, ``nearest_point`` (world, m).
+        """
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.robot_id = robot
+            q.pose.CopyFrom(_pose2d(x, y, theta))
+            q.max_distance_m = float(max_distance_m)
+            q.models.extend(model_values)
+            if footprint is not None:
+                q.footprint.CopyFrom(footprint)
+        return self._call("clearance", fill, timeout_s)
+
+    def ptem(self, world, points, include_clusters=False, timeout_s=None):
+        """Evaluates world ``world``'s probabilistic threat exposure map (``""``: the default world)
+        at ``points``, an iterable of (x, y) world-frame positions in metres.
+
+        Returns the ``PtemReply``: one ``PtemSample {threat (1/m²), gradient (world, 1/m³),
+        restricted}`` per point in order, ``threshold_f_r``, ``cluster_count``, ``scans``,
+        ``construction``, ``version`` and, with ``include_clusters``, ``clusters`` (``center`` world
+        metres, ``radius_m``, ``sigma_m``, ages). Raises ``ERROR_UNKNOWN_WORLD`` for a missing world.
+        """
+        point_list = [common_pb2.Point2D(x=float(p[0]), y=float(p[1])) for p in points]
+
+        def fill(q):
+            q.world = world or ""
+            q.points.extend(point_list)
+            q.include_clusters = bool(include_clusters)
+        return self._call("ptem", fill, timeout_s)
+
+    def grid(self, world="", timeout_s=60.0):
+        """World ``world``'s whole HIMM grid (its bounding box of allocated tiles) as a
+        :class:`CertaintyWindow` (``cells`` bytes + geometry; ``rows()`` gives a list of rows).
+        ``world`` ``""`` is the default world; a missing one raises ``ERROR_UNKNOWN_WORLD``."""
+        def fill(q):
+            q.world = world or ""
+        return CertaintyWindow.from_proto(self._call("grid", fill, timeout_s))
+
+    def export_map(self, world, prefix, timeout_s=60.0):
+        """Writes world ``world``'s grid as a ROS map_server map, ``PREFIX.pgm`` and
+        ``PREFIX.yaml``, with the same certainty → grey encoding, thresholds and bytes as
+        ``occgeo map export --format pgm``. Returns the :class:`CertaintyWindow` exported.
+        Raises :class:`ClientError` if the world has no observed cell yet (nothing is written)."""
+        from occgeo import mapfile
+
+        window = self.grid(world, timeout_s)
+        if window.width == 0 or window.height == 0:
+            raise ClientError("world '%s' has no cells observed yet; nothing written" % window.world)
+        mapfile.write_map(prefix, mapfile.image_from_certainty(window))
+        return window
+
+    def octree(self, world="", timeout_s=60.0):
+        """World ``world``'s OctoMap: the ``OctreeReply`` (``bt`` the .bt file's bytes,
+        ``resolution_m``, ``node_count``, ``leaf_count``, ``version``)."""
+        def fill(q):
+            q.world = world or ""
+        return self._call("octree", fill, timeout_s)
+
+    def export_octree(self, world, path, timeout_s=60.0):
+        """Writes world ``world``'s OctoMap as an OctoMap binary file (.bt) at ``path``; returns
+        the ``OctreeReply`` (its ``bt`` is what was written)."""
+        reply = self.octree(world, timeout_s)
+        with open(path, "wb") as out:
+            out.write(reply.bt)
+        return reply
+
+    # ----------------------------------------------------------------------------- driver
+
+    def sync(self, timeout_s=None):
+        """Round trip (a status request): when it returns, the server has handled every message
+        sent before; raises the first :class:`ServerError` about them (robot spec, odometry,
+        sensor data) that arrived meanwhile."""
+        self.errors.clear()
+        self.status(timeout_s)
+        if self.errors:
+            raise self.errors.popleft()
+
+    def send_robot_spec(self, spec, confirm=True, timeout_s=None):
+        """Sends the driver's ``robot_pb2.RobotSpec`` (once, first thing after connecting; see
+        :func:`occgeo.laser_robot_spec`). With ``confirm``, waits until the server has handled it
+        and raises :class:`ServerError` (e.g. ``ERROR_INVALID_ARGUMENT`` naming
+        ``robot_spec.sensors[0].laser.beam_count``) if it was refused."""
+        message = session_pb2.ClientMessage()
+        message.robot_spec.CopyFrom(spec)
+        self._send(message)
+        if confirm:
+            self.sync(timeout_s)
+
+    def _stamp(self, stamp_s):
+        if stamp_s is None:
+            stamp_s = max(time.time(), self._last_stamp_s)
+        self._last_stamp_s = max(self._last_stamp_s, stamp_s)
+        return float(stamp_s)
+
+    def send_odometry(self, x, y, theta, stamp_s=None, linear_mps=0.0, angular_radps=0.0, seq=None,
+                      confirm=False, timeout_s=None):
+        """Sends the robot's pose — ``base_link`` in the world frame, (x, y) metres, theta radians —
+        and its body velocity (m/s, rad/s). ``stamp_s`` (seconds, driver clock, must not go
+        backwards; default: wall time, never before the last stamp sent) and ``seq`` (default: the
+        next one) are filled when None. No reply when accepted; ``confirm`` does a :meth:`sync`."""
+        message = session_pb2.ClientMessage()
+        odometry = message.odometry
+        if seq is None:
+            seq = self._next_odometry_seq
+        self._next_odometry_seq = max(self._next_odometry_seq, seq + 1)
+        odometry.seq = seq
+        odometry.stamp_s = self._stamp(stamp_s)
+        odometry.pose.CopyFrom(_pose2d(x, y, theta))
+        odometry.linear_mps = float(linear_mps)
+        odometry.angular_radps = float(angular_radps)
+        self._send(message)
+        if confirm:
+            self.sync(timeout_s)
+
+    def send_laser_scan(self, sensor, ranges, stamp_s=None, seq=None, timeout_s=None):
+        """Sends one sweep of laser ``sensor`` (its ``SensorSpec.name``): exactly ``beam_count``
+        ranges in metres (>= ``range_max_m``: no return), placed at the robot's latest pose.
+        ``seq`` (default: the next of the robot's one sensor sequence) and ``stamp_s`` (seconds,
+        default wall time) are filled when None; an automatic seq that the server refused is
+        used again by the next message.
+
+        Waits for and returns the ``ScanAck {seq, world_version}`` (the map holds the scan: a query
+        sent afterwards sees it). Raises :class:`ServerError` if the scan is refused (e.g.
+        ``ERROR_INVALID_ARGUMENT`` naming ``laser_scan.ranges[17]``). A ``MotionCommand`` answering
+        the scan, if any, is appended to :attr:`motion_commands`.
+        """
+        message = session_pb2.ClientMessage()
+        scan = message.laser_scan
+        auto_seq = seq is None
+        if seq is None:
+            seq = self._next_seq
+        self._next_seq = max(self._next_seq, seq + 1)
+        scan.sensor = sensor
+        scan.seq = seq
+        scan.stamp_s = self._stamp(stamp_s)
+        scan.ranges.extend(float(r) for r in ranges)
+        self._send(message)
+        try:
+            return self._wait_scan_ack(seq, "laser_scan", timeout_s)
+        except ServerError:
+            if auto_seq and self._next_seq == seq + 1:
+                self._next_seq = seq  # a rejected message's seq may be used again
+            raise
+
+    def _wait_scan_ack(self, seq, kind, timeout_s):
+        for i, ack in enumerate(self.scan_acks):
+            if ack.seq == seq:
+                del self.scan_acks[i]
+                return ack
+
+        def matches(m):
+            body = m.WhichOneof("body")
+            if body == "scan_ack":
+                return m.scan_ack.seq == seq
+            if body == "error" and m.error.request_id == 0:
+                return m.error.seq == seq or (m.error.seq == 0 and m.error.field.startswith(kind))
+            return False
+        reply = self._wait(matches, timeout_s, "the ScanAck of %s seq %d" % (kind, seq))
+        if reply.WhichOneof("body") == "error":
+            raise ServerError.from_proto(reply.error)
+        return reply.scan_ack
