@@ -1,7 +1,10 @@
 #include "occgeo/mapping/octomap_model.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -148,22 +151,191 @@ struct OctoMapModel::Impl {
   // (free keys of every ray, end keys of hits, occupied wins over free, one update per key), but with lazy_eval: the
   // inner nodes are brought up to date once, by refresh_inner(), before anything reads them. Each key gets the same
   // single update as in the plain path, so every leaf ends up with the same log-odds.
+  //
+  // The keys are deduplicated without hash sets: every ray's keys are appended to one flat buffer, then marked in a
+  // bitmap over their bounding box (or, when that box is too sparse, Morton-coded, sorted and uniqued). Either way the
+  // updates run in an order where consecutive keys share most of their tree path, which update() exploits. The order
+  // of the updates does not matter: each key gets exactly one, and a lazy update never changes another key's leaf.
   void apply(const octomap::point3d& origin, const std::vector<Ray>& batch) {
-    free_cells.clear();
-    occupied_cells.clear();
+    ray_keys.clear();
+    hit_keys.clear();
+    // A ray's keys step monotonically along each axis (computeRayKeys is a 3D DDA), so its first and last key bound
+    // them all.
+    std::array<unsigned, 3> lo{0xFFFFU, 0xFFFFU, 0xFFFFU}, hi{0U, 0U, 0U};
+    const auto extend = [&lo, &hi](const octomap::OcTreeKey& key) {
+      for (int i = 0; i < 3; ++i) {
+        lo[i] = std::min<unsigned>(lo[i], key[i]);
+        hi[i] = std::max<unsigned>(hi[i], key[i]);
+      }
+    };
     for (const Ray& ray : batch) {
-      if (tree->computeRayKeys(origin, ray.end, key_ray)) free_cells.insert(key_ray.begin(), key_ray.end());
+      if (tree->computeRayKeys(origin, ray.end, key_ray) && key_ray.size() != 0) {
+        ray_keys.insert(ray_keys.end(), key_ray.begin(), key_ray.end());
+        extend(*key_ray.begin());
+        extend(*(key_ray.end() - 1));
+      }
       if (ray.hit) {
         octomap::OcTreeKey key;
-        if (tree->coordToKeyChecked(ray.end, key)) occupied_cells.insert(key);
+        if (tree->coordToKeyChecked(ray.end, key)) {
+          hit_keys.push_back(key);
+          extend(key);
+        }
       }
     }
-    for (auto it = free_cells.begin(); it != free_cells.end();) {
-      it = occupied_cells.count(*it) != 0 ? free_cells.erase(it) : std::next(it);
-    }
-    for (const octomap::OcTreeKey& key : free_cells) tree->updateNode(key, false, /*lazy_eval=*/true);
-    for (const octomap::OcTreeKey& key : occupied_cells) tree->updateNode(key, true, /*lazy_eval=*/true);
+    if (ray_keys.empty() && hit_keys.empty()) return;
     inner_stale = true;
+    path_depth = -1;
+
+    const std::uint64_t nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1, nz = hi[2] - lo[2] + 1;
+    const std::uint64_t volume = nx * ny * nz;
+    const std::uint64_t n_keys = ray_keys.size() + hit_keys.size();
+    if (volume <= kMaxBitmapCells && volume <= 256 * n_keys) {
+      apply_by_bitmap(lo, nx, ny, volume);
+    } else {
+      apply_by_sorting();
+    }
+  }
+
+  // apply's deduplication for a compact batch (a planar scan): one free and one hit bit per cell of the keys' bounding
+  // box, x fastest. The bitmaps are all zero between calls (each word is cleared as it is read).
+  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t volume) {
+    const std::size_t n_words = static_cast<std::size_t>((volume + 63) / 64);
+    if (free_bits.size() < n_words) {
+      free_bits.resize(n_words, 0);
+      hit_bits.resize(n_words, 0);
+    }
+    const auto index = [&](const octomap::OcTreeKey& key) {
+      return ((key[2] - lo[2]) * ny + (key[1] - lo[1])) * nx + (key[0] - lo[0]);
+    };
+    for (const octomap::OcTreeKey& key : ray_keys) {
+      const std::uint64_t i = index(key);
+      free_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+    }
+    for (const octomap::OcTreeKey& key : hit_keys) {
+      const std::uint64_t i = index(key);
+      hit_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+    }
+    const float miss = tree->getProbMissLog(), hit = tree->getProbHitLog();
+    for (std::size_t w = 0; w < n_words; ++w) {
+      const std::uint64_t hits = hit_bits[w];
+      std::uint64_t cells = free_bits[w] | hits;
+      if (cells == 0) continue;
+      free_bits[w] = 0;
+      hit_bits[w] = 0;
+      while (cells != 0) {
+        const int b = std::countr_zero(cells);
+        cells &= cells - 1;
+        const std::uint64_t i = std::uint64_t{w} * 64 + static_cast<std::uint64_t>(b);
+        const std::uint64_t row = i / nx;
+        const octomap::OcTreeKey key(static_cast<octomap::key_type>(lo[0] + i % nx),
+                                     static_cast<octomap::key_type>(lo[1] + row % ny),
+                                     static_cast<octomap::key_type>(lo[2] + row / ny));
+        update(key, ((hits >> b) & 1U) != 0 ? hit : miss);
+      }
+    }
+  }
+
+  // apply's deduplication for a sparse batch (a 3D cloud): Morton codes, sorted and uniqued, merged in Z order (the
+  // tree's depth-first order).
+  void apply_by_sorting() {
+    const auto encode_all = [](const std::vector<octomap::OcTreeKey>& keys, std::vector<std::uint64_t>& codes) {
+      codes.clear();
+      codes.reserve(keys.size());
+      for (const octomap::OcTreeKey& key : keys) codes.push_back(morton(key));
+      std::sort(codes.begin(), codes.end());
+      codes.erase(std::unique(codes.begin(), codes.end()), codes.end());
+    };
+    encode_all(ray_keys, free_codes);
+    encode_all(hit_keys, hit_codes);
+    const float miss = tree->getProbMissLog(), hit = tree->getProbHitLog();
+    auto f = free_codes.begin();
+    auto h = hit_codes.begin();
+    while (f != free_codes.end() || h != hit_codes.end()) {
+      if (h == hit_codes.end() || (f != free_codes.end() && *f < *h)) {
+        update(unmorton(*f++), miss);
+      } else {
+        if (f != free_codes.end() && *f == *h) ++f;  // occupied wins over free
+        update(unmorton(*h++), hit);
+      }
+    }
+  }
+
+  // Z-order code of a key: bit 3 i + c holds bit i of key[c], so that code order is the tree's depth-first order.
+  static std::uint64_t spread(std::uint64_t v) {
+    v = (v | v << 32) & 0x001F00000000FFFFULL;
+    v = (v | v << 16) & 0x001F0000FF0000FFULL;
+    v = (v | v << 8) & 0x100F00F00F00F00FULL;
+    v = (v | v << 4) & 0x10C30C30C30C30C3ULL;
+    return (v | v << 2) & 0x1249249249249249ULL;
+  }
+  static std::uint64_t compact(std::uint64_t v) {
+    v &= 0x1249249249249249ULL;
+    v = (v ^ (v >> 2)) & 0x10C30C30C30C30C3ULL;
+    v = (v ^ (v >> 4)) & 0x100F00F00F00F00FULL;
+    v = (v ^ (v >> 8)) & 0x001F0000FF0000FFULL;
+    v = (v ^ (v >> 16)) & 0x001F00000000FFFFULL;
+    return (v ^ (v >> 32)) & 0x1FFFFFULL;
+  }
+  static std::uint64_t morton(const octomap::OcTreeKey& key) {
+    return spread(key[0]) | spread(key[1]) << 1 | spread(key[2]) << 2;
+  }
+  static octomap::OcTreeKey unmorton(std::uint64_t code) {
+    return {static_cast<octomap::key_type>(compact(code)), static_cast<octomap::key_type>(compact(code >> 1)),
+            static_cast<octomap::key_type>(compact(code >> 2))};
+  }
+
+  // One update of key by log_odds, exactly as OccupancyOcTreeBase::updateNode(key, log_odds, lazy_eval = true): no
+  // change when the deepest existing node on key's path is a leaf (a voxel or a pruned node) already clamped in the
+  // update's direction; otherwise pruned nodes on the path are expanded, missing ones created, and log_odds is added to
+  // the voxel's leaf, clamped. Unlike updateNode (a search, then a second descent from the root), it descends once,
+  // from the deepest node key's path shares with the previous update's (path[0..path_depth], valid while nothing
+  // prunes, i.e. within one apply).
+  void update(const octomap::OcTreeKey& key, float log_odds) {
+    octomap::OcTree& t = *tree;
+    if (t.getRoot() == nullptr || t.isChangeDetectionEnabled()) {
+      t.updateNode(key, log_odds, /*lazy_eval=*/true);
+      path_depth = -1;
+      return;
+    }
+    int depth = 0;
+    if (path_depth < 0) {
+      path[0] = t.getRoot();
+    } else {
+      const auto diff =
+          static_cast<std::uint16_t>((key[0] ^ path_key[0]) | (key[1] ^ path_key[1]) | (key[2] ^ path_key[2]));
+      depth = std::min(std::countl_zero(diff), path_depth);
+    }
+    path_key = key;
+    octomap::OcTreeNode* node = path[static_cast<std::size_t>(depth)];
+    bool just_created = false;  // a resumed node either has children or is a pruned leaf, never a new one
+    constexpr int kDepth = 16;
+    for (; depth < kDepth; ++depth) {
+      const unsigned pos = octomap::computeChildIdx(key, kDepth - 1 - depth);
+      bool created = false;
+      if (!t.nodeChildExists(node, pos)) {
+        if (!t.nodeHasChildren(node) && !just_created) {
+          // A pruned leaf: updateNode's search stops here, and gives up when it is clamped already.
+          if (clamped(node, log_odds)) {
+            path_depth = depth;
+            return;
+          }
+          t.expandNode(node);
+        } else {
+          t.createNodeChild(node, pos);
+          created = true;
+        }
+      }
+      node = t.getNodeChild(node, pos);
+      just_created = created;
+      path[static_cast<std::size_t>(depth) + 1] = node;
+    }
+    path_depth = kDepth;
+    if (!clamped(node, log_odds)) t.updateNodeLogOdds(node, log_odds);
+  }
+
+  bool clamped(const octomap::OcTreeNode* node, float log_odds) const {
+    return (log_odds >= 0 && node->getLogOdds() >= tree->getClampingThresMaxLog()) ||
+           (log_odds <= 0 && node->getLogOdds() <= tree->getClampingThresMinLog());
   }
 
   // Recomputes every inner node's occupancy (the max of its children) after lazy updates, and prunes, leaving the
@@ -177,10 +349,17 @@ struct OctoMapModel::Impl {
 
   std::unique_ptr<octomap::OcTree> tree;
   bool inner_stale = false;
-  // Reused between batches so that their buckets are allocated once.
-  octomap::KeySet free_cells;
-  octomap::KeySet occupied_cells;
+  // Reused between batches so that they are allocated once.
+  static constexpr std::uint64_t kMaxBitmapCells = std::uint64_t{1} << 27;  // 16 MiB per bitmap
   octomap::KeyRay key_ray;
+  std::vector<octomap::OcTreeKey> ray_keys;  // the free keys of every ray of the batch, repeats included
+  std::vector<octomap::OcTreeKey> hit_keys;  // the end keys of the hits, repeats included
+  std::vector<std::uint64_t> free_bits, hit_bits;
+  std::vector<std::uint64_t> free_codes, hit_codes;
+  // update()'s cache: the nodes on the last updated key's path, root first, and that key.
+  std::array<octomap::OcTreeNode*, 17> path{};
+  int path_depth = -1;
+  octomap::OcTreeKey path_key;
   std::vector<Ray> rays;
 };
 

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -173,6 +174,133 @@ TEST(OctoMapInsertTest, LazyCloudInsertionEqualsPlainOnRoomScanButDiscretizeDoes
             << " leaves differ from the plain path\n";
   RecordProperty("discretize_differing_leaves", static_cast<int>(differing));
   EXPECT_GT(differing, 0U);
+}
+
+// The same rays through OctoMapModel::insert_cloud and through plain insertPointCloud, batch by batch, publishing
+// (inner refresh and prune) every few batches so that later batches meet pruned nodes, some already clamped; the
+// leaves must stay identical throughout.
+void expect_same_map_over_batches(const OctoMapParams& params, const std::vector<std::vector<Eigen::Vector3f>>& clouds,
+                                  const std::vector<Pose3>& poses, int publish_every) {
+  OctoMapModel model{params};
+  octomap::OcTree plain = plain_tree(params);
+  for (std::size_t b = 0; b < clouds.size(); ++b) {
+    const Pose3& X_WS = poses[b % poses.size()];
+    model.insert_cloud(X_WS, clouds[b]);
+    octomap::Pointcloud cloud_W;
+    const Eigen::Isometry3f X_WS_f = X_WS.transform.cast<float>();
+    for (const Eigen::Vector3f& p_S : clouds[b]) {
+      const Eigen::Vector3f p_W = X_WS_f * p_S;
+      cloud_W.push_back(p_W.x(), p_W.y(), p_W.z());
+    }
+    plain.insertPointCloud(cloud_W, to_octo(X_WS.translation()), params.max_range_m);
+    if (static_cast<int>(b % static_cast<std::size_t>(publish_every)) == publish_every - 1 || b + 1 == clouds.size()) {
+      const auto snapshot = model.publish();
+      plain.prune();
+      const std::vector<LeafTuple> fast = leaves_of(*snapshot);
+      const std::vector<LeafTuple> reference = leaves_of(plain);
+      ASSERT_EQ(fast.size(), reference.size()) << "after batch " << b;
+      ASSERT_EQ(count_differences(fast, reference), 0U) << "after batch " << b;
+      ASSERT_EQ(snapshot->node_count(), plain.size()) << "after batch " << b;
+    }
+  }
+}
+
+// Per batch, the number of hit keys that are also free keys of another ray, of free keys crossed by more than one ray
+// and of rays cut at max_range: the cases the deduplication must get right, counted to show the data has them.
+struct BatchCases {
+  std::size_t hit_also_free = 0;
+  std::size_t shared_free = 0;
+  std::size_t max_range_rays = 0;
+};
+
+BatchCases count_cases(const OctoMapParams& params, const std::vector<std::vector<Eigen::Vector3f>>& clouds,
+                       const std::vector<Pose3>& poses) {
+  BatchCases cases;
+  const octomap::OcTree tree = plain_tree(params);
+  octomap::KeyRay ray;
+  for (std::size_t b = 0; b < clouds.size(); ++b) {
+    const Pose3& X_WS = poses[b % poses.size()];
+    const octomap::point3d origin = to_octo(X_WS.translation());
+    octomap::KeySet free, hits, seen;
+    for (const Eigen::Vector3f& p_S : clouds[b]) {
+      const Eigen::Vector3f p_W = X_WS.transform.cast<float>() * p_S;
+      octomap::point3d end{p_W.x(), p_W.y(), p_W.z()};
+      const bool hit = (end - origin).norm() <= params.max_range_m;
+      if (!hit) {
+        end = origin + (end - origin).normalized() * static_cast<float>(params.max_range_m);
+        ++cases.max_range_rays;
+      }
+      if (tree.computeRayKeys(origin, end, ray)) {
+        for (const octomap::OcTreeKey& key : ray) {
+          if (!free.insert(key).second && seen.insert(key).second) ++cases.shared_free;
+        }
+      }
+      octomap::OcTreeKey key;
+      if (hit && tree.coordToKeyChecked(end, key)) hits.insert(key);
+    }
+    for (const octomap::OcTreeKey& key : hits) cases.hit_also_free += free.count(key);
+  }
+  return cases;
+}
+
+// Dense planar batches (OctoMapModel deduplicates them with a bitmap over their bounding box): URG scans as clouds,
+// from three poses in turn so that voxels clamp, with a 2.5 m max_range cutting the longer beams.
+TEST(OctoMapInsertTest, LazyInsertionEqualsPlainOverManyBatchesWithPruningClampingAndMaxRange) {
+  REQUIRE_DATASET(kDatasets / "urg04lx-mines" / "exp1.dat");
+  const std::vector<std::vector<float>> scans = read_urg_scans(100, 159);
+  OctoMapParams params = unfiltered();
+  params.max_range_m = 2.5;
+  std::vector<std::vector<Eigen::Vector3f>> clouds;
+  for (const std::vector<float>& ranges : scans) {
+    std::vector<Eigen::Vector3f>& cloud = clouds.emplace_back();
+    for (int i = 0; i < kUrgBeams; ++i) {
+      if (ranges[i] == 0.0F) continue;
+      const double a = double{kUrgAngleMin} + i * double{kUrgIncrement};
+      cloud.emplace_back(static_cast<float>(double{ranges[i]} * std::cos(a)),
+                         static_cast<float>(double{ranges[i]} * std::sin(a)), 0.0F);
+    }
+  }
+  const std::vector<Pose3> poses{Pose3::from_xyz_rpy(0.0, 0.0, 0.3, 0.0, 0.05, 0.0),
+                                 Pose3::from_xyz_rpy(0.4, -0.3, 0.3, 0.02, -0.03, 0.5),
+                                 Pose3::from_xyz_rpy(-0.2, 0.5, 0.2, 0.0, 0.0, -0.8)};
+  const BatchCases cases = count_cases(params, clouds, poses);
+  std::cout << "[ info     ] " << cases.hit_also_free << " hit keys also free in their batch, " << cases.shared_free
+            << " free keys shared by several rays, " << cases.max_range_rays << " max-range rays\n";
+  EXPECT_GT(cases.hit_also_free, 0U);
+  EXPECT_GT(cases.shared_free, 0U);
+  EXPECT_GT(cases.max_range_rays, 0U);
+  expect_same_map_over_batches(params, clouds, poses, 7);
+}
+
+// Sparse 3D batches (OctoMapModel sorts their Morton-coded keys): a few hundred rays in random directions, some
+// beyond max_range, some end points on a shared grid so that hits coincide with other rays' free voxels.
+TEST(OctoMapInsertTest, LazyInsertionEqualsPlainOnSparse3dBatches) {
+  OctoMapParams params = unfiltered();
+  params.max_range_m = 8.0;
+  std::uint32_t state = 12345U;
+  const auto uniform = [&state] {
+    state = state * 1664525U + 1013904223U;
+    return static_cast<float>(state >> 8) / static_cast<float>(1U << 24);
+  };
+  std::vector<std::vector<Eigen::Vector3f>> clouds;
+  for (int b = 0; b < 12; ++b) {
+    std::vector<Eigen::Vector3f>& cloud = clouds.emplace_back();
+    for (int i = 0; i < 200; ++i) {
+      Eigen::Vector3f d{uniform() - 0.5F, uniform() - 0.5F, uniform() - 0.5F};
+      if (d.norm() < 1e-3F) continue;
+      const float r = 0.5F + 10.0F * uniform();
+      Eigen::Vector3f p = d.normalized() * r;
+      if (i % 3 == 0) p = (p / 0.25F).array().round().matrix() * 0.25F;  // on a 25 cm grid: shared voxels
+      cloud.push_back(p);
+    }
+  }
+  const std::vector<Pose3> poses{Pose3::from_xyz_rpy(0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                                 Pose3::from_xyz_rpy(1.0, 0.5, -0.3, 0.1, 0.2, 0.3)};
+  const BatchCases cases = count_cases(params, clouds, poses);
+  EXPECT_GT(cases.hit_also_free, 0U);
+  EXPECT_GT(cases.shared_free, 0U);
+  EXPECT_GT(cases.max_range_rays, 0U);
+  expect_same_map_over_batches(params, clouds, poses, 4);
 }
 
 TEST(OctoMapInsertTest, BtRoundTripPreservesEveryLeaf) {
