@@ -19,8 +19,15 @@ enum class PtemConstruction {
   // Seed §4.2.2 (the prior method): every cluster is kept and later points may grow it, so a moving obstacle leaves a
   // growing restricted region behind.
   kCumulative,
-  // Seed §4.2.3 (the thesis' method): clusters are rebuilt from each scan; an older cluster is kept only while its
-  // circle lies wholly outside the area the scan covers (see PtemModel::insert_scan).
+  // Seed §4.2.3–4.2.5 (the thesis' method): clusters are rebuilt from each scan, and "all the previous information of
+  // obstacle is retained only if they fall outside the LRF limits" (§4.2.5): when an obstacle is no longer in the
+  // scanning range, its last seen cluster is kept (Fig 4.4). Read here as: an older cluster is kept, unchanged,
+  // unless (a) its circle lies wholly inside the scanned sector, so the scan would have seen the obstacle had it
+  // still been there (a moving obstacle leaves no trail, §4.2.4), or (b) a cluster of the current scan overlaps its
+  // circle, i.e. the scan re-observed it and the new cluster supersedes it. A cluster only partly outside the sector
+  // is therefore kept, as it must be for an obstacle the robot drives past, which leaves the field of view sideways
+  // and is last seen by the edge beams; (b) is needed because the scan re-clusters the part still inside, and
+  // keeping the old copy too would pile up copies along the sector's edges. See PtemModel::insert_scan.
   kSingleScan,
 };
 
@@ -159,10 +166,11 @@ class PtemModel {
   // Clusters the scan's points in order (§4.2.1): a point whose distance to the nearest cluster boundary,
   // |p − c| − radius, exceeds C_r starts a new cluster of the initial radius centred on it; otherwise that nearest
   // cluster becomes enclose_circle_and_point(cluster, p). Cumulative: all existing clusters take part and persist.
-  // Single-scan: the scan's points are clustered from scratch, and an older cluster is kept, unchanged, only when its
-  // circle lies wholly outside the scanned sector (apex p_WS, half-angle field_of_view_rad / 2 about yaw_WS, radius
-  // max_range_m): its distance from the sector exceeds its radius. A cluster the sector covers, even in part, is
-  // dropped unless the scan's points make it again. Then σ is solved for every new or grown cluster. Throws
+  // Single-scan: the scan's points are clustered from scratch, and an older cluster is kept, unchanged, unless its
+  // circle lies wholly inside the scanned sector (apex p_WS, half-angle field_of_view_rad / 2 about yaw_WS, radius
+  // max_range_m; the circle's centre lies at least its radius inside the sector's boundary), or the circle of one of
+  // the scan's new clusters intersects it (closed discs; touching counts), which then replaces it. Kept clusters come
+  // first, in their old order, then the new ones. Then σ is solved for every new or grown cluster. Throws
   // std::invalid_argument naming the bad field (points by index), changing nothing.
   void insert_scan(const PtemScan& scan);
 
