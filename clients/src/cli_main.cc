@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "occgeo/client/connection.h"
@@ -47,6 +48,13 @@ commands:
                                              send a .pcd point cloud taken by a sensor at that pose
                                              (world frame) into the world's maps, as driver robot ID
                                              (default occgeo-cli-cloud, left registered and offline)
+  lease acquire|retain|return|take --robot ID [--timeout S] [--token T]
+                                             one lease request as a controller (take needs the operator token)
+  drive --robot ID bearcat|stop|teleop [--v V --w W] [--hold S] [--timeout S] [--token T]
+                                             acquire the robot's lease, set its behaviour (teleop: V m/s,
+                                             W rad/s), keep the lease S seconds (default 0) with retains, return it
+  estop --robot ID [--release] [--token T]   engage the robot's e-stop (as an observer); --release frees it
+                                             (as a controller: acquires the lease, releases, returns it)
   replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
                                              stream a recorded laser log as a driver (occgeo replay --help)
 common options:
@@ -202,7 +210,17 @@ int run_status(const Options& options) {
           << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
           << ",\"theta\":" << fmt(r.pose().theta()) << "},\"scans_ingested\":" << r.scans_ingested()
           << ",\"scans_rejected\":" << r.scans_rejected() << ",\"behaviour\":" << json_string(r.behaviour())
-          << ",\"behaviour_state\":" << json_string(r.behaviour_state()) << "}";
+          << ",\"behaviour_state\":" << json_string(r.behaviour_state())
+          << ",\"estop\":" << (r.estop() ? "true" : "false")
+          << ",\"sensor_stale\":" << (r.sensor_stale() ? "true" : "false") << ",\"lease_holder\":";
+      if (r.has_lease_holder()) {
+        out << "{\"session_id\":" << r.lease_holder().session_id()
+            << ",\"client_name\":" << json_string(r.lease_holder().client_name())
+            << ",\"expires_in_s\":" << fmt(r.lease_expires_in_s()) << "}";
+      } else {
+        out << "null";
+      }
+      out << "}";
     }
     out << "],\"worlds\":[";
     for (int i = 0; i < status.worlds_size(); ++i) {
@@ -223,7 +241,13 @@ int run_status(const Options& options) {
     std::cout << "  " << r.id() << " (" << r.model() << ") world " << r.world() << ", "
               << (r.connected() ? "connected" : "offline") << ", pose (" << fmt(r.pose().x()) << ", "
               << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << "), scans " << r.scans_ingested() << " ("
-              << r.scans_rejected() << " rejected), " << r.behaviour() << ": " << r.behaviour_state() << "\n";
+              << r.scans_rejected() << " rejected), " << r.behaviour() << ": " << r.behaviour_state()
+              << (r.estop() ? ", E-STOP" : "") << (r.sensor_stale() ? ", sensors stale" : "");
+    if (r.has_lease_holder()) {
+      std::cout << ", lease: session " << r.lease_holder().session_id() << " (" << r.lease_holder().client_name()
+                << ")";
+    }
+    std::cout << "\n";
   }
   std::cout << "worlds:\n";
   for (const auto& w : status.worlds()) {
@@ -650,6 +674,172 @@ int run_cloud_insert(const std::string& file, const Options& options) {
   return 0;
 }
 
+Connection connect_role(const Options& options, v1::Role role) {
+  Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
+  v1::Hello hello;
+  hello.set_protocol_version(1);
+  hello.set_role(role);
+  hello.set_client_name("occgeo-cli");
+  hello.set_auth_token(options.text("token"));
+  connection.hello(hello);
+  return connection;
+}
+
+v1::LeaseReply lease_call(Connection& connection, const std::string& robot, v1::LeaseRequest::Action action,
+                          double timeout_s, std::uint64_t request_id) {
+  v1::ClientMessage request;
+  auto* lease = request.mutable_lease();
+  lease->set_request_id(request_id);
+  lease->set_robot_id(robot);
+  lease->set_action(action);
+  lease->set_timeout_s(timeout_s);
+  return connection.call(request, request_id).lease();
+}
+
+std::string holder_text(const v1::LeaseReply& reply) {
+  if (!reply.has_holder()) return "nobody";
+  return "session " + std::to_string(reply.holder().session_id()) + " (" + reply.holder().client_name() + ")";
+}
+
+std::string lease_json(const v1::LeaseReply& reply) {
+  std::string out =
+      "{\"robot\":" + json_string(reply.robot_id()) + ",\"granted\":" + (reply.granted() ? "true" : "false");
+  if (reply.has_holder()) {
+    out += ",\"holder\":{\"session_id\":" + std::to_string(reply.holder().session_id()) +
+           ",\"client_name\":" + json_string(reply.holder().client_name()) + "}";
+  } else {
+    out += ",\"holder\":null";
+  }
+  return out + ",\"expires_in_s\":" + fmt(reply.expires_in_s()) + "}";
+}
+
+// Refusals (lease held by another session) print the holder and exit 1.
+void require_granted(const v1::LeaseReply& reply, const std::string& what) {
+  if (!reply.granted()) {
+    throw ClientError(what + " of robot '" + reply.robot_id() + "' refused: the lease is held by " +
+                      holder_text(reply));
+  }
+}
+
+int run_lease(const std::string& verb, const Options& options) {
+  v1::LeaseRequest::Action action = v1::LeaseRequest::ACTION_UNSPECIFIED;
+  if (verb == "acquire") action = v1::LeaseRequest::ACQUIRE;
+  if (verb == "retain") action = v1::LeaseRequest::RETAIN;
+  if (verb == "return") action = v1::LeaseRequest::RETURN;
+  if (verb == "take") action = v1::LeaseRequest::TAKE;
+  if (action == v1::LeaseRequest::ACTION_UNSPECIFIED) {
+    throw UsageError("lease takes acquire, retain, return or take, not '" + verb + "'");
+  }
+  const std::string robot = options.required("robot");
+  const double timeout_s = options.number("timeout", 0.0);
+  Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
+  const v1::LeaseReply reply = lease_call(connection, robot, action, timeout_s, 1);
+  if (options.json) {
+    std::cout << lease_json(reply) << "\n";
+  } else if (reply.granted()) {
+    std::cout << verb << " granted: robot " << robot << " held by " << holder_text(reply) << " for "
+              << fmt(reply.expires_in_s()) << " s\n";
+  } else {
+    std::cout << verb << " refused: robot " << robot << " held by " << holder_text(reply) << "\n";
+  }
+  // A lease belongs to its session: this one ends now, so a granted acquire or take lasts only until the server
+  // sees the connection close (the robot is then stopped). Use `occgeo drive` to hold a lease.
+  connection.close();
+  return reply.granted() ? 0 : 1;
+}
+
+int run_drive(const std::vector<std::string>& args) {
+  // occgeo drive --robot ID BEHAVIOUR [options]: the behaviour is the one bare word.
+  std::vector<std::string> rest;
+  std::string behaviour;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    if (args[i].rfind("--", 0) != 0 && (i == 1 || args[i - 1].rfind("--", 0) != 0 || args[i - 1] == "--json")) {
+      if (!behaviour.empty())
+        throw UsageError("drive takes one behaviour, got '" + behaviour + "' and '" + args[i] + "'");
+      behaviour = args[i];
+      continue;
+    }
+    rest.push_back(args[i]);
+  }
+  if (behaviour != "bearcat" && behaviour != "stop" && behaviour != "teleop") {
+    throw UsageError("drive needs a behaviour: bearcat, stop or teleop");
+  }
+  const Options options = parse_options(rest, 0, {"robot", "v", "w", "hold", "timeout", "token"});
+  const std::string robot = options.required("robot");
+  const double v = options.number("v", 0.0);
+  const double w = options.number("w", 0.0);
+  if (behaviour != "teleop" && (options.values.contains("v") || options.values.contains("w"))) {
+    throw UsageError("options --v and --w need the teleop behaviour");
+  }
+  const double hold_s = options.number("hold", 0.0);
+  if (hold_s < 0.0 || hold_s > 86400.0) throw UsageError("option --hold takes 0 to 86400 seconds");
+  const double timeout_s = options.number("timeout", 0.0);
+
+  Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
+  std::uint64_t id = 0;
+  const v1::LeaseReply acquired = lease_call(connection, robot, v1::LeaseRequest::ACQUIRE, timeout_s, ++id);
+  require_granted(acquired, "acquire");
+  v1::ClientMessage request;
+  auto* drive = request.mutable_drive();
+  drive->set_request_id(++id);
+  drive->set_robot_id(robot);
+  drive->set_behaviour(behaviour);
+  drive->set_linear_mps(v);
+  drive->set_angular_radps(w);
+  const v1::DriveReply reply = connection.call(request, id).drive();
+  // Retain at a third of the lease's timeout so one late retain never lets it lapse.
+  const double period_s = std::clamp(acquired.expires_in_s() / 3.0, 0.05, 1.0);
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(hold_s);
+  std::uint64_t retains = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    const auto left = std::chrono::duration<double>(end - std::chrono::steady_clock::now()).count();
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(period_s, std::max(0.0, left))));
+    if (std::chrono::steady_clock::now() >= end) break;
+    require_granted(lease_call(connection, robot, v1::LeaseRequest::RETAIN, timeout_s, ++id), "retain");
+    ++retains;
+  }
+  const v1::LeaseReply returned = lease_call(connection, robot, v1::LeaseRequest::RETURN, 0.0, ++id);
+  connection.close();
+  if (options.json) {
+    std::cout << "{\"robot\":" << json_string(robot) << ",\"behaviour\":" << json_string(reply.behaviour())
+              << ",\"linear_mps\":" << fmt(reply.linear_mps()) << ",\"angular_radps\":" << fmt(reply.angular_radps())
+              << ",\"estop\":" << (reply.estop() ? "true" : "false") << ",\"held_s\":" << fmt(hold_s)
+              << ",\"retains\":" << retains << ",\"returned\":" << (returned.granted() ? "true" : "false") << "}\n";
+  } else {
+    std::cout << "robot " << robot << ": " << reply.behaviour();
+    if (reply.behaviour() == "teleop") {
+      std::cout << " at " << fmt(reply.linear_mps()) << " m/s, " << fmt(reply.angular_radps()) << " rad/s";
+    }
+    std::cout << (reply.estop() ? " (e-stop engaged: the robot stays stopped)" : "") << ", held " << fmt(hold_s)
+              << " s, lease " << (returned.granted() ? "returned" : "lost") << "\n";
+  }
+  return returned.granted() ? 0 : 1;
+}
+
+int run_estop(const Options& options) {
+  const std::string robot = options.required("robot");
+  const bool release = options.switches.contains("release");
+  // Engaging needs no lease (any observer may); releasing is for the lease holder only.
+  Connection connection = connect_role(options, release ? v1::ROLE_CONTROLLER : v1::ROLE_OBSERVER);
+  std::uint64_t id = 0;
+  if (release) require_granted(lease_call(connection, robot, v1::LeaseRequest::ACQUIRE, 0.0, ++id), "acquire");
+  v1::ClientMessage request;
+  auto* estop = request.mutable_estop();
+  estop->set_request_id(++id);
+  estop->set_robot_id(robot);
+  estop->set_engage(!release);
+  const v1::EStopReply reply = connection.call(request, id).estop();
+  if (release) lease_call(connection, robot, v1::LeaseRequest::RETURN, 0.0, ++id);
+  connection.close();
+  if (options.json) {
+    std::cout << "{\"robot\":" << json_string(robot) << ",\"engaged\":" << (reply.engaged() ? "true" : "false")
+              << "}\n";
+  } else {
+    std::cout << "robot " << robot << ": e-stop " << (reply.engaged() ? "engaged" : "released") << "\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -667,6 +857,12 @@ int main(int argc, char** argv) {
       return occgeo::replay::run_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}));
+    if (args[0] == "lease") {
+      if (args.size() < 2) throw UsageError("lease needs acquire, retain, return or take");
+      return run_lease(args[1], parse_options(args, 2, {"robot", "timeout", "token"}));
+    }
+    if (args[0] == "drive") return run_drive(args);
+    if (args[0] == "estop") return run_estop(parse_options(args, 1, {"robot", "token"}, {"release"}));
     if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {
       return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models"}));
     }

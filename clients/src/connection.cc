@@ -181,6 +181,12 @@ std::uint64_t reply_request_id(const v1::ServerMessage& message) {
       return message.ptem().request_id();
     case v1::ServerMessage::kOctree:
       return message.octree().request_id();
+    case v1::ServerMessage::kLease:
+      return message.lease().request_id();
+    case v1::ServerMessage::kDrive:
+      return message.drive().request_id();
+    case v1::ServerMessage::kEstop:
+      return message.estop().request_id();
     case v1::ServerMessage::kError:
       return message.error().request_id();
     default:

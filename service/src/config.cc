@@ -169,6 +169,13 @@ void ServerConfig::validate() const {
           "must not exceed limits.max_query_distance_m");
   require(control.command_expiry_s > 0 && control.command_expiry_s <= 10, "control.command_expiry_s",
           "must be in (0, 10] seconds");
+  require(control.lease_timeout_s > 0 && control.lease_timeout_s <= control.max_lease_timeout_s,
+          "control.lease_timeout_s", "must be in (0, control.max_lease_timeout_s] seconds");
+  require(control.max_lease_timeout_s > 0 && control.max_lease_timeout_s <= 3600, "control.max_lease_timeout_s",
+          "must be in (0, 3600] seconds");
+  require(control.sensor_timeout_s > 0 && control.sensor_timeout_s <= 60, "control.sensor_timeout_s",
+          "must be in (0, 60] seconds");
+  require(auth.operator_token.size() <= 1024, "auth.operator_token", "must be at most 1024 characters");
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
   try {
     himm.validate();
@@ -235,7 +242,14 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_ptem_query_points", config.limits.max_ptem_query_points)
                        .field("max_octree_reply_bytes", config.limits.max_octree_reply_bytes);
                  })
-        .section("control", [&](Section& s) { s.field("command_expiry_s", config.control.command_expiry_s); })
+        .section("control",
+                 [&](Section& s) {
+                   s.field("command_expiry_s", config.control.command_expiry_s)
+                       .field("lease_timeout_s", config.control.lease_timeout_s)
+                       .field("max_lease_timeout_s", config.control.max_lease_timeout_s)
+                       .field("sensor_timeout_s", config.control.sensor_timeout_s);
+                 })
+        .section("auth", [&](Section& s) { s.field("operator_token", config.auth.operator_token); })
         .section("queries",
                  [&](Section& s) { s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m); })
         .section("himm",

@@ -92,8 +92,13 @@ bool RobotModel::has_sensor(const std::string& name) const {
          find_point_cloud(name) != nullptr;
 }
 
-Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat)
-    : model_(std::move(model)), world_(std::move(world)), behaviour_(bearcat) {
+Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat,
+             std::shared_ptr<RobotControl> control)
+    : model_(std::move(model)),
+      world_(std::move(world)),
+      control_(control ? std::move(control) : std::make_shared<RobotControl>()),
+      watchdog_(world_->strand()),
+      behaviour_(bearcat) {
   if (model_->encoders) encoder_odometry_.emplace(*model_->encoders, model_->initial_pose);
 }
 
@@ -107,6 +112,9 @@ ServerCore::ServerCore(ServerConfig config) : config_(std::move(config)) {}
 ServerCore::~ServerCore() { drain(); }
 
 void ServerCore::drain() {
+  for (const auto& robot : robots()) {
+    asio::post(robot->world().strand(), [robot] { robot->stop_watchdog_on_strand(); });
+  }
   ingest_pool_.join();
   query_pool_.join();
 }
@@ -173,7 +181,10 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
     error = "the server already has its limit of " + std::to_string(config_.limits.max_robots) + " robots";
     return nullptr;
   }
-  auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat);
+  // A reconnecting driver's robot keeps its control (lease, behaviour, latched e-stop).
+  std::shared_ptr<RobotControl> control;
+  if (const auto it = robots_.find(model->id); it != robots_.end()) control = it->second->control_ptr();
+  auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat, std::move(control));
   robots_[model->id] = robot;
   return robot;
 }

@@ -168,6 +168,49 @@ struct RobotModel {
   [[nodiscard]] bool has_sensor(const std::string& name) const;
 };
 
+class SessionContext;
+
+// Which controller session holds a robot's lease, and until when.
+struct Lease {
+  std::uint64_t session_id = 0;
+  std::string client_name;
+  double timeout_s = 0.0;
+  std::chrono::steady_clock::time_point expires_at;
+};
+
+// Who drives a robot and how: the lease, the behaviour its holder set, the e-stop latch and the
+// watchdogs' view. One RobotControl is kept per robot id across driver reconnections (a new Robot
+// object takes over its predecessor's), so a lease and a latched e-stop survive a reconnecting
+// driver. Guarded by its own mutex; read and changed from the network thread (lease, drive, e-stop
+// requests) and the world's strand (commands, watchdogs).
+struct ControlState {
+  std::optional<Lease> lease;
+  std::string behaviour = "bearcat";  // "bearcat" | "stop" | "teleop"; bearcat while no controller set one
+  double teleop_linear_mps = 0.0;     // teleop: the holder's velocities, already clamped to the robot's limits
+  double teleop_angular_radps = 0.0;
+  bool estop = false;         // latched: every command is a stop until the lease holder releases it
+  bool sensor_stale = false;  // the sensor watchdog stopped the robot; cleared by the next sensor message
+  std::optional<std::chrono::steady_clock::time_point> last_sensor_at;  // of the connected driver
+  std::weak_ptr<SessionContext> driver;  // the connected driver's session, for unsolicited stop commands
+};
+
+class RobotControl {
+ public:
+  [[nodiscard]] ControlState state() const {
+    const std::lock_guard lock(mutex_);
+    return state_;
+  }
+  template <typename Update>
+  auto update(Update&& update) {
+    const std::lock_guard lock(mutex_);
+    return update(state_);
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  ControlState state_;
+};
+
 // What a robot is doing: updated by its world's strand, read by status queries.
 struct RobotState {
   bool connected = false;
@@ -188,9 +231,10 @@ struct RobotState {
   double last_angular_radps = 0.0;
 };
 
-class Robot {
+class Robot : public std::enable_shared_from_this<Robot> {
  public:
-  Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat);
+  Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat,
+        std::shared_ptr<RobotControl> control = nullptr);
 
   [[nodiscard]] const RobotModel& model() const { return *model_; }
   [[nodiscard]] std::shared_ptr<const RobotModel> model_ptr() const { return model_; }
@@ -209,9 +253,28 @@ class Robot {
     update(state_);
   }
 
+  // Lease, behaviour, e-stop; shared with the robot's earlier and later registrations.
+  [[nodiscard]] RobotControl& control() const { return *control_; }
+  [[nodiscard]] std::shared_ptr<RobotControl> control_ptr() const { return control_; }
+
+  // The watchdog timer (lease expiry, stale sensors) on the world's strand; see robot_control.h.
+  asio::steady_timer& watchdog_timer_on_strand() { return watchdog_; }
+  std::optional<std::chrono::steady_clock::time_point>& watchdog_deadline_on_strand() { return watchdog_deadline_; }
+  // Shutting down: the watchdog is cancelled and never armed again (so draining the pool does not wait for it).
+  void stop_watchdog_on_strand() {
+    watchdog_stopped_ = true;
+    watchdog_deadline_.reset();
+    watchdog_.cancel();
+  }
+  [[nodiscard]] bool watchdog_stopped_on_strand() const { return watchdog_stopped_; }
+
  private:
   std::shared_ptr<const RobotModel> model_;
   std::shared_ptr<World> world_;
+  std::shared_ptr<RobotControl> control_;
+  asio::steady_timer watchdog_;
+  std::optional<std::chrono::steady_clock::time_point> watchdog_deadline_;  // when the armed timer fires
+  bool watchdog_stopped_ = false;
   control::BearcatBehaviour behaviour_;
   std::optional<geometry::EncoderOdometry> encoder_odometry_;
   mutable std::mutex mutex_;
@@ -252,7 +315,7 @@ class ServerCore {
   std::atomic<std::uint64_t> next_session_id{1};
   [[nodiscard]] double uptime_s() const;
 
-  // Waits for queued ingest and query work to finish.
+  // Stops the robots' watchdog timers, then waits for queued ingest and query work to finish.
   void drain();
 
  private:

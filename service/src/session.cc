@@ -124,7 +124,7 @@ void Session::shutdown() {
   socket_.close(ignored);
   outbox_.clear();
   outbox_bytes_ = 0;
-  handle_disconnect(info_);
+  handle_disconnect(core_, info_);
   log::info("session_closed", {{"session", info_.id}, {"peer", info_.peer}});
 }
 

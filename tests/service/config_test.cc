@@ -56,6 +56,10 @@ TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
   EXPECT_EQ(loaded.limits.max_frame_bytes, defaults.limits.max_frame_bytes);
   EXPECT_EQ(loaded.limits.max_octree_reply_bytes, defaults.limits.max_octree_reply_bytes);
   EXPECT_EQ(loaded.control.command_expiry_s, defaults.control.command_expiry_s);
+  EXPECT_EQ(loaded.control.lease_timeout_s, defaults.control.lease_timeout_s);
+  EXPECT_EQ(loaded.control.max_lease_timeout_s, defaults.control.max_lease_timeout_s);
+  EXPECT_EQ(loaded.control.sensor_timeout_s, defaults.control.sensor_timeout_s);
+  EXPECT_EQ(loaded.auth.operator_token, defaults.auth.operator_token);
   EXPECT_EQ(loaded.himm.increment, defaults.himm.increment);
   EXPECT_EQ(loaded.himm.tile_cells, defaults.himm.tile_cells);
   EXPECT_DOUBLE_EQ(loaded.bearcat.speed_per_degree_mps, defaults.bearcat.speed_per_degree_mps);

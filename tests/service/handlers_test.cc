@@ -68,10 +68,11 @@ TEST_F(Handlers, HelloChecksVersionRoleAndRobotName) {
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().field(), "hello.robot_id");
 
-  handle_hello(session, hello(v1::ROLE_CONTROLLER));
+  handle_hello(session, hello(v1::ROLE_UNSPECIFIED));
   reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
-  EXPECT_EQ(reply->error().code(), v1::ERROR_NOT_ALLOWED);
+  EXPECT_EQ(reply->error().code(), v1::ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(reply->error().field(), "hello.role");
 
   handle_hello(session, hello(v1::ROLE_QUERY));
   reply = session->next();

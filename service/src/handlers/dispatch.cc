@@ -1,5 +1,6 @@
 #include "handlers.h"
 #include "occgeo/service/log.h"
+#include "robot_control.h"
 
 namespace occgeo::service {
 
@@ -38,6 +39,16 @@ bool require_driver_with_spec(const SessionPtr& session, const char* field) {
     return false;
   }
   return true;
+}
+
+// Leases and behaviours are for controllers only: observers, queries and drivers never drive.
+bool require_controller(const SessionPtr& session, const char* field) {
+  const v1::Role role = session->info().role;
+  if (role == v1::ROLE_CONTROLLER) return true;
+  session->send_error(
+      v1::ERROR_NOT_ALLOWED, field,
+      std::string("only ROLE_CONTROLLER sessions may send ") + field + "; this session is " + v1::Role_Name(role));
+  return false;
 }
 }  // namespace
 
@@ -107,12 +118,28 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
     case v1::ClientMessage::kOctree:
       handle_octree_request(session, message.octree());
       return;
+    case v1::ClientMessage::kLease:
+      if (require_controller(session, "lease")) handle_lease_request(session, message.lease());
+      return;
+    case v1::ClientMessage::kDrive:
+      if (require_controller(session, "drive")) handle_drive_request(session, message.drive());
+      return;
+    case v1::ClientMessage::kEstop:
+      if (session->info().role == v1::ROLE_QUERY) {
+        session->send_error(v1::ERROR_NOT_ALLOWED, "estop",
+                            "query sessions may not send estop; connect as a driver, controller or observer",
+                            message.estop().request_id());
+        return;
+      }
+      handle_estop(session, message.estop());
+      return;
     default:
       session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");
   }
 }
 
-void handle_disconnect(SessionInfo& info) {
+void handle_disconnect(ServerCore& core, SessionInfo& info) {
+  release_session_control(core, info);
   if (info.robot) {
     info.robot->update_state([](RobotState& state) { state.connected = false; });
     log::info("robot_disconnected", {{"robot", info.robot_id}, {"session", info.id}});

@@ -15,6 +15,8 @@ struct SessionInfo {
   std::string peer;
   bool greeted = false;
   v1::Role role = v1::ROLE_UNSPECIFIED;
+  std::string client_name;       // from the hello
+  bool is_operator = false;      // the hello carried auth.operator_token (may TAKE leases)
   std::string robot_id;          // drivers
   std::string world;             // drivers
   std::shared_ptr<Robot> robot;  // drivers, once the RobotSpec is accepted
@@ -59,8 +61,12 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
 void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
 void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query);
 void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& request);
+void handle_lease_request(const SessionPtr& session, const v1::LeaseRequest& request);
+void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& request);
+void handle_estop(const SessionPtr& session, const v1::EStop& request);
 
-// Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline).
-void handle_disconnect(SessionInfo& info);
+// Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline, a
+// controller's leases freed and their robots stopped).
+void handle_disconnect(ServerCore& core, SessionInfo& info);
 
 }  // namespace occgeo::service

@@ -1,6 +1,7 @@
 #include "../validation.h"
 #include "handlers.h"
 #include "occgeo/service/log.h"
+#include "robot_control.h"
 
 namespace occgeo::service {
 
@@ -44,18 +45,19 @@ void handle_hello(const SessionPtr& session, const v1::Hello& hello) {
       break;
     }
     case v1::ROLE_QUERY:
-      break;
     case v1::ROLE_CONTROLLER:
     case v1::ROLE_OBSERVER:
-      session->send_error(v1::ERROR_NOT_ALLOWED, "hello.role",
-                          std::string(v1::Role_Name(hello.role())) + " sessions are not served by this server version");
-      return;
+      break;
     default:
-      session->send_error(v1::ERROR_INVALID_ARGUMENT, "hello.role", "must be ROLE_DRIVER or ROLE_QUERY");
+      session->send_error(v1::ERROR_INVALID_ARGUMENT, "hello.role",
+                          "must be ROLE_DRIVER, ROLE_CONTROLLER, ROLE_OBSERVER or ROLE_QUERY");
       return;
   }
   info.greeted = true;
   info.role = hello.role();
+  info.client_name = hello.client_name().substr(0, 128);
+  const std::string& operator_token = session->core().config().auth.operator_token;
+  info.is_operator = !operator_token.empty() && constant_time_equal(hello.auth_token(), operator_token);
   v1::ServerMessage reply;
   auto* welcome = reply.mutable_welcome();
   welcome->set_protocol_version(kProtocolVersion);
@@ -65,7 +67,8 @@ void handle_hello(const SessionPtr& session, const v1::Hello& hello) {
   log::info("session_hello", {{"session", info.id},
                               {"role", v1::Role_Name(hello.role())},
                               {"robot", info.robot_id},
-                              {"client", hello.client_name()}});
+                              {"client", info.client_name},
+                              {"operator", info.is_operator}});
 }
 
 }  // namespace occgeo::service

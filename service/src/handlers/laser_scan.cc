@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "occgeo/service/log.h"
+#include "robot_control.h"
 #include "sensor_ingest.h"
 
 namespace occgeo::service {
@@ -142,17 +143,39 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   // The behaviour steers from the robot's first laser; other lasers and the other sensor kinds
   // only update the map, so a robot without a laser gets no motion commands.
   if (&laser != &model.lasers.front()) return;
-  const control::ScanView view{
-      laser.angle_min_rad, laser.angle_increment_rad,
-      std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
-  const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
-  v1::MotionCommand command = command_from_decision(decision, model, expiry_s);
+  // What answers the scan is the behaviour the lease holder set (bearcat while nobody set one),
+  // overridden by a latched e-stop.
+  const ControlState control = robot->control().state();
+  v1::MotionCommand command;
+  if (control.estop || control.behaviour == "stop") {
+    command.set_expires_after_s(expiry_s);
+    command.set_behaviour(control.behaviour);
+    command.set_state(control.estop ? "estop" : "stop");
+    command.set_stop(true);
+  } else if (control.behaviour == "teleop") {
+    const ClampedVelocity velocity = clamp_velocity(model, control.teleop_linear_mps, control.teleop_angular_radps);
+    command.set_left_wheel_mps(velocity.wheels.left_mps);
+    command.set_right_wheel_mps(velocity.wheels.right_mps);
+    command.set_linear_mps(velocity.body.linear_mps);
+    command.set_angular_radps(velocity.body.angular_radps);
+    command.set_expires_after_s(expiry_s);
+    command.set_behaviour("teleop");
+    command.set_state("teleop");
+    command.set_stop(velocity.wheels.left_mps == 0.0 && velocity.wheels.right_mps == 0.0);
+  } else {
+    const control::ScanView view{
+        laser.angle_min_rad, laser.angle_increment_rad,
+        std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
+    const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
+    command = command_from_decision(decision, model, expiry_s);
+  }
   command.set_answers_scan_seq(scan.seq());
 
   std::string previous_state;
   robot->update_state([&](RobotState& state) {
     command.set_seq(++state.commands_sent);
     previous_state = state.behaviour_state;
+    state.behaviour = command.behaviour();
     state.behaviour_state = command.state();
     state.last_linear_mps = command.linear_mps();
     state.last_angular_radps = command.angular_radps();

@@ -211,8 +211,17 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     }
     out->set_scans_ingested(state.scans_ingested);
     out->set_scans_rejected(state.scans_rejected);
-    out->set_behaviour(state.behaviour);
+    const ControlState control = robot->control().state();
+    out->set_behaviour(control.behaviour);
     out->set_behaviour_state(state.behaviour_state);
+    out->set_estop(control.estop);
+    if (control.lease) {
+      out->mutable_lease_holder()->set_session_id(control.lease->session_id);
+      out->mutable_lease_holder()->set_client_name(control.lease->client_name);
+      out->set_lease_expires_in_s(std::max(
+          0.0, std::chrono::duration<double>(control.lease->expires_at - std::chrono::steady_clock::now()).count()));
+    }
+    out->set_sensor_stale(control.sensor_stale);
     out->set_last_linear_mps(state.last_linear_mps);
     out->set_last_angular_radps(state.last_angular_radps);
   }

@@ -1,6 +1,7 @@
 #include "../validation.h"
 #include "handlers.h"
 #include "occgeo/service/log.h"
+#include "robot_control.h"
 
 namespace occgeo::service {
 
@@ -23,6 +24,11 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
     return;
   }
   robot->update_state([](RobotState& state) { state.connected = true; });
+  robot->control().update([&](ControlState& c) {
+    c.driver = session;
+    c.last_sensor_at.reset();
+    c.sensor_stale = false;
+  });
   info.robot = std::move(robot);
   log::info(
       "robot_registered",

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "robot_control.h"
+
 namespace occgeo::service {
 
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq) {
@@ -48,6 +50,7 @@ bool ingest_sensor_message_on_strand(
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
+  note_sensor_message_on_strand(robot, session->core().config().control);
 
   v1::ServerMessage ack;
   ack.mutable_scan_ack()->set_seq(header.seq);

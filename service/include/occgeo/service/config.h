@@ -41,7 +41,16 @@ struct LimitsConfig {
 
 // Server-side control of the robots.
 struct ControlConfig {
-  double command_expiry_s = 0.6;  // every motion command tells the driver to stop after this long without a new one
+  double command_expiry_s = 0.6;      // every motion command tells the driver to stop after this long without a new one
+  double lease_timeout_s = 2.0;       // a control lease not retained for this long lapses (LeaseRequest.timeout_s 0)
+  double max_lease_timeout_s = 30.0;  // the longest LeaseRequest.timeout_s a controller may ask for
+  double sensor_timeout_s = 0.5;      // a driven robot with no sensor message for this long is sent a stop
+};
+
+// Who may do what beyond their role.
+struct AuthConfig {
+  // Hello.auth_token that lets a session TAKE a lease forcibly; empty (the default) disables TAKE.
+  std::string operator_token;
 };
 
 // Geometry query defaults.
@@ -95,6 +104,7 @@ struct ServerConfig {
   std::string default_world = "default";
   LimitsConfig limits;
   ControlConfig control;
+  AuthConfig auth;
   QueryConfig queries;
   mapping::HimmParams himm;
   control::BearcatParams bearcat;

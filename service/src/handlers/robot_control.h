@@ -1,0 +1,61 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "handlers.h"
+
+namespace occgeo::service {
+
+// The server side of driving a robot safely: leases, behaviours set by the lease holder, the
+// e-stop latch and the watchdogs (lease expiry, stale sensors). See docs/PROTOCOL.md "Control".
+
+// The behaviours a lease holder may set.
+[[nodiscard]] bool known_behaviour(const std::string& name);
+
+// A stop command for the robot (wheel speeds 0, stop set), answering no scan (answers_scan_seq 0)
+// unless `answers_scan_seq` is given; counts it in the robot's state.
+v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const std::string& state, double expiry_s,
+                               std::uint64_t answers_scan_seq = 0);
+
+// Sends an unsolicited stop command to the robot's connected driver, if any; thread-safe.
+void send_stop_to_driver(Robot& robot, const std::string& state, double expiry_s);
+
+// The lease as the protocol shows it: holder and seconds left.
+void fill_holder(const std::optional<Lease>& lease, v1::LeaseHolder& holder);
+[[nodiscard]] double seconds_left(const std::optional<Lease>& lease, std::chrono::steady_clock::time_point now);
+[[nodiscard]] std::string describe_holder(const std::optional<Lease>& lease);
+
+// Brings the robot's watchdog timer in step with its control state: armed for the earliest of
+// the lease's expiry and (for a connected driver of a robot with a laser) the sensor deadline,
+// cancelled when there is neither. Each firing does O(1) work and re-arms only for a later
+// deadline. Posts to the world's strand; thread-safe.
+void refresh_watchdog(const std::shared_ptr<Robot>& robot, const ControlConfig& config);
+
+// Records a sensor message of the connected driver (clears sensor_stale) and arms the sensor
+// watchdog if needed; call only from the world's strand.
+void note_sensor_message_on_strand(Robot& robot, const ControlConfig& config);
+
+// The body velocity (linear m/s, angular rad/s) as wheel (or track rim) speeds within the robot's
+// maximum, keeping their ratio, and the body velocity those clamped speeds produce.
+struct ClampedVelocity {
+  geometry::WheelSpeeds wheels;
+  geometry::BodyVelocity body;
+};
+[[nodiscard]] ClampedVelocity clamp_velocity(const RobotModel& model, double linear_mps, double angular_radps);
+
+// A session ends: a driver's robot has no driver any more; every lease a controller held is freed
+// and its robot stopped (behaviour "stop", a stop command to its driver) at once.
+void release_session_control(ServerCore& core, const SessionInfo& info);
+
+// The robot a lease, drive or e-stop request names (`<message>.robot_id`); nullptr after sending
+// ERROR_INVALID_ARGUMENT or ERROR_UNKNOWN_ROBOT naming the field.
+std::shared_ptr<Robot> find_named_robot(const SessionPtr& session, const std::string& robot_id,
+                                        const std::string& message, std::uint64_t request_id);
+
+// Compares two strings in time independent of where they differ (operator token).
+[[nodiscard]] bool constant_time_equal(const std::string& a, const std::string& b);
+
+}  // namespace occgeo::service
