@@ -104,6 +104,16 @@ void read_construction(Section& s, const std::string& key, std::optional<mapping
   require(target.has_value(), path, "must be cumulative or single_scan, got '" + *name + "'");
 }
 
+// Runs a parameter block's own validate(), reporting its std::invalid_argument as a ConfigError naming `key`.
+template <typename Params>
+void validate_block(const Params& params, const std::string& key) {
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError("configuration '" + key + "': " + e.what());
+  }
+}
+
 }  // namespace
 
 std::string ptem_construction_name(mapping::PtemConstruction construction) {
@@ -177,38 +187,14 @@ void ServerConfig::validate() const {
           "must be in (0, 60] seconds");
   require(auth.operator_token.size() <= 1024, "auth.operator_token", "must be at most 1024 characters");
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
-  try {
-    himm.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("configuration 'himm': ") + e.what());
-  }
-  try {
-    bearcat.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("configuration 'bearcat': ") + e.what());
-  }
-  try {
-    ptem.params.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("configuration 'ptem': ") + e.what());
-  }
+  validate_block(himm, "himm");
+  validate_block(bearcat, "bearcat");
+  validate_block(ptem.params, "ptem");
   require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
-  try {
-    octomap.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("configuration 'octomap': ") + e.what());
-  }
-  try {
-    distance_field.validate();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("configuration 'distance_field': ") + e.what());
-  }
+  validate_block(octomap, "octomap");
+  validate_block(distance_field, "distance_field");
   for (const auto& [name, override_params] : ptem.worlds) {
-    try {
-      ptem.params_for(name).validate();
-    } catch (const std::invalid_argument& e) {
-      throw ConfigError("configuration 'ptem.worlds." + name + "': " + e.what());
-    }
+    validate_block(ptem.params_for(name), "ptem.worlds." + name);
   }
 }
 

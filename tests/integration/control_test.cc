@@ -41,6 +41,17 @@ v1::LeaseReply lease(client::Connection& c, v1::LeaseRequest::Action action, std
   return c.call(m, id).lease();
 }
 
+// Asks for teleop driving of r1 as request 2, answered by a Drive reply.
+v1::ClientMessage teleop_drive(double linear_mps, double angular_radps = 0.0) {
+  v1::ClientMessage drive;
+  drive.mutable_drive()->set_request_id(2);
+  drive.mutable_drive()->set_robot_id("r1");
+  drive.mutable_drive()->set_behaviour("teleop");
+  drive.mutable_drive()->set_linear_mps(linear_mps);
+  drive.mutable_drive()->set_angular_radps(angular_radps);
+  return drive;
+}
+
 // A driver that sends odometry and a Bearcat laser scan (open space, every beam at 6 m) per step.
 class SteppingDriver {
  public:
@@ -104,12 +115,7 @@ TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheRobotWithinHalfASecond) {
   {
     auto controller = open_role(server_->address(), v1::ROLE_CONTROLLER, "test-controller");
     ASSERT_TRUE(lease(controller, v1::LeaseRequest::ACQUIRE, 1, 10.0).granted());
-    v1::ClientMessage drive;
-    drive.mutable_drive()->set_request_id(2);
-    drive.mutable_drive()->set_robot_id("r1");
-    drive.mutable_drive()->set_behaviour("teleop");
-    drive.mutable_drive()->set_linear_mps(0.3);
-    ASSERT_TRUE(controller.call(drive, 2).has_drive());
+    ASSERT_TRUE(controller.call(teleop_drive(0.3), 2).has_drive());
     const v1::MotionCommand moving = driver.step();
     EXPECT_EQ(moving.behaviour(), "teleop");
     EXPECT_FALSE(moving.stop());
@@ -164,13 +170,7 @@ TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheLockstepSimulator) {
   {
     auto controller = open_role(server_->address(), v1::ROLE_CONTROLLER, "test-controller");
     ASSERT_TRUE(lease(controller, v1::LeaseRequest::ACQUIRE, 1, 10.0).granted());
-    v1::ClientMessage drive;
-    drive.mutable_drive()->set_request_id(2);
-    drive.mutable_drive()->set_robot_id("r1");
-    drive.mutable_drive()->set_behaviour("teleop");
-    drive.mutable_drive()->set_linear_mps(0.3);
-    drive.mutable_drive()->set_angular_radps(0.2);
-    ASSERT_TRUE(controller.call(drive, 2).has_drive());
+    ASSERT_TRUE(controller.call(teleop_drive(0.3, 0.2), 2).has_drive());
     teleop_from = robot_status()->scans_ingested();
     ASSERT_TRUE(wait_for([&](const v1::RobotStatus& r) { return r.scans_ingested() > teleop_from + 20; }));
     controller.close();

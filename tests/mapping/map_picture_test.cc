@@ -30,6 +30,17 @@ CertaintyWindow window() {
   return w;
 }
 
+// 4 m x 4 m of free 0.1 m cells from (0, 0): 40 x 40 cells.
+CertaintyWindow free_square() {
+  CertaintyWindow w = window();
+  w.min_ix = 0;
+  w.min_iy = 0;
+  w.width = 40;
+  w.height = 40;
+  w.cells.assign(1600, 0);
+  return w;
+}
+
 void set_cell(CertaintyWindow& w, std::uint32_t ix, std::uint32_t iy, std::uint8_t value) {
   w.cells[static_cast<std::size_t>(iy) * w.width + ix] = value;
 }
@@ -102,12 +113,7 @@ TEST(MapPicture, RejectsInconsistentWindows) {
 
 TEST(MapPicture, CircleOutlineLiesAtItsRadiusAndTheRestrictedDiscIsTinted) {
   // 4 m x 4 m of 0.1 m cells from (0, 0) at scale 2: 0.05 m pixels, 80 x 80.
-  CertaintyWindow w = window();
-  w.min_ix = 0;
-  w.min_iy = 0;
-  w.width = 40;
-  w.height = 40;
-  w.cells.assign(1600, 0);
+  const CertaintyWindow w = free_square();
   MapPicture picture = render_certainty(w, 2);
   PictureOverlays overlays;
   // Centre (2, 2) is the corner between pixels (39, 39)-(40, 40); radius 1 m = 20 pixels, restricted 0.5 m.
@@ -131,12 +137,7 @@ TEST(MapPicture, CircleOutlineLiesAtItsRadiusAndTheRestrictedDiscIsTinted) {
 }
 
 TEST(MapPicture, TrajectoryPixelsLieOnTheLineAndMarkersPointAlongTheirHeading) {
-  CertaintyWindow w = window();
-  w.min_ix = 0;
-  w.min_iy = 0;
-  w.width = 40;
-  w.height = 40;
-  w.cells.assign(1600, 0);
+  const CertaintyWindow w = free_square();
   MapPicture picture = render_certainty(w, 1);
   PictureOverlays overlays;
   // Diagonal from (0.55, 0.55) to (3.05, 3.05) then along y = 3.05 to x = 3.95; pixel (col, 39 - col) holds (col, col).

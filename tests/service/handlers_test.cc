@@ -6,31 +6,22 @@
 #include "fake_session.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
+#include "test_robots.h"
 
 namespace occgeo::service {
 namespace {
 
-v1::Hello hello(v1::Role role, const std::string& robot_id = {}) {
-  v1::Hello message;
-  message.set_protocol_version(1);
-  message.set_role(role);
-  message.set_robot_id(robot_id);
-  return message;
-}
-
 // The Bearcat as the simulator describes it: 1.0 x 0.8 m box, LMS200 0.45 m ahead of base_link.
 v1::RobotSpec bearcat_spec() { return sim::make_robot_spec(*sim::find_robot_preset("bearcat")); }
+
+using testing::odometry;
 
 class Handlers : public ::testing::Test {
  protected:
   Handlers() : core_(ServerConfig{}) {}
 
   std::shared_ptr<FakeSession> driver(const std::string& robot_id) {
-    auto session = std::make_shared<FakeSession>(core_);
-    handle_hello(session, hello(v1::ROLE_DRIVER, robot_id));
-    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
-    handle_robot_spec(session, bearcat_spec());
-    return session;
+    return testing::driver_session(core_, robot_id, bearcat_spec());
   }
 
   static v1::LaserScan scan(std::uint64_t seq, double stamp, float range) {
@@ -42,39 +33,30 @@ class Handlers : public ::testing::Test {
     return message;
   }
 
-  static v1::Odometry odometry(double x, double y, double theta, double stamp) {
-    v1::Odometry message;
-    message.set_stamp_s(stamp);
-    message.mutable_pose()->set_x(x);
-    message.mutable_pose()->set_y(y);
-    message.mutable_pose()->set_theta(theta);
-    return message;
-  }
-
   ServerCore core_;
 };
 
 TEST_F(Handlers, HelloChecksVersionRoleAndRobotName) {
   auto session = std::make_shared<FakeSession>(core_);
-  auto wrong = hello(v1::ROLE_QUERY);
+  auto wrong = testing::hello_message(v1::ROLE_QUERY);
   wrong.set_protocol_version(2);
   handle_hello(session, wrong);
   auto reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().field(), "hello.protocol_version");
 
-  handle_hello(session, hello(v1::ROLE_DRIVER, "no spaces allowed"));
+  handle_hello(session, testing::hello_message(v1::ROLE_DRIVER, "no spaces allowed"));
   reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().field(), "hello.robot_id");
 
-  handle_hello(session, hello(v1::ROLE_UNSPECIFIED));
+  handle_hello(session, testing::hello_message(v1::ROLE_UNSPECIFIED));
   reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().code(), v1::ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(reply->error().field(), "hello.role");
 
-  handle_hello(session, hello(v1::ROLE_QUERY));
+  handle_hello(session, testing::hello_message(v1::ROLE_QUERY));
   reply = session->next();
   ASSERT_TRUE(reply && reply->has_welcome());
   EXPECT_EQ(reply->welcome().protocol_version(), 1U);
@@ -90,7 +72,7 @@ TEST_F(Handlers, DispatchRequiresHelloFirstAndDriverRoleForRobotData) {
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().code(), v1::ERROR_OUT_OF_ORDER);
 
-  handle_hello(session, hello(v1::ROLE_QUERY));
+  handle_hello(session, testing::hello_message(v1::ROLE_QUERY));
   ASSERT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
   v1::ClientMessage data;
   *data.mutable_laser_scan() = scan(1, 0.0, 1.0F);
@@ -103,7 +85,7 @@ TEST_F(Handlers, DispatchRequiresHelloFirstAndDriverRoleForRobotData) {
 
 TEST_F(Handlers, RobotSpecErrorsNameTheField) {
   auto session = std::make_shared<FakeSession>(core_);
-  handle_hello(session, hello(v1::ROLE_DRIVER, "r1"));
+  handle_hello(session, testing::hello_message(v1::ROLE_DRIVER, "r1"));
   ASSERT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
   struct Case {
     std::function<void(v1::RobotSpec&)> damage;
@@ -191,7 +173,7 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   ASSERT_TRUE(robot_session->next_of(v1::ServerMessage::kMotionCommand));
 
   auto query = std::make_shared<FakeSession>(core_);
-  handle_hello(query, hello(v1::ROLE_QUERY));
+  handle_hello(query, testing::hello_message(v1::ROLE_QUERY));
   ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
   v1::CollisionQuery collision;
   collision.set_request_id(3);

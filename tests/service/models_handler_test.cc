@@ -16,6 +16,7 @@
 #include "handlers/model_geometry.h"
 #include "occgeo/geometry/collision.h"
 #include "sensor_robot_spec.h"
+#include "test_robots.h"
 
 namespace occgeo::service {
 namespace {
@@ -23,40 +24,9 @@ namespace {
 using R = testing::SensorRobot;
 
 // A level laser 0.3 m up on base_link's origin, 181 beams over 180°, 0.05–8 m; mount pitch optional.
-v1::RobotSpec laser_spec(double pitch_rad = 0.0) {
-  v1::RobotSpec spec;
-  spec.set_model("laser-probe");
-  auto* drive = spec.mutable_kinematics()->mutable_differential();
-  drive->set_wheel_separation_m(0.4);
-  drive->set_wheel_radius_m(0.05);
-  drive->set_max_wheel_speed_mps(0.5);
-  auto* box = spec.mutable_footprint()->mutable_box();
-  box->set_length_m(0.6);
-  box->set_width_m(0.4);
-  box->set_height_m(0.5);
-  spec.set_command_timeout_s(0.5);
-  auto* sensor = spec.add_sensors();
-  sensor->set_name("laser");
-  sensor->mutable_mount()->mutable_position()->set_z(0.3);
-  sensor->mutable_mount()->set_pitch(pitch_rad);
-  auto* laser = sensor->mutable_laser();
-  laser->set_angle_min_rad(-M_PI / 2);
-  laser->set_angle_increment_rad(M_PI / 180);
-  laser->set_beam_count(181);
-  laser->set_range_min_m(0.05);
-  laser->set_range_max_m(8.0);
-  laser->set_scan_period_s(0.1);
-  return spec;
-}
+v1::RobotSpec laser_spec(double pitch_rad = 0.0) { return testing::laser_probe_spec({.pitch_rad = pitch_rad}); }
 
-v1::Odometry odometry(double x, double y, double theta, double stamp) {
-  v1::Odometry message;
-  message.set_stamp_s(stamp);
-  message.mutable_pose()->set_x(x);
-  message.mutable_pose()->set_y(y);
-  message.mutable_pose()->set_theta(theta);
-  return message;
-}
+using testing::odometry;
 
 v1::LaserScan scan(std::uint64_t seq, double stamp, const std::vector<float>& ranges) {
   v1::LaserScan message;
@@ -89,14 +59,7 @@ class ModelsHandlers : public ::testing::Test {
   explicit ModelsHandlers(ServerConfig config = test_config()) : core_(std::move(config)) {}
 
   std::shared_ptr<FakeSession> driver(const std::string& robot_id, const v1::RobotSpec& spec) {
-    auto session = std::make_shared<FakeSession>(core_);
-    v1::Hello hello;
-    hello.set_protocol_version(1);
-    hello.set_role(v1::ROLE_DRIVER);
-    hello.set_robot_id(robot_id);
-    handle_hello(session, hello);
-    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
-    handle_robot_spec(session, spec);
+    auto session = testing::driver_session(core_, robot_id, spec);
     EXPECT_NE(core_.find_robot(robot_id), nullptr) << "the spec was refused";
     return session;
   }

@@ -8,6 +8,7 @@
 
 #include "fake_session.h"
 #include "occgeo/mapping/ptem.h"
+#include "test_robots.h"
 
 namespace occgeo::service {
 namespace {
@@ -27,28 +28,13 @@ const Eigen::Vector2d kObstacle(1.75, 0.0);
 constexpr double kObstacleRadius_m = 0.055;
 
 v1::RobotSpec laser_robot_spec() {
-  v1::RobotSpec spec;
-  spec.set_model("ptem-probe");
-  auto* drive = spec.mutable_kinematics()->mutable_differential();
-  drive->set_wheel_separation_m(0.4);
-  drive->set_wheel_radius_m(0.05);
-  drive->set_max_wheel_speed_mps(0.5);
-  auto* box = spec.mutable_footprint()->mutable_box();
-  box->set_length_m(0.6);
-  box->set_width_m(0.4);
-  box->set_height_m(0.4);
-  spec.set_command_timeout_s(0.5);
-  auto* sensor = spec.add_sensors();
-  sensor->set_name("laser");
-  sensor->mutable_mount()->mutable_position()->set_z(0.3);
-  auto* laser = sensor->mutable_laser();
-  laser->set_angle_min_rad(kAngleMin_rad);
-  laser->set_angle_increment_rad(kIncrement_rad);
-  laser->set_beam_count(kBeams);
-  laser->set_range_min_m(0.02);
-  laser->set_range_max_m(kRangeMax_m);
-  laser->set_scan_period_s(0.1);
-  return spec;
+  return testing::laser_probe_spec({.model = "ptem-probe",
+                                    .height_m = 0.4,
+                                    .beam_count = kBeams,
+                                    .angle_min_rad = kAngleMin_rad,
+                                    .angle_increment_rad = kIncrement_rad,
+                                    .range_min_m = 0.02,
+                                    .range_max_m = kRangeMax_m});
 }
 
 // Exact ranges from a sensor at the origin facing +x to the obstacle's circle; max range elsewhere.
@@ -86,15 +72,6 @@ std::shared_ptr<const mapping::PtemSnapshot> library_snapshot(const std::vector<
   return model.snapshot();
 }
 
-v1::Hello hello(v1::Role role, const std::string& robot_id = {}, const std::string& world = {}) {
-  v1::Hello message;
-  message.set_protocol_version(1);
-  message.set_role(role);
-  message.set_robot_id(robot_id);
-  message.set_world(world);
-  return message;
-}
-
 v1::Point2D point(double x, double y) {
   v1::Point2D p;
   p.set_x(x);
@@ -115,10 +92,7 @@ class PtemHandler : public ::testing::Test {
 
   // A driver in `world` at the origin that has sent one scan of the thin obstacle, acknowledged.
   std::shared_ptr<FakeSession> scan_circle(const std::string& robot_id, const std::string& world) {
-    auto session = std::make_shared<FakeSession>(core_);
-    handle_hello(session, hello(v1::ROLE_DRIVER, robot_id, world));
-    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
-    handle_robot_spec(session, laser_robot_spec());
+    auto session = testing::driver_session(core_, robot_id, laser_robot_spec(), world);
     v1::Odometry odometry;
     odometry.set_stamp_s(0.0);
     odometry.mutable_pose();
@@ -136,7 +110,7 @@ class PtemHandler : public ::testing::Test {
 
   std::shared_ptr<FakeSession> query_session() {
     auto session = std::make_shared<FakeSession>(core_);
-    handle_hello(session, hello(v1::ROLE_QUERY));
+    handle_hello(session, testing::hello_message(v1::ROLE_QUERY));
     EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
     return session;
   }

@@ -10,6 +10,7 @@
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/geometry/kinematics.h"
 #include "sensor_robot_spec.h"
+#include "test_robots.h"
 
 namespace occgeo::service {
 namespace {
@@ -63,14 +64,7 @@ v1::WheelEncoders ticks(std::uint64_t seq, double stamp, std::int64_t left, std:
   return message;
 }
 
-v1::Odometry odometry(double x, double y, double theta, double stamp) {
-  v1::Odometry message;
-  message.set_stamp_s(stamp);
-  message.mutable_pose()->set_x(x);
-  message.mutable_pose()->set_y(y);
-  message.mutable_pose()->set_theta(theta);
-  return message;
-}
+using testing::odometry;
 
 // A tracked robot with slippage and a forward laser, for the skid-steer command conversion.
 v1::RobotSpec skid_steer_spec(double max_track_speed_mps) {
@@ -104,14 +98,7 @@ class SensorHandlers : public ::testing::Test {
   SensorHandlers() : core_(ServerConfig{}) {}
 
   std::shared_ptr<FakeSession> driver(const std::string& robot_id, const v1::RobotSpec& spec) {
-    auto session = std::make_shared<FakeSession>(core_);
-    v1::Hello hello;
-    hello.set_protocol_version(1);
-    hello.set_role(v1::ROLE_DRIVER);
-    hello.set_robot_id(robot_id);
-    handle_hello(session, hello);
-    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
-    handle_robot_spec(session, spec);
+    auto session = testing::driver_session(core_, robot_id, spec);
     EXPECT_NE(core_.find_robot(robot_id), nullptr) << "the spec was refused";
     return session;
   }

@@ -6,12 +6,17 @@
 #include <cstdlib>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
+#include "param_checks.h"
+
 namespace occgeo::service::control {
 namespace {
+
+using detail::require;
+using detail::require_non_negative;
+using detail::require_positive;
 
 constexpr double kDegreesPerRadian = 180.0 / std::numbers::pi;
 
@@ -20,22 +25,6 @@ constexpr double kForwardBearingTolerance_rad = 1e-9;
 
 // Zones in the thesis's order; ob_factor uses index + 1.
 enum ZoneIndex : std::size_t { kRightZone = 0, kMiddleZone = 1, kLeftZone = 2 };
-
-// Throws std::invalid_argument "<field> <requirement> (got <value>)" unless ok.
-void require(bool ok, std::string_view field, std::string_view requirement, double value) {
-  if (ok) return;
-  std::ostringstream message;
-  message << field << ' ' << requirement << " (got " << value << ')';
-  throw std::invalid_argument(message.str());
-}
-
-void require_positive(std::string_view field, double value) {
-  require(std::isfinite(value) && value > 0.0, field, "must be positive and finite", value);
-}
-
-void require_non_negative(std::string_view field, double value) {
-  require(std::isfinite(value) && value >= 0.0, field, "must be non-negative and finite", value);
-}
 
 // The contiguous index range [first, end) of the beams whose bearing lies within +-90 degrees; backward-looking
 // beams (e.g. of a 240 degree scanner) are ignored, so every layout sees what the LMS200's half-plane sees. All of

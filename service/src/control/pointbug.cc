@@ -4,12 +4,15 @@
 #include <cmath>
 #include <cstdlib>
 #include <numbers>
-#include <sstream>
-#include <stdexcept>
 #include <string>
+
+#include "param_checks.h"
 
 namespace occgeo::service::control {
 namespace {
+
+using detail::require;
+using detail::require_positive;
 
 constexpr double kRadiansPerDegree = std::numbers::pi / 180.0;
 
@@ -20,18 +23,6 @@ constexpr double kReaimFactor = 4.0;
 // Each state change happens within one decide(); the longest chain is drive_to_sudden_point -> aim_at_goal ->
 // step_to_goal -> turn_to_sudden_point -> drive_to_sudden_point.
 constexpr int kMaxTransitionsPerDecision = 8;
-
-// Throws std::invalid_argument "<field> <requirement> (got <value>)" unless ok.
-void require(bool ok, std::string_view field, std::string_view requirement, double value) {
-  if (ok) return;
-  std::ostringstream message;
-  message << field << ' ' << requirement << " (got " << value << ')';
-  throw std::invalid_argument(message.str());
-}
-
-void require_positive(std::string_view field, double value) {
-  require(std::isfinite(value) && value > 0.0, field, "must be positive and finite", value);
-}
 
 double wrap_angle(double angle_rad) {
   double wrapped = std::remainder(angle_rad, 2.0 * std::numbers::pi);

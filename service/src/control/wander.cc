@@ -3,28 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
-#include <sstream>
-#include <stdexcept>
 #include <string>
+
+#include "param_checks.h"
 
 namespace occgeo::service::control {
 namespace {
 
-// Throws std::invalid_argument "<field> <requirement> (got <value>)" unless ok.
-void require(bool ok, std::string_view field, std::string_view requirement, double value) {
-  if (ok) return;
-  std::ostringstream message;
-  message << field << ' ' << requirement << " (got " << value << ')';
-  throw std::invalid_argument(message.str());
-}
-
-void require_positive(std::string_view field, double value) {
-  require(std::isfinite(value) && value > 0.0, field, "must be positive and finite", value);
-}
-
-void require_non_negative(std::string_view field, double value) {
-  require(std::isfinite(value) && value >= 0.0, field, "must be non-negative and finite", value);
-}
+using detail::require;
+using detail::require_non_negative;
+using detail::require_positive;
 
 // Bearings are compared wrapped into (-pi, pi], so a ring given in [0, 2 pi) works too.
 double wrap_angle(double angle_rad) {
