@@ -205,6 +205,7 @@ bool PtemSnapshot::restricted(const Eigen::Vector2d& p_W) const {
 PtemModel::PtemModel(const PtemParams& params) : params_(params) {
   params_.validate();
   if (!params_.first_cluster_sigma_m) f_r_ = params_.restricted_threshold;
+  snapshot_ = make_snapshot();
 }
 
 void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double stamp_s,
@@ -299,9 +300,10 @@ void PtemModel::insert_scan(const PtemScan& scan) {
   clusters_ = std::move(clusters);
   ++scan_count_;
   latest_stamp_s_ = scan.stamp_s;
+  snapshot_ = make_snapshot();
 }
 
-std::shared_ptr<const PtemSnapshot> PtemModel::snapshot() const {
+std::shared_ptr<const PtemSnapshot> PtemModel::make_snapshot() const {
   return std::shared_ptr<const PtemSnapshot>(new PtemSnapshot(clusters_, f_r_, scan_count_, latest_stamp_s_));
 }
 

@@ -174,8 +174,9 @@ class PtemModel {
   // std::invalid_argument naming the bad field (points by index), changing nothing.
   void insert_scan(const PtemScan& scan);
 
-  // An immutable view of the map as it is now; costs one copy of the cluster list.
-  [[nodiscard]] std::shared_ptr<const PtemSnapshot> snapshot() const;
+  // An immutable view of the map as it is now. Built once per insert_scan (one copy of the cluster list), so a server
+  // publishing after every sensor message does not copy the clusters for messages that did not change them.
+  [[nodiscard]] std::shared_ptr<const PtemSnapshot> snapshot() const { return snapshot_; }
 
   // Number of insert_scan calls applied so far.
   [[nodiscard]] std::uint64_t scan_count() const { return scan_count_; }
@@ -189,11 +190,14 @@ class PtemModel {
   void cluster_points(std::span<const Eigen::Vector2d> points_W, double stamp_s, std::vector<PtemCluster>& clusters,
                       std::vector<bool>& grown) const;
 
+  [[nodiscard]] std::shared_ptr<const PtemSnapshot> make_snapshot() const;
+
   PtemParams params_;
   std::vector<PtemCluster> clusters_;
   std::optional<double> f_r_;
   std::uint64_t scan_count_ = 0;
   std::optional<double> latest_stamp_s_;
+  std::shared_ptr<const PtemSnapshot> snapshot_;
 };
 
 }  // namespace occgeo::mapping
