@@ -196,8 +196,10 @@ PtemThreat PtemSnapshot::threat_and_gradient(const Eigen::Vector2d& p_W) const {
 
 bool PtemSnapshot::restricted(const Eigen::Vector2d& p_W) const {
   if (!f_r_) return false;
+  // Inside any circle f >= f_r holds exactly (σ puts the cluster's own Gaussian at f_r on it, the others only add);
+  // testing the circle first keeps returns that lie on it restricted despite rounding in σ.
   for (const PtemCluster& cluster : clusters_) {
-    if (!cluster.threshold_reachable && (p_W - cluster.centre_W).norm() <= cluster.radius_m) return true;
+    if ((p_W - cluster.centre_W).norm() <= cluster.radius_m) return true;
   }
   return threat(p_W) >= *f_r_;
 }

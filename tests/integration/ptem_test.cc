@@ -207,6 +207,7 @@ TEST_F(PtemScenario, StationaryObstacleIsOneClusterCoveringTheObstacle) {
         EXPECT_LT(std::hypot(c.center().x() - run.obstacle->x, c.center().y() - run.obstacle->y),
                   run.obstacle->radius_m + 0.06);
         EXPECT_GT(c.age_scans(), 0U);
+        EXPECT_GE(fraction, 0.5);
         continue;
       }
       EXPECT_EQ(reply.cluster_count(), 1U) << describe_clusters(reply);
@@ -215,8 +216,9 @@ TEST_F(PtemScenario, StationaryObstacleIsOneClusterCoveringTheObstacle) {
       // The cluster sits on the obstacle: its centre within the obstacle's disc widened by the laser's 3σ noise.
       EXPECT_LT(std::hypot(c.center().x() - run.obstacle->x, c.center().y() - run.obstacle->y),
                 run.obstacle->radius_m + 0.06);
-      // Some of the obstacle is always restricted: the returns themselves lie on it.
-      EXPECT_GT(fraction, 0.25);
+      // The restricted region covers the obstacle: the cluster starts on its near side with the preset radius (0.25 m),
+      // which reaches across both; only the cone's far rim, never seen, may poke out by a few millimetres.
+      EXPECT_GE(fraction, run.obstacle->radius_m < 0.1 ? 0.999 : 0.95);
       if (run.motion == "still") {
         still_fractions[run.obstacle->name + " " + reply.construction()].push_back(fraction);
       }
@@ -232,9 +234,9 @@ TEST_F(PtemScenario, StationaryObstacleIsOneClusterCoveringTheObstacle) {
     const double mean = sum / static_cast<double>(fractions.size());
     std::cout << std::fixed << std::setprecision(3) << "  " << std::setw(22) << std::left << key << std::right
               << " mean restricted fraction " << mean << "  min " << low << "\n";
-    // From one viewpoint the returns cover less than the near half of the circle; their enclosing circle reaches
-    // about half of the disc or more, never all of it in every run.
-    EXPECT_GT(mean, 0.5) << key;
+    // From one viewpoint the returns lie on less than the near half of the circle; the preset radius carries the
+    // cluster over the rest.
+    EXPECT_GE(mean, 0.98) << key;
   }
 }
 

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <random>
 #include <thread>
 #include <vector>
@@ -468,6 +470,79 @@ TEST(ModelsConfig, OctomapAndDistanceFieldSectionsAreReadAndChecked) {
   std::ofstream(path) << "limits: {max_send_queue_bytes: 4194304}\n";
   EXPECT_NO_THROW(load_config(path));
   std::filesystem::remove(path);
+}
+
+// Consistency under load: two query threads read snapshots and ask collision queries while one driver streams 200
+// scans. Every state a reader sees is one the driver saw published after a whole scan (grid version, distance-field
+// version and PTEM scan count together), the distance field always matches its grid, and versions never go back.
+TEST_F(ModelsHandlers, ReadersOnlyEverSeeWholeUpdatesWhileScansStream) {
+  constexpr int kScans = 200;
+  auto session = driver("r1", laser_spec());
+  handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+  using State = std::tuple<std::uint64_t, std::uint64_t, std::uint64_t>;  // grid, distance field, PTEM scans
+  const auto state_of = [](const WorldSnapshot& s) {
+    return State{s.grid->version(), s.distance->version(), s.ptem->scan_count()};
+  };
+  std::set<State> published{state_of(world())};
+  std::mutex published_mutex;
+  std::atomic<bool> streaming{true};
+
+  // Fills `seen`; a void lambda so that ASSERT_* can end it.
+  const auto read = [&](int reader, std::vector<State>& seen) {
+    auto querier_session = querier();
+    std::uint64_t last_grid = 0;
+    int collision_replies = 0;
+    while (streaming.load() || seen.empty()) {
+      const WorldSnapshot s = world();
+      seen.push_back(state_of(s));
+      EXPECT_GE(s.grid->version(), last_grid);
+      last_grid = s.grid->version();
+      // The field matches its grid: distance 0 exactly on the occupied cells of a window round the wall.
+      for (int ix = 30; ix <= 50; ix += 2) {
+        for (int iy = -20; iy <= 20; iy += 4) {
+          const geometry::CellIndex cell{ix, iy};
+          ASSERT_EQ(s.distance->distance(cell) == 0.0, s.grid->occupied(cell)) << ix << "," << iy;
+        }
+      }
+      v1::CollisionQuery query;
+      query.set_request_id(static_cast<std::uint64_t>(reader * 1000000 + collision_replies));
+      query.set_robot_id("r1");
+      query.mutable_pose()->set_x(1.0);
+      handle_collision_query(querier_session, query);
+      const auto reply = querier_session->next();
+      ASSERT_TRUE(reply && reply->has_collision()) << (reply ? reply->DebugString() : "no reply");
+      ++collision_replies;
+    }
+    std::printf("reader %d: %zu snapshots read, %d collision queries answered\n", reader, seen.size(),
+                collision_replies);
+  };
+  std::vector<State> seen_a, seen_b;
+  std::thread reader_a([&] { read(0, seen_a); });
+  std::thread reader_b([&] { read(1, seen_b); });
+  for (int k = 1; k <= kScans; ++k) {
+    // A wall 2 m ahead that steps 1 cm closer per scan, so every scan changes the grid.
+    std::vector<float> ranges = wall_ranges();
+    for (float& r : ranges) r = r < 7.9F ? r * static_cast<float>(1.0 - 0.0025 * (k % 40)) : r;
+    handle_laser_scan(session, scan(static_cast<std::uint64_t>(k), 0.1 * k, ranges));
+    expect_ack(*session, static_cast<std::uint64_t>(k));
+    const std::lock_guard lock(published_mutex);
+    published.insert(state_of(world()));
+  }
+  streaming.store(false);
+  reader_a.join();
+  reader_b.join();
+  EXPECT_EQ(std::get<2>(state_of(world())), static_cast<std::uint64_t>(kScans));
+  EXPECT_GT(published.size(), static_cast<std::size_t>(kScans)) << "every scan changes the published state";
+  std::set<State> distinct(seen_a.begin(), seen_a.end());
+  distinct.insert(seen_b.begin(), seen_b.end());
+  std::printf("%zu states published, %zu of them seen by the readers\n", published.size(), distinct.size());
+  for (const auto* seen : {&seen_a, &seen_b}) {
+    for (const State& state : *seen) {
+      EXPECT_TRUE(published.contains(state)) << "a reader saw grid " << std::get<0>(state) << ", field "
+                                             << std::get<1>(state) << ", PTEM scans " << std::get<2>(state)
+                                             << ": not a state published after a whole scan";
+    }
+  }
 }
 
 }  // namespace

@@ -39,9 +39,12 @@ struct PtemParams {
   // the width of the seed's UGV, 15 in = 0.381 m (§3.1), because "the UGV cannot go between two obstacles if the
   // distance between them is less than the UGV width" (§4.2.1). Set it to your robot's width.
   double cluster_distance_m = 0.381;
-  // Radius a new cluster starts with, metres; finite, > 0. The seed calls it "a predefined radius" without a value; the
-  // default is the URG-04LX's range accuracy, ±20 mm (§3.2.1), so a lone return covers its own uncertainty.
-  double initial_cluster_radius_m = 0.02;
+  // Radius a new cluster starts with, metres; finite, > 0. The seed calls it "a predefined radius" without a value. A
+  // scan sees only an obstacle's near side and a cluster starts at a point on that side, so this radius is how deep
+  // behind its first return a cluster reaches. Default 0.25 m: the seed's thin obstacle and cone (0.11 m and 0.30 m
+  // across) are then restricted (100 % and >= 96 % of their discs) from a single viewpoint, and a lone return costs
+  // a 0.5 m disc. At 0.02 m (the URG-04LX's accuracy) only 52-87 % of the obstacles' discs were restricted.
+  double initial_cluster_radius_m = 0.25;
   // f_r, the threat density (1/m², a 2D PDF value) from which a point is restricted; finite, > 0. Default 0.04, the
   // seed's value (§4.3). Ignored when first_cluster_sigma_m is set.
   double restricted_threshold = 0.04;
@@ -124,8 +127,8 @@ class PtemSnapshot {
   [[nodiscard]] double threat(const Eigen::Vector2d& p_W) const;
   // f and its analytic gradient at p_W.
   [[nodiscard]] PtemThreat threat_and_gradient(const Eigen::Vector2d& p_W) const;
-  // True when p_W is in the restricted region: f(p_W) >= f_r, or p_W lies in the circle of a cluster whose threshold
-  // is unreachable (PtemCluster::threshold_reachable). False while f_r is not yet fixed.
+  // True when p_W is in the restricted region: f(p_W) >= f_r, which holds on every cluster's circle (also for a
+  // cluster whose threshold is unreachable, PtemCluster::threshold_reachable). False while f_r is not yet fixed.
   [[nodiscard]] bool restricted(const Eigen::Vector2d& p_W) const;
 
   // The clusters, ages as of the latest scan.

@@ -70,7 +70,7 @@ struct PtemWorldOverride {
 //     cluster_distance_m: 0.381      # C_r, metres; default the seed UGV's width (15 in). One model serves every
 //                                    # robot of a world, so C_r is per world, not per robot: set it to the width of
 //                                    # the widest robot that must not pass between two obstacles
-//     initial_cluster_radius_m: 0.02 # radius of a new cluster, metres (the URG-04LX's ±20 mm)
+//     initial_cluster_radius_m: 0.25 # radius of a new cluster, metres (how far behind its first return it reaches)
 //     restricted_threshold: 0.04     # f_r, 1/m² (seed §4.3)
 //     first_cluster_sigma_m: 0.1     # optional: fix f_r from the first cluster instead (seed eq 4.2)
 //     worlds:                        # optional per-world overrides
