@@ -9,8 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
-#include <set>
 #include <random>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -538,9 +538,9 @@ TEST_F(ModelsHandlers, ReadersOnlyEverSeeWholeUpdatesWhileScansStream) {
   std::printf("%zu states published, %zu of them seen by the readers\n", published.size(), distinct.size());
   for (const auto* seen : {&seen_a, &seen_b}) {
     for (const State& state : *seen) {
-      EXPECT_TRUE(published.contains(state)) << "a reader saw grid " << std::get<0>(state) << ", field "
-                                             << std::get<1>(state) << ", PTEM scans " << std::get<2>(state)
-                                             << ": not a state published after a whole scan";
+      EXPECT_TRUE(published.contains(state))
+          << "a reader saw grid " << std::get<0>(state) << ", field " << std::get<1>(state) << ", PTEM scans "
+          << std::get<2>(state) << ": not a state published after a whole scan";
     }
   }
 }
