@@ -14,6 +14,10 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
   python3-protobuf
+  libssl-dev libsqlite3-dev
+  clang libclang-rt-14-dev
+  redis-server redis-tools
+  chromium
 )
 
 missing=()
