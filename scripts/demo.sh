@@ -29,6 +29,7 @@ sim=$!
 cat <<MSG
 
 occgeod is serving on $LISTEN; a simulated Bearcat (bearcat-1) wanders the open field.
+Watch it live in a browser: http://127.0.0.1:7701/   (Prometheus metrics: http://127.0.0.1:7701/metrics)
 Try, in another terminal:
   $BUILD_DIR/clients/occgeo status
   $BUILD_DIR/clients/occgeo query collision --robot bearcat-1 --x 0 --y 0 --theta 0

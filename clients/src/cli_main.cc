@@ -1,6 +1,7 @@
 // occgeo: command-line client for occgeod (status, geometry queries, map export).
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -35,6 +36,15 @@ commands:
                                              distance from the footprint to the nearest obstacle
                                              (--models: which of the world's models; default all three)
   query ptem --world W --x X --y Y           the PTEM's threat, gradient and restricted flag at a point
+  query raycast --x X --y Y --theta T --max-range R [--world W] [--models ...]
+                                             range along a ray and what it hit, per model
+  query occupancy --x X --y Y [--z Z] [--world W] [--models ...]
+                                             grid certainty, octree probability and PTEM threat at a point
+  query swept --robot ID --x X --y Y [--theta T] --v V --w W --duration S [--models ...]
+                                             does the footprint moving at (v, w) for S seconds touch
+                                             anything, and when first?
+  query window --min-x X0 --min-y Y0 --max-x X1 --max-y Y1 [--world W] [--since VERSION]
+                                             a grid window as certainty values (or its changes since a version)
   map export [--format pgm|png|bt] --world W --out PREFIX [--ptem] [--trajectory FILE.csv] [--scale N]
                                              pgm (default): the world's grid as PREFIX.pgm + PREFIX.yaml
                                              (ROS map_server format); bt: its OctoMap as PREFIX.bt;
@@ -50,9 +60,17 @@ commands:
                                              (default occgeo-cli-cloud, left registered and offline)
   lease acquire|retain|return|take --robot ID [--timeout S] [--token T]
                                              one lease request as a controller (take needs the operator token)
-  drive --robot ID bearcat|stop|teleop [--v V --w W] [--hold S] [--timeout S] [--token T]
+  drive --robot ID bearcat|wander|stop|teleop [--v V --w W] [--hold S] [--timeout S] [--token T]
                                              acquire the robot's lease, set its behaviour (teleop: V m/s,
                                              W rad/s), keep the lease S seconds (default 0) with retains, return it
+  goto --robot ID X Y [--no-escape] [--limit S] [--timeout S] [--token T]
+                                             drive the robot to (X, Y) with PointBug, holding the lease
+                                             until it reports reached or no_path (or --limit S wall
+                                             seconds, default 600, or Ctrl-C), printing progress;
+                                             a stall or loop follows a global path over the map
+                                             unless --no-escape
+  waypoints --robot ID X1,Y1 X2,Y2 ... [--no-escape] [--limit S] [--timeout S] [--token T]
+                                             the same along waypoints with PTEM guidance
   estop --robot ID [--release] [--token T]   engage the robot's e-stop (as an observer); --release frees it
                                              (as a controller: acquires the lease, releases, returns it)
   replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
@@ -347,6 +365,139 @@ int run_query_ptem(const Options& options) {
               << fmt(sample.gradient().x()) << ", " << fmt(sample.gradient().y()) << ") /m^3, "
               << (sample.restricted() ? "restricted" : "not restricted") << "; " << reply.cluster_count()
               << " cluster(s) from " << reply.scans() << " scan(s), " << reply.construction() << "\n";
+  }
+  return 0;
+}
+
+int run_query_raycast(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_raycast();
+  query->set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  *query->add_rays() = pose_from(options);
+  query->set_max_range_m(options.number("max-range"));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  const v1::RaycastReply reply = connection.call(request, 1).raycast();
+  if (reply.results_size() != 1) throw ClientError("the server answered with no result for the ray");
+  const v1::RaycastResult& result = reply.results(0);
+  if (options.json) {
+    std::cout << "{\"hit\":" << (result.hit() ? "true" : "false") << ",\"range_m\":" << fmt(result.range_m())
+              << ",\"model\":" << json_string(model_name(result.model())) << ",\"per_model\":[";
+    for (int i = 0; i < result.per_model_size(); ++i) {
+      const v1::RaycastHit& hit = result.per_model(i);
+      std::cout << (i > 0 ? "," : "") << "{\"model\":" << json_string(model_name(hit.model()))
+                << ",\"hit\":" << (hit.hit() ? "true" : "false") << ",\"range_m\":" << fmt(hit.range_m())
+                << ",\"point\":{\"x\":" << fmt(hit.point().x()) << ",\"y\":" << fmt(hit.point().y()) << "}}";
+    }
+    std::cout << "]}\n";
+  } else if (result.hit()) {
+    std::cout << "hit the " << model_name(result.model()) << " at " << fmt(result.range_m()) << " m\n";
+  } else {
+    std::cout << "nothing within " << fmt(result.range_m()) << " m\n";
+  }
+  return 0;
+}
+
+int run_query_occupancy(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_occupancy();
+  query->set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  auto* point = query->add_points();
+  point->set_x(options.number("x"));
+  point->set_y(options.number("y"));
+  point->set_z(options.number("z", 0.3));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  const v1::OccupancyReply reply = connection.call(request, 1).occupancy();
+  if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
+  const v1::OccupancySample& s = reply.samples(0);
+  if (options.json) {
+    std::cout << "{\"version\":" << reply.version() << ",\"cell\":{\"ix\":" << s.cell().ix()
+              << ",\"iy\":" << s.cell().iy() << "},\"observed\":" << (s.observed() ? "true" : "false")
+              << ",\"certainty\":" << s.certainty() << ",\"occupied\":" << (s.occupied() ? "true" : "false")
+              << ",\"octree_known\":" << (s.octree_known() ? "true" : "false")
+              << ",\"octree_probability\":" << fmt(s.octree_probability())
+              << ",\"threat\":" << fmt(s.threat()) << ",\"restricted\":" << (s.restricted() ? "true" : "false")
+              << "}\n";
+  } else {
+    std::cout << "grid certainty " << s.certainty() << (s.occupied() ? " (occupied)" : "")
+              << (s.observed() ? "" : " (never observed)") << ", octree "
+              << (s.octree_known() ? fmt(s.octree_probability()) : std::string("unknown")) << ", threat "
+              << fmt(s.threat()) << (s.restricted() ? " (restricted)" : "") << "\n";
+  }
+  return 0;
+}
+
+int run_query_swept(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_swept();
+  query->set_request_id(1);
+  query->set_robot_id(options.required("robot"));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  auto* motion = query->add_motions();
+  *motion->mutable_start() = pose_from(options);
+  motion->set_linear_mps(options.number("v"));
+  motion->set_angular_radps(options.number("w"));
+  motion->set_duration_s(options.number("duration"));
+  const v1::SweptReply reply = connection.call(request, 1).swept();
+  if (reply.results_size() != 1) throw ClientError("the server answered with no result for the motion");
+  const v1::SweptResult& r = reply.results(0);
+  if (options.json) {
+    std::cout << "{\"hit\":" << (r.hit() ? "true" : "false") << ",\"time_s\":" << fmt(r.time_s())
+              << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
+              << ",\"theta\":" << fmt(r.pose().theta()) << "}";
+    if (r.hit()) {
+      std::cout << ",\"model\":" << json_string(model_name(r.model())) << ",\"contact\":{\"x\":"
+                << fmt(r.contact().x()) << ",\"y\":" << fmt(r.contact().y()) << "}";
+    }
+    std::cout << "}\n";
+  } else if (r.hit()) {
+    std::cout << "contact with the " << model_name(r.model()) << " after " << fmt(r.time_s()) << " s at ("
+              << fmt(r.pose().x()) << ", " << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << ")\n";
+  } else {
+    std::cout << "free for the whole " << fmt(r.time_s()) << " s\n";
+  }
+  return 0;
+}
+
+int run_query_window(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_grid_window();
+  query->set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  query->mutable_min_corner()->set_x(options.number("min-x"));
+  query->mutable_min_corner()->set_y(options.number("min-y"));
+  query->mutable_max_corner()->set_x(options.number("max-x"));
+  query->mutable_max_corner()->set_y(options.number("max-y"));
+  const double since = options.number("since", 0.0);
+  if (since < 0.0 || since != std::floor(since)) throw UsageError("option --since takes a version number (>= 0)");
+  query->set_since_version(static_cast<std::uint64_t>(since));
+  const v1::GridWindowReply reply = connection.call(request, 1, std::chrono::seconds(60)).grid_window();
+  std::size_t changed_cells = 0;
+  for (const v1::GridBlock& block : reply.changed()) changed_cells += block.cells().size();
+  if (options.json) {
+    std::cout << "{\"version\":" << reply.version() << ",\"min_cell\":{\"ix\":" << reply.min_cell().ix()
+              << ",\"iy\":" << reply.min_cell().iy() << "},\"width\":" << reply.width()
+              << ",\"height\":" << reply.height() << ",\"cell_size_m\":" << fmt(reply.cell_size_m());
+    if (!reply.cells().empty()) {
+      std::cout << ",\"cells\":[";
+      for (std::size_t i = 0; i < reply.cells().size(); ++i) {
+        std::cout << (i > 0 ? "," : "") << static_cast<unsigned>(static_cast<std::uint8_t>(reply.cells()[i]));
+      }
+      std::cout << "]";
+    }
+    std::cout << ",\"changed_blocks\":" << reply.changed_size() << ",\"changed_cells\":" << changed_cells << "}\n";
+  } else {
+    std::cout << "window " << reply.width() << " x " << reply.height() << " cells from (" << reply.min_cell().ix()
+              << ", " << reply.min_cell().iy() << ") at version " << reply.version();
+    if (query->since_version() > 0 && reply.cells().empty()) {
+      std::cout << ": " << reply.changed_size() << " changed block(s), " << changed_cells << " cells";
+    }
+    std::cout << "\n";
   }
   return 0;
 }
@@ -761,8 +912,8 @@ int run_drive(const std::vector<std::string>& args) {
     }
     rest.push_back(args[i]);
   }
-  if (behaviour != "bearcat" && behaviour != "stop" && behaviour != "teleop") {
-    throw UsageError("drive needs a behaviour: bearcat, stop or teleop");
+  if (behaviour != "bearcat" && behaviour != "stop" && behaviour != "teleop" && behaviour != "wander") {
+    throw UsageError("drive needs a behaviour: bearcat, wander, stop or teleop");
   }
   const Options options = parse_options(rest, 0, {"robot", "v", "w", "hold", "timeout", "token"});
   const std::string robot = options.required("robot");
@@ -816,6 +967,146 @@ int run_drive(const std::vector<std::string>& args) {
   return returned.granted() ? 0 : 1;
 }
 
+// Set by SIGINT/SIGTERM while a goal is being followed: the lease is returned before exiting.
+volatile std::sig_atomic_t g_interrupted = 0;
+
+extern "C" void on_interrupt(int /*signal*/) { g_interrupted = 1; }
+
+// occgeo goto --robot ID X Y: the two bare words are the goal; negative numbers are goal values, not options.
+// occgeo waypoints --robot ID X1,Y1 X2,Y2 ...: each bare word is one waypoint.
+int run_goto(const std::vector<std::string>& args) {
+  const bool waypoints = args[0] == "waypoints";
+  std::vector<std::string> rest;
+  std::vector<std::string> goal;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const bool option_value = i > 1 && args[i - 1].rfind("--", 0) == 0 && args[i - 1] != "--json" &&
+                              args[i - 1] != "--no-escape";
+    if (args[i].rfind("--", 0) != 0 && !option_value) {
+      goal.push_back(args[i]);
+      continue;
+    }
+    rest.push_back(args[i]);
+  }
+  const auto number = [](const std::string& text, const std::string& what) {
+    std::size_t used = 0;
+    double value = 0.0;
+    try {
+      value = std::stod(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != text.size() || !std::isfinite(value)) {
+      throw UsageError(what + " needs a number, not '" + text + "'");
+    }
+    return value;
+  };
+  std::vector<std::pair<double, double>> points;
+  if (waypoints) {
+    if (goal.empty()) throw UsageError("waypoints needs at least one X,Y (metres, world frame)");
+    for (const std::string& word : goal) {
+      const auto comma = word.find(',');
+      if (comma == std::string::npos) throw UsageError("waypoint '" + word + "' must be X,Y");
+      points.emplace_back(number(word.substr(0, comma), "waypoint '" + word + "' X"),
+                          number(word.substr(comma + 1), "waypoint '" + word + "' Y"));
+    }
+  } else {
+    if (goal.size() != 2) throw UsageError("goto needs the goal as two numbers X Y (metres, world frame)");
+    points.emplace_back(number(goal[0], "goto's X"), number(goal[1], "goto's Y"));
+  }
+  const double goal_x = points.back().first;
+  const double goal_y = points.back().second;
+  const Options options = parse_options(rest, 0, {"robot", "limit", "timeout", "token"}, {"no-escape"});
+  const std::string robot = options.required("robot");
+  const double limit_s = options.number("limit", 600.0);
+  if (!(limit_s > 0.0 && limit_s <= 86400.0)) throw UsageError("option --limit takes (0, 86400] seconds");
+  const double timeout_s = options.number("timeout", 0.0);
+
+  Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
+  std::uint64_t id = 0;
+  const v1::LeaseReply acquired = lease_call(connection, robot, v1::LeaseRequest::ACQUIRE, timeout_s, ++id);
+  require_granted(acquired, "acquire");
+  std::signal(SIGINT, on_interrupt);
+  std::signal(SIGTERM, on_interrupt);
+  v1::ClientMessage request;
+  auto* drive = request.mutable_drive();
+  drive->set_request_id(++id);
+  drive->set_robot_id(robot);
+  drive->set_behaviour(waypoints ? "waypoints" : "goto");
+  drive->set_escape(!options.switches.contains("no-escape"));
+  if (waypoints) {
+    for (const auto& [x, y] : points) {
+      auto* waypoint = drive->add_waypoints();
+      waypoint->set_x_m(x);
+      waypoint->set_y_m(y);
+    }
+  } else {
+    drive->mutable_goal()->set_x_m(goal_x);
+    drive->mutable_goal()->set_y_m(goal_y);
+  }
+  static_cast<void>(connection.call(request, id).drive());
+
+  // Retain at a third of the lease's timeout so one late retain never lets it lapse; each retain also reads the
+  // robot's status for the progress line.
+  const double period_s = std::clamp(acquired.expires_in_s() / 3.0, 0.05, 0.5);
+  const auto started = std::chrono::steady_clock::now();
+  const auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
+  std::string outcome = "limit";
+  std::string last_state;
+  v1::RobotStatus last;
+  double next_print_s = 0.0;
+  while (elapsed_s() < limit_s) {
+    if (g_interrupted) {
+      outcome = "interrupted";
+      break;
+    }
+    v1::ClientMessage status_request;
+    status_request.mutable_status()->set_request_id(++id);
+    const v1::StatusReply status = connection.call(status_request, id).status();
+    const auto it = std::find_if(status.robots().begin(), status.robots().end(),
+                                 [&](const v1::RobotStatus& r) { return r.id() == robot; });
+    if (it == status.robots().end()) throw ClientError("robot '" + robot + "' is no longer registered");
+    last = *it;
+    const double distance = std::hypot(goal_x - last.pose().x(), goal_y - last.pose().y());
+    if (!options.json && (last.behaviour_state() != last_state || elapsed_s() >= next_print_s)) {
+      std::cout << "t=" << fmt(elapsed_s()) << "s pose (" << fmt(last.pose().x()) << ", " << fmt(last.pose().y())
+                << ") " << fmt(distance) << " m to go, " << last.behaviour_state()
+                << (last.guard().action().empty() || last.guard().action() == "pass"
+                        ? ""
+                        : ", guard " + last.guard().action() + " (" + last.guard().zone() + ", " +
+                              last.guard().model() + ")")
+                << std::endl;
+      next_print_s = elapsed_s() + 1.0;
+      last_state = last.behaviour_state();
+    }
+    if (last.behaviour() == drive->behaviour() &&
+        (last.behaviour_state() == "reached" || last.behaviour_state() == "no_path")) {
+      outcome = last.behaviour_state();
+      break;
+    }
+    if (!last.connected()) {
+      outcome = "disconnected";
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(period_s));
+    require_granted(lease_call(connection, robot, v1::LeaseRequest::RETAIN, timeout_s, ++id), "retain");
+  }
+  const v1::LeaseReply returned = lease_call(connection, robot, v1::LeaseRequest::RETURN, 0.0, ++id);
+  connection.close();
+  const double distance = std::hypot(goal_x - last.pose().x(), goal_y - last.pose().y());
+  if (options.json) {
+    std::cout << "{\"robot\":" << json_string(robot) << ",\"outcome\":" << json_string(outcome)
+              << ",\"x\":" << fmt(last.pose().x()) << ",\"y\":" << fmt(last.pose().y())
+              << ",\"distance_to_goal_m\":" << fmt(distance) << ",\"wall_s\":" << fmt(elapsed_s())
+              << ",\"returned\":" << (returned.granted() ? "true" : "false") << "}\n";
+  } else {
+    std::cout << "robot " << robot << ": " << outcome << " at (" << fmt(last.pose().x()) << ", "
+              << fmt(last.pose().y()) << "), " << fmt(distance) << " m from the goal, lease "
+              << (returned.granted() ? "returned" : "lost") << "\n";
+  }
+  if (outcome == "reached") return 0;
+  return outcome == "interrupted" ? 130 : 1;
+}
+
 int run_estop(const Options& options) {
   const std::string robot = options.required("robot");
   const bool release = options.switches.contains("release");
@@ -862,12 +1153,26 @@ int main(int argc, char** argv) {
       return run_lease(args[1], parse_options(args, 2, {"robot", "timeout", "token"}));
     }
     if (args[0] == "drive") return run_drive(args);
+    if (args[0] == "goto" || args[0] == "waypoints") return run_goto(args);
     if (args[0] == "estop") return run_estop(parse_options(args, 1, {"robot", "token"}, {"release"}));
     if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {
       return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "clearance") {
       return run_query_clearance(parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance", "models"}));
+    }
+    if (args.size() >= 2 && args[0] == "query" && args[1] == "raycast") {
+      return run_query_raycast(parse_options(args, 2, {"world", "x", "y", "theta", "max-range", "models"}));
+    }
+    if (args.size() >= 2 && args[0] == "query" && args[1] == "occupancy") {
+      return run_query_occupancy(parse_options(args, 2, {"world", "x", "y", "z", "models"}));
+    }
+    if (args.size() >= 2 && args[0] == "query" && args[1] == "swept") {
+      return run_query_swept(
+          parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models"}));
+    }
+    if (args.size() >= 2 && args[0] == "query" && args[1] == "window") {
+      return run_query_window(parse_options(args, 2, {"world", "min-x", "min-y", "max-x", "max-y", "since"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "ptem") {
       return run_query_ptem(parse_options(args, 2, {"world", "x", "y"}));

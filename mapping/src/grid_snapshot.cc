@@ -118,6 +118,16 @@ std::vector<std::uint8_t> GridSnapshot::window(geometry::CellIndex min, int widt
   return cells;
 }
 
+std::vector<CellBox> GridSnapshot::changed_since(std::uint64_t version, const CellBox& box) const {
+  std::vector<CellBox> parts;
+  if (box.min.ix > box.max.ix || box.min.iy > box.max.iy) return parts;
+  for_each_tile_in(tiles_, layout_, box, [&](const TileIndex& t, const Tile& tile) {
+    if (tile.version > version) parts.push_back(clip_to_tile(box, layout_, t));
+    return true;
+  });
+  return parts;
+}
+
 const Tile* GridSnapshot::find_tile(const geometry::CellIndex& c) const {
   const auto it = tiles_.find(layout_.tile_of(c));
   return it == tiles_.end() ? nullptr : it->second.get();

@@ -108,7 +108,7 @@ std::uint8_t HimmGrid::cell_value(const geometry::CellIndex& c) const {
 Tile& HimmGrid::writable_tile(TileIndex t) {
   auto it = tiles_.find(t);
   if (it == tiles_.end()) {
-    auto tile = std::make_shared<Tile>(Tile{std::vector<std::uint8_t>(layout_.cells_per_tile(), kUnobserved), 0});
+    auto tile = std::make_shared<Tile>(Tile{std::vector<std::uint8_t>(layout_.cells_per_tile(), kUnobserved), 0, 0});
     it = tiles_.emplace(t, std::move(tile)).first;
     const geometry::CellIndex first = layout_.first_cell_of(t);
     const geometry::CellIndex last = {first.ix + layout_.tile_cells() - 1, first.iy + layout_.tile_cells() - 1};
@@ -127,6 +127,9 @@ Tile& HimmGrid::writable_tile(TileIndex t) {
     // the pointer is one (acq_rel increment and decrement); a fence would do too, but thread sanitizers ignore fences.
     const std::shared_ptr<Tile> acquire_count = it->second;
   }
+  // One store per tile per insert (TileWriter caches the tiles it writes): the change tracking costs ingest nothing
+  // measurable.
+  it->second->version = version_;
   return *it->second;
 }
 

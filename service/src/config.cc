@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <boost/asio/ip/address.hpp>
+
 #include <charconv>
 #include <functional>
 #include <map>
@@ -94,6 +96,16 @@ void require(bool ok, const std::string& key, const std::string& rule) {
   if (!ok) throw ConfigError("configuration '" + key + "' " + rule);
 }
 
+// Whether HOST:PORT names a loopback host (127.0.0.0/8, ::1 or "localhost"); anything else, including a
+// wildcard address, can be reached from other machines.
+bool listen_is_loopback(const std::string& listen) {
+  const std::string host = split_host_port(listen, "listen").first;
+  if (host == "localhost") return true;
+  boost::system::error_code error;
+  const auto address = boost::asio::ip::make_address(host, error);
+  return !error && address.is_loopback();
+}
+
 // Reads a construction name at key into target (left alone when the key is absent).
 void read_construction(Section& s, const std::string& key, std::optional<mapping::PtemConstruction>& target) {
   std::optional<std::string> name;
@@ -154,6 +166,7 @@ std::pair<std::string, std::uint16_t> split_host_port(const std::string& text, c
 
 void ServerConfig::validate() const {
   split_host_port(listen, "listen");
+  split_host_port(http.listen, "http.listen");
   try {
     log::parse_level(log_level);
   } catch (const std::invalid_argument& e) {
@@ -186,9 +199,47 @@ void ServerConfig::validate() const {
   require(control.sensor_timeout_s > 0 && control.sensor_timeout_s <= 60, "control.sensor_timeout_s",
           "must be in (0, 60] seconds");
   require(auth.operator_token.size() <= 1024, "auth.operator_token", "must be at most 1024 characters");
+  for (const auto& [key, token] : {std::pair<const char*, const std::string*>{"auth.driver_token", &auth.driver_token},
+                                   {"auth.controller_token", &auth.controller_token},
+                                   {"auth.observer_token", &auth.observer_token},
+                                   {"auth.query_token", &auth.query_token}}) {
+    require(token->size() <= 1024, key, "must be at most 1024 characters");
+  }
+  require(auth.max_failures > 0, "auth.max_failures", "must be positive");
+  require(auth.failure_window_s > 0 && auth.failure_window_s <= 86400, "auth.failure_window_s",
+          "must be in (0, 86400] seconds");
+  if (!listen_is_loopback(listen)) {
+    std::string missing;
+    for (const auto& [key, token] : {std::pair<const char*, const std::string*>{"auth.driver_token", &auth.driver_token},
+                                     {"auth.controller_token", &auth.controller_token},
+                                     {"auth.observer_token", &auth.observer_token},
+                                     {"auth.query_token", &auth.query_token},
+                                     {"auth.operator_token", &auth.operator_token}}) {
+      if (token->empty()) missing += (missing.empty() ? "" : ", ") + std::string(key);
+    }
+    require(missing.empty(), "listen",
+            "is '" + listen + "', not a loopback address: anyone who can reach it could drive the robots, so every "
+            "role needs a token; missing: " + missing);
+  }
+  require(tls.cert.empty() == tls.key.empty(), tls.cert.empty() ? "tls.cert" : "tls.key",
+          "must be set together with tls." + std::string(tls.cert.empty() ? "key" : "cert"));
+  require(limits.max_batch_queries > 0, "limits.max_batch_queries", "must be positive");
+  require(limits.max_pending_requests > 0, "limits.max_pending_requests", "must be positive");
+  require(limits.max_watch_queue_messages > 0, "limits.max_watch_queue_messages", "must be positive");
+  require(limits.write_timeout_s > 0 && limits.write_timeout_s <= 3600, "limits.write_timeout_s",
+          "must be in (0, 3600] seconds");
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
+  require(durability.policy == "every" || durability.policy == "batch" || durability.policy == "none",
+          "durability.policy", "must be every, batch or none");
+  require(durability.batch_interval_s > 0 && durability.batch_interval_s <= 1, "durability.batch_interval_s",
+          "must be in (0, 1] seconds");
+  require(durability.snapshot_interval_s >= 0 && durability.snapshot_interval_s <= 86400,
+          "durability.snapshot_interval_s", "must be in [0, 86400] seconds (0: only on clean shutdown)");
   validate_block(himm, "himm");
   validate_block(bearcat, "bearcat");
+  require(control.initial_behaviour == "bearcat" || control.initial_behaviour == "stop", "control.initial_behaviour",
+          "must be \"bearcat\" or \"stop\"");
+  validate_block(guard, "guard");
   validate_block(ptem.params, "ptem");
   require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
   validate_block(octomap, "octomap");
@@ -226,18 +277,47 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_grid_reply_cells", config.limits.max_grid_reply_cells)
                        .field("max_point_cloud_points", config.limits.max_point_cloud_points)
                        .field("max_ptem_query_points", config.limits.max_ptem_query_points)
-                       .field("max_octree_reply_bytes", config.limits.max_octree_reply_bytes);
+                       .field("max_octree_reply_bytes", config.limits.max_octree_reply_bytes)
+                       .field("max_batch_queries", config.limits.max_batch_queries)
+                       .field("max_pending_requests", config.limits.max_pending_requests)
+                       .field("max_watch_queue_messages", config.limits.max_watch_queue_messages)
+                       .field("write_timeout_s", config.limits.write_timeout_s);
                  })
         .section("control",
                  [&](Section& s) {
                    s.field("command_expiry_s", config.control.command_expiry_s)
                        .field("lease_timeout_s", config.control.lease_timeout_s)
                        .field("max_lease_timeout_s", config.control.max_lease_timeout_s)
-                       .field("sensor_timeout_s", config.control.sensor_timeout_s);
+                       .field("sensor_timeout_s", config.control.sensor_timeout_s)
+                       .field("initial_behaviour", config.control.initial_behaviour);
                  })
-        .section("auth", [&](Section& s) { s.field("operator_token", config.auth.operator_token); })
+        .section("auth",
+                 [&](Section& s) {
+                   s.field("operator_token", config.auth.operator_token)
+                       .field("driver_token", config.auth.driver_token)
+                       .field("controller_token", config.auth.controller_token)
+                       .field("observer_token", config.auth.observer_token)
+                       .field("query_token", config.auth.query_token)
+                       .field("max_failures", config.auth.max_failures)
+                       .field("failure_window_s", config.auth.failure_window_s);
+                 })
+        .section("tls",
+                 [&](Section& s) {
+                   std::string cert = config.tls.cert.string();
+                   std::string key = config.tls.key.string();
+                   s.field("cert", cert).field("key", key);
+                   config.tls.cert = cert;
+                   config.tls.key = key;
+                 })
         .section("queries",
                  [&](Section& s) { s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m); })
+        .section("durability",
+                 [&](Section& s) {
+                   s.field("policy", config.durability.policy)
+                       .field("batch_interval_s", config.durability.batch_interval_s)
+                       .field("snapshot_interval_s", config.durability.snapshot_interval_s);
+                 })
+        .section("http", [&](Section& s) { s.field("listen", config.http.listen).field("enabled", config.http.enabled); })
         .section("himm",
                  [&](Section& s) {
                    auto& h = config.himm;
@@ -298,6 +378,23 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("outlier_mean_k", o.outlier_mean_k)
                        .field("outlier_stddev_mul", o.outlier_stddev_mul)
                        .field("min_publish_interval_s", o.min_publish_interval_s);
+                 })
+        .section("guard",
+                 [&](Section& s) {
+                   auto& g = config.guard;
+                   s.field("enabled", g.enabled)
+                       .field("horizon_s", g.horizon_s)
+                       .field("step_m", g.step_m)
+                       .field("step_rad", g.step_rad)
+                       .field("stop_time_s", g.stop_time_s)
+                       .field("stop_distance_m", g.stop_distance_m)
+                       .field("slowdown_ratio", g.slowdown_ratio)
+                       .field("limit_distance_m", g.limit_distance_m)
+                       .field("limit_linear_mps", g.limit_linear_mps)
+                       .field("limit_angular_radps", g.limit_angular_radps)
+                       .field("check_grid", g.check_grid)
+                       .field("check_octomap", g.check_octomap)
+                       .field("check_ptem", g.check_ptem);
                  })
         .section("distance_field", [&](Section& s) {
           auto& d = config.distance_field;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <boost/asio/post.hpp>
 
+#include "durability/world_store.h"
+
 namespace occgeo::service {
 
 World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand)
@@ -125,6 +127,7 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   if (!slot) {
     slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), world_params(name),
                                    asio::make_strand(ingest_pool_.get_executor()));
+    slot->attach_journal(durability::make_world_journal(config_, name));
   }
   return slot;
 }
@@ -184,6 +187,10 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
   // A reconnecting driver's robot keeps its control (lease, behaviour, latched e-stop).
   std::shared_ptr<RobotControl> control;
   if (const auto it = robots_.find(model->id); it != robots_.end()) control = it->second->control_ptr();
+  if (!control) {
+    control = std::make_shared<RobotControl>();
+    control->update([&](ControlState& c) { c.behaviour = config_.control.initial_behaviour; });
+  }
   auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat, std::move(control));
   robots_[model->id] = robot;
   return robot;

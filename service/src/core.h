@@ -23,7 +23,13 @@
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/config.h"
 #include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/behaviour.h"
+#include "occgeo/v1/control.pb.h"
 #include "occgeo/v1/robot.pb.h"
+
+namespace occgeo::service::durability {
+class WorldJournal;
+}
 
 namespace occgeo::service {
 
@@ -81,6 +87,10 @@ class World : public std::enable_shared_from_this<World> {
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
+  // The journal every accepted sensor message is written to before it is applied (see durability/journal.h); set
+  // before any work reaches the strand, then used from the strand.
+  [[nodiscard]] durability::WorldJournal* journal() const { return journal_.get(); }
+  void attach_journal(std::shared_ptr<durability::WorldJournal> journal) { journal_ = std::move(journal); }
   // The latest published grid and PTEM, from the same publication; safe from any thread.
   [[nodiscard]] WorldSnapshot snapshots() const;
 
@@ -97,6 +107,7 @@ class World : public std::enable_shared_from_this<World> {
   bool octomap_timer_armed_ = false;
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
+  std::shared_ptr<durability::WorldJournal> journal_;
 };
 
 // A planar laser as declared in a RobotSpec, converted to SI geometry types.
@@ -185,7 +196,9 @@ struct Lease {
 // requests) and the world's strand (commands, watchdogs).
 struct ControlState {
   std::optional<Lease> lease;
-  std::string behaviour = "bearcat";  // "bearcat" | "stop" | "teleop"; bearcat while no controller set one
+  std::string behaviour = "bearcat";  // see known_behaviour(); control.initial_behaviour while no controller set one
+  v1::DriveRequest drive;             // the holder's last accepted request: goal, waypoints, escape
+  std::uint64_t drive_generation = 0;  // counts accepted DriveRequests: the strand rebuilds the behaviour on change
   double teleop_linear_mps = 0.0;     // teleop: the holder's velocities, already clamped to the robot's limits
   double teleop_angular_radps = 0.0;
   bool estop = false;         // latched: every command is a stop until the lease holder releases it
@@ -229,6 +242,7 @@ struct RobotState {
   std::string behaviour_state;
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
+  v1::GuardDecision guard;  // the safety guard's verdict on the latest command
 };
 
 class Robot : public std::enable_shared_from_this<Robot> {
@@ -245,6 +259,10 @@ class Robot : public std::enable_shared_from_this<Robot> {
   // Dead reckoning from wheel ticks, present when the spec declares encoders; used only from the
   // world's strand.
   std::optional<geometry::EncoderOdometry>& encoder_odometry_on_strand() { return encoder_odometry_; }
+  // The behaviour a DriveRequest set (wander, goto, ...) and the drive_generation it was built for; used only from
+  // the world's strand.
+  std::unique_ptr<control::Behaviour>& active_behaviour_on_strand() { return active_behaviour_; }
+  std::uint64_t& active_generation_on_strand() { return active_generation_; }
 
   [[nodiscard]] RobotState state() const;
   template <typename Update>
@@ -276,6 +294,8 @@ class Robot : public std::enable_shared_from_this<Robot> {
   std::optional<std::chrono::steady_clock::time_point> watchdog_deadline_;  // when the armed timer fires
   bool watchdog_stopped_ = false;
   control::BearcatBehaviour behaviour_;
+  std::unique_ptr<control::Behaviour> active_behaviour_;
+  std::uint64_t active_generation_ = 0;
   std::optional<geometry::EncoderOdometry> encoder_odometry_;
   mutable std::mutex mutex_;
   RobotState state_;

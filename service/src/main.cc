@@ -18,6 +18,7 @@ constexpr const char* kUsage = R"(usage: occgeod [options]
   --data-dir DIR       where worlds are saved and restored (default ./occgeo-data)
   --log-level LEVEL    debug, info, warn or error (default info)
   --port-file FILE     write the bound port to FILE once listening (for scripts and tests)
+  --http HOST:PORT     live web view and /metrics (default 127.0.0.1:7701); "off" disables
   --help               this text
 )";
 
@@ -27,6 +28,7 @@ struct Flags {
   std::string data_dir;
   std::string log_level;
   std::string port_file;
+  std::string http;
 };
 
 int usage_error(const std::string& message) {
@@ -49,7 +51,8 @@ int main(int argc, char** argv) {
                                                          {"--listen", &flags.listen},
                                                          {"--data-dir", &flags.data_dir},
                                                          {"--log-level", &flags.log_level},
-                                                         {"--port-file", &flags.port_file}};
+                                                         {"--port-file", &flags.port_file},
+                                                         {"--http", &flags.http}};
     const auto option = options.find(arg);
     if (option == options.end()) return usage_error("unknown option '" + arg + "'");
     std::string* target = option->second;
@@ -63,6 +66,12 @@ int main(int argc, char** argv) {
     if (!flags.listen.empty()) config.listen = flags.listen;
     if (!flags.data_dir.empty()) config.data_dir = flags.data_dir;
     if (!flags.log_level.empty()) config.log_level = flags.log_level;
+    if (flags.http == "off") {
+      config.http.enabled = false;
+    } else if (!flags.http.empty()) {
+      config.http.enabled = true;
+      config.http.listen = flags.http;
+    }
     occgeo::service::Server server(config);
     if (!flags.port_file.empty()) {
       std::ofstream(flags.port_file) << server.port() << "\n";

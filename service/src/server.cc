@@ -3,14 +3,19 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <csignal>
 #include <mutex>
 #include <thread>
 
 #include "core.h"
+#include "durability/world_store.h"
+#include "http/http_server.h"
 #include "occgeo/mapfile/map_file.h"
 #include "occgeo/service/log.h"
 #include "session.h"
+#include "tls.h"
 #include "validation.h"
 
 namespace occgeo::service {
@@ -19,62 +24,18 @@ using asio::ip::tcp;
 
 namespace {
 
-std::filesystem::path world_dir(const std::filesystem::path& data_dir, const std::string& world) {
-  return data_dir / "worlds" / world;
-}
-
-// Loads every world saved in the data directory (grid.yaml and/or octomap.bt; a world whose grid
-// saw nothing has only the octree); a damaged map stops the start with its name.
+// Every world of the data directory: its snapshot plus the replay of its journal (durability/world_store.h). A damaged
+// snapshot, or a journal damaged in its middle, stops the start with the file's name.
 void restore_worlds(ServerCore& core) {
-  const auto worlds_dir = core.config().data_dir / "worlds";
-  if (!std::filesystem::is_directory(worlds_dir)) return;
-  for (const auto& entry : std::filesystem::directory_iterator(worlds_dir)) {
-    const auto yaml = entry.path() / "grid.yaml";
-    const bool has_grid = std::filesystem::exists(yaml);
-    if (!entry.is_directory() || (!has_grid && !std::filesystem::exists(entry.path() / "octomap.bt"))) continue;
-    const std::string name = entry.path().filename().string();
-    if (!valid_name(name)) {
-      log::warn("restore_skipped", {{"path", entry.path().string()}, {"reason", "not a valid world name"}});
-      continue;
-    }
-    mapping::HimmGrid grid = has_grid ? mapping::HimmGrid::from_image(mapfile::read_map_yaml(yaml), core.config().himm)
-                                      : mapping::HimmGrid(core.config().himm);
-    if (has_grid) {
-      log::info("world_restored",
-                {{"world", name}, {"file", yaml.string()}, {"occupied_cells", grid.occupied_cell_count()}});
-    }
-    auto world = core.add_world(name, std::move(grid));
-    // The OctoMap saved beside the grid, if any; no strand work exists yet, so this is the writer's thread.
-    if (const auto bt = entry.path() / "octomap.bt"; std::filesystem::exists(bt)) {
-      world->octomap_on_strand().load_bt(bt);
-      const auto snapshot = world->publish_octomap_on_strand();
-      log::info("octomap_restored", {{"world", name}, {"file", bt.string()}, {"leaves", snapshot->leaf_count()}});
-    }
-  }
+  // A journal write beyond RLIMIT_FSIZE must fail with EFBIG (reported, not acknowledged), not kill the server.
+  std::signal(SIGXFSZ, SIG_IGN);
+  durability::restore_worlds(core);
 }
 
-// Writes each world's grid as PGM+YAML and its OctoMap as octomap.bt, via a temporary folder renamed into place. Runs
-// after the worker pools have been joined, so no strand is mutating the grids any more.
+// Snapshots every world and empties its journal. Runs after the worker pools have been joined, so no strand is
+// mutating the worlds any more.
 void save_worlds(ServerCore& core) {
-  for (const auto& world : core.worlds()) {
-    const bool has_octomap = world->octomap_on_strand().leaf_count() > 0;
-    if (world->grid_on_strand().tile_count() == 0 && !has_octomap) continue;  // nothing observed, nothing to keep
-    const auto final_dir = world_dir(core.config().data_dir, world->name());
-    const auto temp_dir = final_dir.string() + ".saving";
-    try {
-      std::filesystem::remove_all(temp_dir);
-      std::filesystem::create_directories(temp_dir);
-      if (world->grid_on_strand().tile_count() > 0) {
-        mapfile::write_map(std::filesystem::path(temp_dir) / "grid", world->grid_on_strand().to_image());
-      }
-      if (has_octomap) world->octomap_on_strand().save_bt(std::filesystem::path(temp_dir) / "octomap.bt");
-      std::filesystem::remove_all(final_dir);
-      std::filesystem::rename(temp_dir, final_dir);
-      log::info("world_saved", {{"world", world->name()}, {"dir", final_dir.string()}});
-    } catch (const std::exception& e) {
-      log::error("world_save_failed", {{"world", world->name()}, {"error", e.what()}});
-    }
-  }
+  for (const auto& world : core.worlds()) durability::snapshot_world(core, *world);
 }
 
 }  // namespace
@@ -83,11 +44,27 @@ struct Server::Impl {
   explicit Impl(ServerConfig config) : core(std::move(config)) {}
 
   ServerCore core;
+  SessionShared session_shared;  // watch subscriptions, hello throttle, TLS context
   asio::io_context net{1};
   tcp::acceptor acceptor{net};
   asio::signal_set signals{net, SIGINT, SIGTERM};
   std::mutex sessions_mutex;
   std::vector<std::weak_ptr<Session>> sessions;
+  std::unique_ptr<http::HttpServer> http;  // live view and /metrics; after core, so it is destroyed first
+  asio::steady_timer snapshot_timer{net};  // durability.snapshot_interval_s
+
+  // Snapshots every world whose journal grew, each on its own strand, every durability.snapshot_interval_s.
+  void schedule_snapshots() {
+    const double interval_s = core.config().durability.snapshot_interval_s;
+    if (interval_s <= 0) return;
+    snapshot_timer.expires_after(
+        std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(interval_s)));
+    snapshot_timer.async_wait([this](const boost::system::error_code& error) {
+      if (error) return;
+      for (const auto& world : core.worlds()) durability::snapshot_world_if_changed(core, world);
+      schedule_snapshots();
+    });
+  }
 
   void accept() {
     acceptor.async_accept(asio::make_strand(net), [this](const boost::system::error_code& error, tcp::socket socket) {
@@ -103,7 +80,7 @@ struct Server::Impl {
         boost::system::error_code ignored;
         socket.close(ignored);
       } else {
-        auto session = std::make_shared<Session>(core, std::move(socket), core.next_session_id++);
+        auto session = std::make_shared<Session>(core, session_shared, std::move(socket), core.next_session_id++);
         {
           const std::lock_guard lock(sessions_mutex);
           std::erase_if(sessions, [](const auto& weak) { return weak.expired(); });
@@ -119,6 +96,7 @@ struct Server::Impl {
     boost::system::error_code ignored;
     acceptor.close(ignored);
     signals.cancel(ignored);
+    snapshot_timer.cancel();
     const std::lock_guard lock(sessions_mutex);
     for (const auto& weak : sessions) {
       if (auto session = weak.lock()) session->close();
@@ -143,6 +121,16 @@ Server::Server(ServerConfig config) {
   impl_->acceptor.bind(endpoint, error);
   if (error) throw std::runtime_error("cannot listen on " + impl_->core.config().listen + ": " + error.message());
   impl_->acceptor.listen();
+  // The web view is an aid, not the service: a busy HTTP port is logged and the server runs without it.
+  if (impl_->core.config().http.enabled) {
+    try {
+      impl_->http = std::make_unique<http::HttpServer>(impl_->core, impl_->core.config().http.listen);
+    } catch (const std::runtime_error& e) {
+      if (dynamic_cast<const ConfigError*>(&e) != nullptr) throw;
+      log::error("http_listen_failed", {{"address", impl_->core.config().http.listen}, {"error", e.what()}});
+    }
+  }
+  if (impl_->core.config().tls.enabled()) impl_->session_shared.tls = make_tls_context(impl_->core.config().tls);
 }
 
 Server::~Server() = default;
@@ -156,10 +144,18 @@ void Server::run() {
     impl_->shutdown();
   });
   impl_->accept();
+  impl_->schedule_snapshots();
   log::info("server_listening", {{"address", impl_->core.config().listen},
                                  {"port", static_cast<unsigned>(port())},
+                                 {"tls", impl_->core.config().tls.enabled()},
                                  {"data_dir", impl_->core.config().data_dir.string()}});
+  if (impl_->http) {
+    impl_->http->start();
+    log::info("http_listening", {{"address", impl_->core.config().http.listen},
+                                 {"port", static_cast<unsigned>(impl_->http->port())}});
+  }
   impl_->net.run();
+  if (impl_->http) impl_->http->stop();
   impl_->core.drain();
   save_worlds(impl_->core);
   log::info("server_stopped");

@@ -4,16 +4,114 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
 
+#include "metrics.h"
 #include "occgeo/service/log.h"
+#include "validation.h"
 
 namespace occgeo::service {
 
-Session::Session(ServerCore& core, asio::ip::tcp::socket socket, std::uint64_t id)
-    : core_(core), socket_(std::move(socket)), decoder_(core.config().limits.max_frame_bytes) {
+namespace {
+
+// Client messages answered by exactly one reply or error: the ones counted against limits.max_pending_requests.
+bool is_request(const v1::ClientMessage& message) {
+  switch (message.body_case()) {
+    case v1::ClientMessage::kCollision:
+    case v1::ClientMessage::kClearance:
+    case v1::ClientMessage::kStatus:
+    case v1::ClientMessage::kGrid:
+    case v1::ClientMessage::kPtem:
+    case v1::ClientMessage::kOctree:
+    case v1::ClientMessage::kCollisionBatch:
+    case v1::ClientMessage::kClearanceBatch:
+    case v1::ClientMessage::kRaycast:
+    case v1::ClientMessage::kOccupancy:
+    case v1::ClientMessage::kSwept:
+    case v1::ClientMessage::kGridWindow:
+    case v1::ClientMessage::kOctreeWindow:
+      return true;
+    default:
+      return false;
+  }
+}
+
+// Server messages that answer a request. Errors count too (an error for something else only lets a few more
+// requests through early; it never stalls a session).
+bool is_answer(const v1::ServerMessage& message) {
+  switch (message.body_case()) {
+    case v1::ServerMessage::kCollision:
+    case v1::ServerMessage::kClearance:
+    case v1::ServerMessage::kStatus:
+    case v1::ServerMessage::kGrid:
+    case v1::ServerMessage::kPtem:
+    case v1::ServerMessage::kOctree:
+    case v1::ServerMessage::kCollisionBatch:
+    case v1::ServerMessage::kClearanceBatch:
+    case v1::ServerMessage::kRaycast:
+    case v1::ServerMessage::kOccupancy:
+    case v1::ServerMessage::kSwept:
+    case v1::ServerMessage::kGridWindow:
+    case v1::ServerMessage::kOctreeWindow:
+    case v1::ServerMessage::kError:
+      return true;
+    default:
+      return false;
+  }
+}
+
+std::chrono::steady_clock::duration seconds(double s) {
+  return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
+}
+
+}  // namespace
+
+void WatchHub::subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id) {
+  const std::lock_guard lock(mutex_);
+  std::erase_if(watchers_, [&](const Watcher& w) { return w.key == session.get() || w.session.expired(); });
+  watchers_.push_back({session.get(), session, std::move(world), std::move(robot_id)});
+}
+
+void WatchHub::unsubscribe(const Session* session) {
+  const std::lock_guard lock(mutex_);
+  std::erase_if(watchers_, [&](const Watcher& w) { return w.key == session; });
+}
+
+void WatchHub::publish(const std::string& world, const std::string& robot_id, std::uint64_t seq,
+                       std::uint64_t world_version) {
+  std::vector<std::shared_ptr<Session>> targets;
+  {
+    const std::lock_guard lock(mutex_);
+    for (const Watcher& w : watchers_) {
+      if (!w.world.empty() && w.world != world) continue;
+      if (!w.robot_id.empty() && w.robot_id != robot_id) continue;
+      if (auto session = w.session.lock()) targets.push_back(std::move(session));
+    }
+  }
+  if (targets.empty()) return;
+  auto event = std::make_shared<v1::WatchEvent>();
+  event->set_world(world);
+  event->set_robot_id(robot_id);
+  event->set_seq(seq);
+  event->set_world_version(world_version);
+  for (const auto& session : targets) session->push_watch_event(event);
+}
+
+Session::Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket socket, std::uint64_t id)
+    : core_(core),
+      shared_(shared),
+      executor_(socket.get_executor()),
+      socket_(socket.get_executor()),
+      write_timer_(socket.get_executor()),
+      decoder_(core.config().limits.max_frame_bytes) {
   info_.id = id;
   boost::system::error_code ignored;
-  const auto remote = socket_.remote_endpoint(ignored);
-  info_.peer = remote.address().to_string() + ":" + std::to_string(remote.port());
+  const auto remote = socket.remote_endpoint(ignored);
+  info_.peer_address = remote.address().to_string();
+  info_.peer = info_.peer_address + ":" + std::to_string(remote.port());
+  if (shared_.tls) {
+    tls_ = std::make_unique<asio::ssl::stream<asio::ip::tcp::socket>>(std::move(socket), *shared_.tls);
+  } else {
+    socket_ = std::move(socket);
+  }
   ++core_.sessions;
 }
 
@@ -21,23 +119,42 @@ Session::~Session() { --core_.sessions; }
 
 void Session::start() {
   boost::system::error_code ignored;
-  socket_.set_option(asio::ip::tcp::no_delay(true), ignored);
-  log::info("session_open", {{"session", info_.id}, {"peer", info_.peer}});
-  read_more();
+  tcp_socket().set_option(asio::ip::tcp::no_delay(true), ignored);
+  log::info("session_open", {{"session", info_.id}, {"peer", info_.peer}, {"tls", tls_ != nullptr}});
+  metrics::counter("occgeo_sessions_opened_total").inc();
+  if (!tls_) {
+    read_more();
+    return;
+  }
+  tls_->async_handshake(
+      asio::ssl::stream_base::server, [self = shared_from_this()](const boost::system::error_code& error) {
+        if (self->closed_) return;
+        if (error) {
+          log::warn("session_tls_failed",
+                    {{"session", self->info_.id}, {"peer", self->info_.peer}, {"error", error.message()}});
+          self->shutdown();
+          return;
+        }
+        self->read_more();
+      });
 }
 
 void Session::close() {
-  asio::dispatch(socket_.get_executor(), [self = shared_from_this()] { self->shutdown(); });
+  asio::dispatch(executor_, [self = shared_from_this()] { self->shutdown(); });
 }
 
 void Session::read_more() {
-  socket_.async_read_some(asio::buffer(read_buffer_),
-                          [self = shared_from_this()](const boost::system::error_code& error, std::size_t size) {
-                            self->on_read(error, size);
-                          });
+  reading_ = true;
+  with_stream([&](auto& stream) {
+    stream.async_read_some(asio::buffer(read_buffer_),
+                           [self = shared_from_this()](const boost::system::error_code& error, std::size_t size) {
+                             self->on_read(error, size);
+                           });
+  });
 }
 
 void Session::on_read(const boost::system::error_code& error, std::size_t size) {
+  reading_ = false;
   if (closed_) return;
   if (error) {
     if (decoder_.buffered() > 0) {
@@ -47,7 +164,17 @@ void Session::on_read(const boost::system::error_code& error, std::size_t size) 
     return;
   }
   decoder_.append(read_buffer_.data(), size);
+  process_frames();
+}
+
+void Session::process_frames() {
+  const std::size_t max_pending = core_.config().limits.max_pending_requests;
   while (!closed_ && !close_after_write_) {
+    if (pending_requests_.load() >= max_pending) {
+      // Reading resumes when answers bring the count down (enqueue); until then TCP holds the client back.
+      read_paused_ = true;
+      return;
+    }
     v1::ClientMessage message;
     const proto::FrameStatus status = decoder_.next(message);
     if (status == proto::FrameStatus::need_more) break;
@@ -61,16 +188,68 @@ void Session::on_read(const boost::system::error_code& error, std::size_t size) 
       fail_stream(v1::ERROR_BAD_FRAME, "the frame does not decode as an occgeo.v1 ClientMessage");
       return;
     }
+    if (is_request(message)) ++pending_requests_;
+    const bool was_greeted = info_.greeted;
     dispatch(shared_from_this(), std::move(message));
+    if (!was_greeted && info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
   }
-  if (!closed_ && !close_after_write_) read_more();
+  if (!closed_ && !close_after_write_ && !reading_) read_more();
 }
 
 void Session::send(v1::ServerMessage message) {
+  // A driver's ack is what watchers follow. The driver's role, robot and world are fixed at its hello, before any
+  // scan is posted to an ingest strand, so reading them here (on that strand) is safe.
+  if (message.has_scan_ack() && info_.role == v1::ROLE_DRIVER) {
+    shared_.watch.publish(info_.world, info_.robot_id, message.scan_ack().seq(), message.scan_ack().world_version());
+  }
+  if (is_answer(message)) {
+    std::size_t pending = pending_requests_.load();
+    while (pending > 0 && !pending_requests_.compare_exchange_weak(pending, pending - 1)) {
+    }
+  }
   // Encoding happens on the caller's thread so the network strand only moves bytes.
   std::string frame = proto::encode_frame(message);
-  asio::dispatch(socket_.get_executor(),
+  asio::dispatch(executor_,
                  [self = shared_from_this(), frame = std::move(frame)]() mutable { self->enqueue(std::move(frame)); });
+}
+
+void Session::close_after_send() {
+  close_after_write_ = true;
+  if (!writing_) shutdown();
+}
+
+void Session::watch(const v1::WatchRequest& request) {
+  if (!request.world().empty() && !valid_name(request.world())) {
+    send_error(v1::ERROR_INVALID_ARGUMENT, "watch.world", "a world name is 1-64 characters of A-Z a-z 0-9 _ . -",
+               request.request_id());
+    return;
+  }
+  if (!request.robot_id().empty() && !valid_name(request.robot_id())) {
+    send_error(v1::ERROR_INVALID_ARGUMENT, "watch.robot_id", "a robot id is 1-64 characters of A-Z a-z 0-9 _ . -",
+               request.request_id());
+    return;
+  }
+  shared_.watch.subscribe(shared_from_this(), request.world(), request.robot_id());
+  v1::ServerMessage reply;
+  reply.mutable_watch()->set_request_id(request.request_id());
+  send(std::move(reply));
+  log::info("session_watch", {{"session", info_.id}, {"world", request.world()}, {"robot", request.robot_id()}});
+}
+
+void Session::push_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
+  asio::post(executor_, [self = shared_from_this(), event = std::move(event)]() mutable {
+    self->enqueue_watch_event(std::move(event));
+  });
+}
+
+void Session::enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
+  if (closed_) return;
+  if (watch_queue_.size() >= core_.config().limits.max_watch_queue_messages) {
+    watch_queue_.pop_front();
+    ++watch_dropped_;
+  }
+  watch_queue_.push_back(std::move(event));
+  if (!writing_) write_next();
 }
 
 void Session::enqueue(std::string frame) {
@@ -80,30 +259,72 @@ void Session::enqueue(std::string frame) {
   if (outbox_bytes_ > core_.config().limits.max_send_queue_bytes) {
     log::warn("session_slow_client_dropped",
               {{"session", info_.id}, {"peer", info_.peer}, {"unsent_bytes", outbox_bytes_}});
+    metrics::counter("occgeo_slow_clients_dropped_total").inc();
     shutdown();
     return;
+  }
+  if (read_paused_ && pending_requests_.load() < core_.config().limits.max_pending_requests) {
+    read_paused_ = false;
+    asio::post(executor_, [self = shared_from_this()] {
+      if (!self->closed_ && !self->read_paused_) self->process_frames();
+    });
   }
   if (!writing_) write_next();
 }
 
 void Session::write_next() {
+  if (outbox_.empty() && !watch_queue_.empty() && !close_after_write_) {
+    // Replies first; a watch event is encoded only when it is about to be written, carrying the drop count.
+    v1::ServerMessage message;
+    *message.mutable_watch_event() = *watch_queue_.front();
+    message.mutable_watch_event()->set_dropped_since_last(watch_dropped_);
+    watch_dropped_ = 0;
+    watch_queue_.pop_front();
+    std::string frame = proto::encode_frame(message);
+    outbox_bytes_ += frame.size();
+    outbox_.push_back(std::move(frame));
+  }
   if (outbox_.empty()) {
     writing_ = false;
     if (close_after_write_) shutdown();
     return;
   }
   writing_ = true;
-  asio::async_write(socket_, asio::buffer(outbox_.front()),
-                    [self = shared_from_this()](const boost::system::error_code& error, std::size_t) {
-                      if (self->closed_) return;
-                      if (error) {
-                        self->shutdown();
-                        return;
-                      }
-                      self->outbox_bytes_ -= self->outbox_.front().size();
-                      self->outbox_.pop_front();
-                      self->write_next();
-                    });
+  write_started_ = std::chrono::steady_clock::now();
+  arm_write_timer();
+  with_stream([&](auto& stream) {
+    asio::async_write(stream, asio::buffer(outbox_.front()),
+                      [self = shared_from_this()](const boost::system::error_code& error, std::size_t) {
+                        if (self->closed_) return;
+                        if (error) {
+                          self->shutdown();
+                          return;
+                        }
+                        self->outbox_bytes_ -= self->outbox_.front().size();
+                        self->outbox_.pop_front();
+                        self->write_next();
+                      });
+  });
+}
+
+void Session::arm_write_timer() {
+  if (write_timer_armed_) return;
+  write_timer_armed_ = true;
+  write_timer_.expires_at(write_started_ + seconds(core_.config().limits.write_timeout_s));
+  write_timer_.async_wait([self = shared_from_this()](const boost::system::error_code& error) {
+    self->write_timer_armed_ = false;
+    if (error || self->closed_ || !self->writing_) return;
+    const auto deadline = self->write_started_ + seconds(self->core_.config().limits.write_timeout_s);
+    if (std::chrono::steady_clock::now() < deadline) {
+      self->arm_write_timer();  // a later write started since; wait for its own deadline
+      return;
+    }
+    log::warn("session_write_timeout", {{"session", self->info_.id},
+                                        {"peer", self->info_.peer},
+                                        {"unsent_bytes", self->outbox_bytes_},
+                                        {"timeout_s", self->core_.config().limits.write_timeout_s}});
+    self->shutdown();
+  });
 }
 
 void Session::fail_stream(v1::ErrorCode code, const std::string& message) {
@@ -119,12 +340,16 @@ void Session::fail_stream(v1::ErrorCode code, const std::string& message) {
 void Session::shutdown() {
   if (closed_) return;
   closed_ = true;
+  shared_.watch.unsubscribe(this);
   boost::system::error_code ignored;
-  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
-  socket_.close(ignored);
+  write_timer_.cancel();
+  tcp_socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
+  tcp_socket().close(ignored);
   outbox_.clear();
   outbox_bytes_ = 0;
+  watch_queue_.clear();
   handle_disconnect(core_, info_);
+  if (info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).dec();
   log::info("session_closed", {{"session", info_.id}, {"peer", info_.peer}});
 }
 

@@ -1,22 +1,61 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl/context.hpp>
+#include <boost/asio/ssl/stream.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <vector>
 
 #include "handlers/handlers.h"
 #include "occgeo/proto/framing.h"
 
 namespace occgeo::service {
 
+class Session;
+
+// Which sessions watch which worlds and robots. publish() runs on ingest strands, subscribe/unsubscribe on the
+// network thread; it only posts events to the watchers, so a slow watcher never slows ingest.
+class WatchHub {
+ public:
+  // Replaces the session's filter (empty world or robot: all).
+  void subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id);
+  void unsubscribe(const Session* session);
+  // One accepted sensor message of robot_id in world.
+  void publish(const std::string& world, const std::string& robot_id, std::uint64_t seq, std::uint64_t world_version);
+
+ private:
+  struct Watcher {
+    const Session* key = nullptr;
+    std::weak_ptr<Session> session;
+    std::string world;
+    std::string robot_id;
+  };
+  std::mutex mutex_;
+  std::vector<Watcher> watchers_;
+};
+
+// What every session of one server shares.
+struct SessionShared {
+  WatchHub watch;
+  HelloThrottle hello_throttle;
+  std::shared_ptr<asio::ssl::context> tls;  // null: plain TCP
+};
+
 // One client connection. Reads frames on its strand and hands them to the handlers; replies
 // from any thread are queued without blocking. A client that lets more than the configured bytes
-// pile up unread is disconnected, so a slow client never holds up anyone else.
+// pile up unread, or takes no bytes for limits.write_timeout_s, is disconnected, so a slow client
+// never holds up anyone else. Watch events are queued apart and bounded: the oldest are dropped
+// first and the next event delivered says how many. A client with limits.max_pending_requests
+// queries in flight is not read until some are answered.
 class Session final : public SessionContext, public std::enable_shared_from_this<Session> {
  public:
-  Session(ServerCore& core, asio::ip::tcp::socket socket, std::uint64_t id);
+  Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket socket, std::uint64_t id);
   ~Session() override;
 
   void start();
@@ -26,23 +65,55 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   ServerCore& core() override { return core_; }
   SessionInfo& info() override { return info_; }
   void send(v1::ServerMessage message) override;
+  void close_after_send() override;
+  HelloThrottle* hello_throttle() override { return &shared_.hello_throttle; }
+  void watch(const v1::WatchRequest& request) override;
+
+  // Queues one watch event (any thread).
+  void push_watch_event(std::shared_ptr<const v1::WatchEvent> event);
 
  private:
+  // Runs f on the TLS stream or the plain socket, whichever this session uses.
+  template <typename Function>
+  void with_stream(Function&& f) {
+    if (tls_) {
+      f(*tls_);
+    } else {
+      f(socket_);
+    }
+  }
+  asio::ip::tcp::socket& tcp_socket() { return tls_ ? tls_->next_layer() : socket_; }
+
   void read_more();
   void on_read(const boost::system::error_code& error, std::size_t size);
+  // Decodes and dispatches buffered frames until none is whole or too many queries are in flight.
+  void process_frames();
   void enqueue(std::string frame);
+  void enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event);
   void write_next();
+  void arm_write_timer();
   // Sends an error, then closes once it is written (for a stream that cannot be trusted).
   void fail_stream(v1::ErrorCode code, const std::string& message);
   void shutdown();
 
   ServerCore& core_;
-  asio::ip::tcp::socket socket_;
+  SessionShared& shared_;
+  asio::any_io_executor executor_;  // the session's strand
+  asio::ip::tcp::socket socket_;    // plain TCP; unused (moved into tls_) with TLS
+  std::unique_ptr<asio::ssl::stream<asio::ip::tcp::socket>> tls_;
+  asio::steady_timer write_timer_;
   SessionInfo info_;
   proto::FrameDecoder decoder_;
   std::array<char, std::size_t{64} * 1024> read_buffer_{};
   std::deque<std::string> outbox_;
   std::size_t outbox_bytes_ = 0;
+  std::deque<std::shared_ptr<const v1::WatchEvent>> watch_queue_;
+  std::uint64_t watch_dropped_ = 0;  // events dropped since the last one delivered
+  std::atomic<std::size_t> pending_requests_{0};
+  std::chrono::steady_clock::time_point write_started_{};
+  bool write_timer_armed_ = false;
+  bool reading_ = false;
+  bool read_paused_ = false;
   bool writing_ = false;
   bool close_after_write_ = false;
   bool closed_ = false;

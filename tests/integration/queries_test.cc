@@ -143,5 +143,52 @@ TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
   EXPECT_NE(status.out.find("\"id\":\"probe\""), std::string::npos) << status.out;
 }
 
+TEST_F(QueriesOnKnownWorld, BatchOverLoopbackAnswersLikeSingleQueriesAndTheTrueGeometry) {
+  auto query = open_query_session(server_->address());
+  std::mt19937 rng(13);
+  const std::vector<std::pair<int, int>> obstacles(truth_->obstacles().begin(), truth_->obstacles().end());
+  std::uniform_int_distribution<std::size_t> pick(0, obstacles.size() - 1);
+  std::uniform_real_distribution<double> offset(-1.5, 1.5);
+  std::uniform_real_distribution<double> heading(-M_PI, M_PI);
+  v1::ClientMessage batch;
+  auto* poses = batch.mutable_collision_batch();
+  poses->set_request_id(5000);
+  poses->set_robot_id("probe");
+  std::vector<double> distances;
+  while (poses->poses_size() < 2000) {
+    const auto [ix, iy] = obstacles[pick(rng)];
+    const double x = (ix + 0.5) * truth_->cell_size() + offset(rng);
+    const double y = (iy + 0.5) * truth_->cell_size() + offset(rng);
+    const double theta = heading(rng);
+    const double distance = truth_->box_distance(x, y, theta, kBearcatLength, kBearcatWidth, 0.0);
+    if (distance > 0.0 && distance < 1e-9) continue;  // touching within rounding: either answer is right
+    auto* pose = poses->add_poses();
+    pose->set_x(x);
+    pose->set_y(y);
+    pose->set_theta(theta);
+    distances.push_back(distance);
+  }
+  const v1::CollisionBatchReply reply = query.call(batch, 5000).collision_batch();
+  ASSERT_EQ(reply.results_size(), 2000);
+  std::uint32_t hits = 0;
+  for (int i = 0; i < reply.results_size(); ++i) {
+    EXPECT_EQ(reply.results(i).hit(), distances[static_cast<std::size_t>(i)] == 0.0) << "pose " << i;
+    hits += reply.results(i).hit() ? 1 : 0;
+  }
+  EXPECT_EQ(reply.hits(), hits);
+  // Every 50th pose again as a single query, pipelined on the same connection: the same answer.
+  for (int i = 0; i < 2000; i += 50) {
+    v1::ClientMessage single;
+    single.mutable_collision()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    single.mutable_collision()->set_robot_id("probe");
+    *single.mutable_collision()->mutable_pose() = poses->poses(i);
+    v1::CollisionReply one = query.call(single, static_cast<std::uint64_t>(i + 1)).collision();
+    one.clear_request_id();
+    EXPECT_EQ(one.SerializeAsString(), reply.results(i).SerializeAsString()) << "pose " << i;
+  }
+  std::cout << hits << " of 2000 batched poses in collision\n";
+  EXPECT_GT(hits, 200U);
+}
+
 }  // namespace
 }  // namespace occgeo::testing

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -121,6 +122,10 @@ ServerProcess::ServerProcess(const std::filesystem::path& data_dir, const std::v
                                    "--port-file",
                                    port_file.string()};
   argv.insert(argv.end(), extra_flags.begin(), extra_flags.end());
+  // Tests run servers side by side: the web view's fixed default port would be taken by the first one.
+  if (std::find(extra_flags.begin(), extra_flags.end(), "--http") == extra_flags.end()) {
+    argv.insert(argv.end(), {"--http", "off"});
+  }
   process_ = std::make_unique<BackgroundProcess>(argv, data_dir / "occgeod.out", log_file_);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
   while (std::chrono::steady_clock::now() < deadline) {

@@ -28,7 +28,8 @@ _ROLES = {
 }
 _MODELS = {"grid": query_pb2.MODEL_GRID, "octomap": query_pb2.MODEL_OCTOMAP, "ptem": query_pb2.MODEL_PTEM}
 # ServerMessage bodies that answer a query (they carry request_id).
-_REPLY_BODIES = ("collision", "clearance", "status", "grid", "ptem", "octree")
+_REPLY_BODIES = ("collision", "clearance", "status", "grid", "ptem", "octree", "collision_batch", "clearance_batch",
+                 "raycast", "occupancy", "swept", "grid_window", "octree_window")
 
 
 class ClientError(Exception):
@@ -414,6 +415,88 @@ class Client:
                 q.footprint.CopyFrom(footprint)
         return self._call("clearance", fill, timeout_s)
 
+    def collision_batch(self, robot, poses, models=None, footprint=None, timeout_s=None):
+        """Collision of robot ``robot``'s footprint at many poses ``[(x, y, theta), ...]`` in one request.
+        Returns the ``CollisionBatchReply``: ``results`` (one ``CollisionReply`` per pose, as
+        :meth:`collision` would answer it) and ``hits``."""
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.robot_id = robot
+            q.poses.extend(_pose2d(*p) for p in poses)
+            q.models.extend(model_values)
+            if footprint is not None:
+                q.footprint.CopyFrom(footprint)
+        return self._call("collision_batch", fill, timeout_s)
+
+    def clearance_batch(self, robot, poses, models=None, max_distance_m=0.0, footprint=None, timeout_s=None):
+        """Clearance (with gradient) at many poses in one request; ``results`` holds one ``ClearanceReply``
+        per pose."""
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.robot_id = robot
+            q.poses.extend(_pose2d(*p) for p in poses)
+            q.max_distance_m = float(max_distance_m)
+            q.models.extend(model_values)
+            if footprint is not None:
+                q.footprint.CopyFrom(footprint)
+        return self._call("clearance_batch", fill, timeout_s)
+
+    def raycast(self, rays, max_range_m, world="", models=None, height_m=0.0, timeout_s=None):
+        """Planar rays ``[(x, y, theta), ...]`` (world frame): ``RaycastReply.results``, one per ray, with
+        ``hit``, ``range_m``, ``model`` and ``per_model``."""
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.world = world
+            q.rays.extend(_pose2d(*r) for r in rays)
+            q.max_range_m = float(max_range_m)
+            q.height_m = float(height_m)
+            q.models.extend(model_values)
+        return self._call("raycast", fill, timeout_s)
+
+    def occupancy(self, points, world="", models=None, timeout_s=None):
+        """Grid certainty, octree probability and PTEM threat at points ``[(x, y, z), ...]`` (world frame):
+        ``OccupancyReply.samples``, one per point."""
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.world = world
+            for x, y, z in points:
+                q.points.add(x=float(x), y=float(y), z=float(z))
+            q.models.extend(model_values)
+        return self._call("occupancy", fill, timeout_s)
+
+    def swept(self, robot, start, linear_mps, angular_radps, duration_s, models=None, footprint=None, timeout_s=None):
+        """Does robot ``robot``'s footprint moving from ``start`` (x, y, theta) at (v, w) for ``duration_s``
+        touch anything, and when first? Returns the ``SweptResult`` (``hit``, ``time_s``, ``pose``,
+        ``model``, ``contact``)."""
+        model_values = _model_list(models)
+
+        def fill(q):
+            q.robot_id = robot
+            q.models.extend(model_values)
+            if footprint is not None:
+                q.footprint.CopyFrom(footprint)
+            motion = q.motions.add()
+            motion.start.CopyFrom(_pose2d(*start))
+            motion.linear_mps = float(linear_mps)
+            motion.angular_radps = float(angular_radps)
+            motion.duration_s = float(duration_s)
+        return self._call("swept", fill, timeout_s).results[0]
+
+    def grid_window(self, min_x, min_y, max_x, max_y, world="", since_version=0, timeout_s=60.0):
+        """A window of the grid for the box [min, max] (world frame, metres): ``GridWindowReply`` with the
+        whole window in ``cells`` (``since_version`` 0) or only the blocks changed since ``since_version``
+        in ``changed`` (see :class:`GridFollower`)."""
+        def fill(q):
+            q.world = world
+            q.min_corner.x, q.min_corner.y = float(min_x), float(min_y)
+            q.max_corner.x, q.max_corner.y = float(max_x), float(max_y)
+            q.since_version = int(since_version)
+        return self._call("grid_window", fill, timeout_s)
+
     def ptem(self, world, points, include_clusters=False, timeout_s=None):
         """Evaluates world ``world``'s probabilistic threat exposure map (``""``: the default world)
         at ``points``, an iterable of (x, y) world-frame positions in metres.
@@ -562,3 +645,36 @@ class Client:
         if reply.WhichOneof("body") == "error":
             raise ServerError.from_proto(reply.error)
         return reply.scan_ack
+
+
+class GridFollower:
+    """Follows a window of a world's grid incrementally: :meth:`update` fetches only the blocks changed
+    since the version held and writes them into :attr:`cells` (row-major bytes, row 0 at the window's
+    lowest y, 255 = never observed)."""
+
+    def __init__(self, client, min_x, min_y, max_x, max_y, world=""):
+        self._client = client
+        self._box = (min_x, min_y, max_x, max_y)
+        self._world = world
+        self.version = 0
+        self.width = 0
+        self.height = 0
+        self.min_cell = (0, 0)
+        self.cells = bytearray()
+
+    def update(self):
+        """Brings :attr:`cells` to the grid's current version; returns the number of cells received."""
+        reply = self._client.grid_window(*self._box, world=self._world, since_version=self.version)
+        self.width, self.height = reply.width, reply.height
+        self.min_cell = (reply.min_cell.ix, reply.min_cell.iy)
+        received = 0
+        if reply.cells or self.version == 0:
+            self.cells = bytearray(reply.cells)
+            received = len(reply.cells)
+        for block in reply.changed:
+            for row in range(block.height):
+                start = (block.min_cell.iy - reply.min_cell.iy + row) * reply.width + (block.min_cell.ix - reply.min_cell.ix)
+                self.cells[start:start + block.width] = block.cells[row * block.width:(row + 1) * block.width]
+            received += len(block.cells)
+        self.version = reply.version
+        return received

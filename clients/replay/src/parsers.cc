@@ -117,8 +117,9 @@ class CarmenParser : public LineParser {
   // FLASER n r_1..r_n x y theta odom_x odom_y odom_theta ipc_timestamp [host logger_timestamp]
   std::optional<ScanRecord> parse_flaser(const std::vector<std::string_view>& tokens, std::size_t line_number) {
     const auto n = tokens.size() >= 2 ? to_int(tokens[1]) : std::nullopt;
-    if (!n || *n <= 0 || static_cast<std::size_t>(*n) > kMaxBeams) {
-      diagnostics_.warn("bad_beam_count", line_number, "FLASER without a valid beam count; line skipped");
+    // One beam spans no angle (its increment would be pi / 0), so a scan needs two or more.
+    if (!n || *n <= 1 || static_cast<std::size_t>(*n) > kMaxBeams) {
+      diagnostics_.warn("bad_beam_count", line_number, "FLASER without a valid beam count (2-100000); line skipped");
       return std::nullopt;
     }
     const auto beams = static_cast<std::size_t>(*n);

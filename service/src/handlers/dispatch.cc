@@ -1,4 +1,5 @@
 #include "handlers.h"
+#include "../metrics.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
@@ -16,9 +17,18 @@ void SessionContext::send_error(v1::ErrorCode code, const std::string& field, co
   send(std::move(reply));
 }
 
+void SessionContext::watch(const v1::WatchRequest& request) {
+  send_error(v1::ERROR_NOT_ALLOWED, "watch", "this session cannot receive watch events", request.request_id());
+}
+
 void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t request_id,
                  const std::function<void()>& work) {
   try {
+    // Everything run here that is not a sensor or odometry message is a query.
+    const bool is_query = what != "laser_scan" && what != "range_array" && what != "servo_range" &&
+                          what != "point_cloud" && what != "odometry" && what != "wheel_encoders";
+    std::optional<metrics::ScopedTimer> timer;
+    if (is_query) timer.emplace(metrics::histogram("occgeo_query_duration_seconds", {{"kind", std::string(what)}}));
     work();
   } catch (const std::exception& e) {
     log::error("handler_failed", {{"handler", what}, {"error", e.what()}});
@@ -42,12 +52,13 @@ bool require_driver_with_spec(const SessionPtr& session, const char* field) {
 }
 
 // Leases and behaviours are for controllers only: observers, queries and drivers never drive.
-bool require_controller(const SessionPtr& session, const char* field) {
+bool require_controller(const SessionPtr& session, const char* field, std::uint64_t request_id) {
   const v1::Role role = session->info().role;
   if (role == v1::ROLE_CONTROLLER) return true;
   session->send_error(
       v1::ERROR_NOT_ALLOWED, field,
-      std::string("only ROLE_CONTROLLER sessions may send ") + field + "; this session is " + v1::Role_Name(role));
+      std::string("only ROLE_CONTROLLER sessions may send ") + field + "; this session is " + v1::Role_Name(role),
+      request_id);
   return false;
 }
 }  // namespace
@@ -65,6 +76,27 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
   if (!session->info().greeted) {
     session->send_error(v1::ERROR_OUT_OF_ORDER, "hello", "the first message of a session must be a hello");
     return;
+  }
+  switch (message.body_case()) {
+    case v1::ClientMessage::kCollision:
+    case v1::ClientMessage::kClearance:
+    case v1::ClientMessage::kStatus:
+    case v1::ClientMessage::kGrid:
+    case v1::ClientMessage::kPtem:
+    case v1::ClientMessage::kOctree:
+    case v1::ClientMessage::kCollisionBatch:
+    case v1::ClientMessage::kClearanceBatch:
+    case v1::ClientMessage::kGridWindow:
+    case v1::ClientMessage::kOctreeWindow:
+    case v1::ClientMessage::kOccupancy:
+    case v1::ClientMessage::kRaycast:
+    case v1::ClientMessage::kSwept:
+      metrics::counter("occgeo_queries_total",
+                       {{"kind", v1::ClientMessage::descriptor()->FindFieldByNumber(message.body_case())->name()}})
+          .inc();
+      break;
+    default:
+      break;
   }
   switch (message.body_case()) {
     case v1::ClientMessage::kRobotSpec:
@@ -106,6 +138,27 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
     case v1::ClientMessage::kClearance:
       handle_clearance_query(session, message.clearance());
       return;
+    case v1::ClientMessage::kCollisionBatch:
+      handle_collision_batch(session, message.collision_batch());
+      return;
+    case v1::ClientMessage::kClearanceBatch:
+      handle_clearance_batch(session, message.clearance_batch());
+      return;
+    case v1::ClientMessage::kRaycast:
+      handle_raycast_query(session, message.raycast());
+      return;
+    case v1::ClientMessage::kOccupancy:
+      handle_occupancy_query(session, message.occupancy());
+      return;
+    case v1::ClientMessage::kSwept:
+      handle_swept_query(session, message.swept());
+      return;
+    case v1::ClientMessage::kGridWindow:
+      handle_grid_window(session, message.grid_window());
+      return;
+    case v1::ClientMessage::kOctreeWindow:
+      handle_octree_window(session, message.octree_window());
+      return;
     case v1::ClientMessage::kStatus:
       handle_status_request(session, message.status());
       return;
@@ -119,10 +172,10 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
       handle_octree_request(session, message.octree());
       return;
     case v1::ClientMessage::kLease:
-      if (require_controller(session, "lease")) handle_lease_request(session, message.lease());
+      if (require_controller(session, "lease", message.lease().request_id())) handle_lease_request(session, message.lease());
       return;
     case v1::ClientMessage::kDrive:
-      if (require_controller(session, "drive")) handle_drive_request(session, message.drive());
+      if (require_controller(session, "drive", message.drive().request_id())) handle_drive_request(session, message.drive());
       return;
     case v1::ClientMessage::kEstop:
       if (session->info().role == v1::ROLE_QUERY) {
@@ -132,6 +185,16 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
         return;
       }
       handle_estop(session, message.estop());
+      return;
+    case v1::ClientMessage::kWatch:
+      if (session->info().role != v1::ROLE_OBSERVER && session->info().role != v1::ROLE_CONTROLLER) {
+        session->send_error(v1::ERROR_NOT_ALLOWED, "watch",
+                            "only ROLE_OBSERVER and ROLE_CONTROLLER sessions may watch; this session is " +
+                                v1::Role_Name(session->info().role),
+                            message.watch().request_id());
+        return;
+      }
+      session->watch(message.watch());
       return;
     default:
       session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");

@@ -1,7 +1,11 @@
 #pragma once
 
+#include <chrono>
+#include <deque>
 #include <functional>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "../core.h"
@@ -13,6 +17,7 @@ namespace occgeo::service {
 struct SessionInfo {
   std::uint64_t id = 0;
   std::string peer;
+  std::string peer_address;  // the peer's IP address alone (hello throttling is per address)
   bool greeted = false;
   v1::Role role = v1::ROLE_UNSPECIFIED;
   std::string client_name;       // from the hello
@@ -20,6 +25,20 @@ struct SessionInfo {
   std::string robot_id;          // drivers
   std::string world;             // drivers
   std::shared_ptr<Robot> robot;  // drivers, once the RobotSpec is accepted
+};
+
+// Refused hellos per peer address: after auth.max_failures within auth.failure_window_s the address's
+// further hellos are refused without looking at their token. Thread-safe.
+class HelloThrottle {
+ public:
+  using Clock = std::chrono::steady_clock;
+  // Whether `address` may try a hello now.
+  bool allowed(const std::string& address, std::size_t max_failures, double window_s, Clock::time_point now);
+  void record_failure(const std::string& address, double window_s, Clock::time_point now);
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, std::deque<Clock::time_point>> failures_;
 };
 
 // The part of a session that message handlers use. send() may be called from any thread.
@@ -34,6 +53,13 @@ class SessionContext {
 
   void send_error(v1::ErrorCode code, const std::string& field, const std::string& message,
                   std::uint64_t request_id = 0, std::uint64_t seq = 0);
+
+  // Closes the connection once what is queued has been written (a refused hello). Network strand only.
+  virtual void close_after_send() {}
+  // The server's hello throttle; nullptr where there is none (handler tests).
+  virtual HelloThrottle* hello_throttle() { return nullptr; }
+  // Subscribes this session to WatchEvents (role already checked). Network strand only.
+  virtual void watch(const v1::WatchRequest& request);
 };
 
 using SessionPtr = std::shared_ptr<SessionContext>;
@@ -57,6 +83,13 @@ void handle_wheel_encoders(const SessionPtr& session, const v1::WheelEncoders& m
 void handle_point_cloud(const SessionPtr& session, v1::PointCloud message);
 void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query);
 void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query);
+void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQuery& query);
+void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQuery& query);
+void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& query);
+void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery& query);
+void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query);
+void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& request);
+void handle_octree_window(const SessionPtr& session, const v1::OctreeWindowRequest& request);
 void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request);
 void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
 void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query);

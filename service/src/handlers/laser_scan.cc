@@ -95,49 +95,16 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   world.insert_ptem_on_strand(ptem_scan);
 }
 
-// The decision as a command the robot's drive can execute: differential wheel speeds straight from
-// the behaviour, or, for skid steer, the track rim speeds that produce the decided body velocity
-// despite the declared slippage. Either way the speeds are clamped to the robot's maximum (keeping
-// their ratio, hence the path's curvature) and linear/angular describe what the clamped speeds do.
-v1::MotionCommand command_from_decision(const control::BearcatDecision& decision, const RobotModel& model,
-                                        double expiry_s) {
-  geometry::WheelSpeeds wheels;
-  geometry::BodyVelocity body;
-  if (const auto* skid = std::get_if<geometry::SkidSteerParams>(&model.drive)) {
-    wheels = geometry::to_wheels(geometry::BodyVelocity{decision.linear_mps, decision.angular_radps}, *skid);
-    wheels = geometry::clamp_to_max_speed(wheels, *skid);
-    body = geometry::to_body(wheels, *skid);
-  } else {
-    const auto& drive = std::get<geometry::DifferentialDriveParams>(model.drive);
-    wheels =
-        geometry::clamp_to_max_speed(geometry::WheelSpeeds{decision.left_wheel_mps, decision.right_wheel_mps}, drive);
-    body = geometry::to_body(wheels, drive);
-  }
-  v1::MotionCommand command;
-  command.set_left_wheel_mps(wheels.left_mps);
-  command.set_right_wheel_mps(wheels.right_mps);
-  command.set_linear_mps(body.linear_mps);
-  command.set_angular_radps(body.angular_radps);
-  command.set_expires_after_s(expiry_s);
-  command.set_behaviour("bearcat");
-  command.set_state(std::string(decision.state));
-  command.set_stop(decision.stop);
-  return command;
-}
-
 // Orders, maps and answers one validated scan; runs on the robot's world strand.
 void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& robot, const v1::LaserScan& scan,
                       double expiry_s) {
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
-  const bool accepted = ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s()},
-                                                        [&](const geometry::Pose2& X_WB, IngestTarget& target) {
-                                                          const PlanarSensorPose sensor =
-                                                              planar_sensor_pose(X_WB, laser);
-                                                          insert_ptem(robot->world(), sensor, laser, scan);
-                                                          insert_scan(target.grid, sensor, laser, scan);
-                                                          insert_scan_3d(target, X_WB, laser, scan);
-                                                        });
+  const bool accepted =
+      ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s(), &scan},
+                                      [&](const geometry::Pose2& X_WB, IngestTarget& target) {
+                                        insert_laser_scan(robot->world(), target, X_WB, laser, scan);
+                                      });
   if (!accepted) return;
 
   // The behaviour steers from the robot's first laser; other lasers and the other sensor kinds
@@ -145,30 +112,10 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   if (&laser != &model.lasers.front()) return;
   // What answers the scan is the behaviour the lease holder set (bearcat while nobody set one),
   // overridden by a latched e-stop.
-  const ControlState control = robot->control().state();
-  v1::MotionCommand command;
-  if (control.estop || control.behaviour == "stop") {
-    command.set_expires_after_s(expiry_s);
-    command.set_behaviour(control.behaviour);
-    command.set_state(control.estop ? "estop" : "stop");
-    command.set_stop(true);
-  } else if (control.behaviour == "teleop") {
-    const ClampedVelocity velocity = clamp_velocity(model, control.teleop_linear_mps, control.teleop_angular_radps);
-    command.set_left_wheel_mps(velocity.wheels.left_mps);
-    command.set_right_wheel_mps(velocity.wheels.right_mps);
-    command.set_linear_mps(velocity.body.linear_mps);
-    command.set_angular_radps(velocity.body.angular_radps);
-    command.set_expires_after_s(expiry_s);
-    command.set_behaviour("teleop");
-    command.set_state("teleop");
-    command.set_stop(velocity.wheels.left_mps == 0.0 && velocity.wheels.right_mps == 0.0);
-  } else {
-    const control::ScanView view{
-        laser.angle_min_rad, laser.angle_increment_rad,
-        std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
-    const control::BearcatDecision decision = robot->behaviour_on_strand().decide(view);
-    command = command_from_decision(decision, model, expiry_s);
-  }
+  const control::ScanView view{
+      laser.angle_min_rad, laser.angle_increment_rad,
+      std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
+  v1::MotionCommand command = command_for_scan_on_strand(*robot, view, scan.stamp_s(), expiry_s, session->core().config());
   command.set_answers_scan_seq(scan.seq());
 
   std::string previous_state;
@@ -192,6 +139,14 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
 }
 
 }  // namespace
+
+void insert_laser_scan(World& world, IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
+                       const v1::LaserScan& scan) {
+  const PlanarSensorPose sensor = planar_sensor_pose(X_WB, laser);
+  insert_ptem(world, sensor, laser, scan);
+  insert_scan(target.grid, sensor, laser, scan);
+  insert_scan_3d(target, X_WB, laser, scan);
+}
 
 void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
   auto robot = session->info().robot;

@@ -54,9 +54,6 @@ mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, 
   return octomap.collide(lifted, X_WL);
 }
 
-namespace {
-
-// The point of the footprint (a filled rectangle or disc on the ground) nearest to p_W, world frame.
 Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
                                         const Eigen::Vector2d& p_W) {
   const Eigen::Vector2d p_B = X_WB.inverse().transform(p_W);
@@ -71,6 +68,13 @@ Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, co
   }
   return X_WB.transform(q_B);
 }
+
+Eigen::Vector2d footprint_center(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return X_WB.transform({box->center_x, 0.0});
+  return X_WB.position();
+}
+
+namespace {
 
 // Points of the footprint every step metres on its boundary and on a grid inside, world frame.
 std::vector<Eigen::Vector2d> footprint_samples(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,

@@ -44,6 +44,13 @@ class OctoMapColumns final : public geometry::OccupiedCellSource {
 mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, const geometry::Footprint& footprint,
                                        const geometry::Pose2& X_WB);
 
+// The point of the footprint (its filled outline on the ground) nearest to p_W, world frame; p_W itself when inside.
+Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                        const Eigen::Vector2d& p_W);
+
+// The centre of the footprint's outline, world frame (the box's centre or the cylinder's axis).
+Eigen::Vector2d footprint_center(const geometry::Footprint& footprint, const geometry::Pose2& X_WB);
+
 // Spacing of the points of the footprint sampled against the PTEM's restricted test, metres.
 inline constexpr double kPtemSampleStep_m = 0.05;
 

@@ -16,6 +16,8 @@ double footprint_height_m(const geometry::Footprint& footprint) {
   return std::visit([](const auto& shape) { return shape.height; }, footprint);
 }
 
+}  // namespace
+
 // The 2D grid holds what the robot would hit: points between the ground and the robot's height.
 // Each is ray-cast from the sensor's position on the ground, clearing the cells before it and
 // marking its own. Points above the robot (overhangs it passes under) or on the ground are left
@@ -40,8 +42,6 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
   target.octomap.insert_cloud(X_WS, points_S);
 }
 
-}  // namespace
-
 void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
   auto robot = session->info().robot;
   if (auto error = check_point_cloud(message, robot->model())) {
@@ -52,7 +52,7 @@ void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
     run_guarded(session, "point_cloud", 0, [&] {
       const RobotModel& model = robot->model();
       const PointCloudModel& cloud = *model.find_point_cloud(message.sensor());
-      ingest_sensor_message_on_strand(session, *robot, {"point_cloud", message.seq(), message.stamp_s()},
+      ingest_sensor_message_on_strand(session, *robot, {"point_cloud", message.seq(), message.stamp_s(), &message},
                                       [&](const geometry::Pose2& X_WB, IngestTarget& target) {
                                         insert_point_cloud(target, X_WB, model, cloud, message);
                                       });

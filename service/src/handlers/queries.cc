@@ -7,36 +7,24 @@
 #include "handlers.h"
 #include "model_geometry.h"
 #include "occgeo/geometry/collision.h"
+#include "queries_common.h"
+#include "query_kernels.h"
 
 namespace occgeo::service {
 
-namespace {
-
-// The robot a query names and the footprint to check: the query's override or the robot's own.
-struct QueryTarget {
-  std::shared_ptr<Robot> robot;
-  geometry::Footprint footprint;
-  geometry::Pose2 pose;
-};
-
-std::optional<QueryTarget> resolve_target(const SessionPtr& session, const char* kind, std::uint64_t request_id,
-                                          const std::string& robot_id, const v1::Pose2D& pose, bool has_footprint,
-                                          const v1::Footprint& footprint) {
-  const std::string prefix = kind;
+std::optional<QueryTarget> resolve_robot_footprint(const SessionPtr& session, const std::string& kind,
+                                                   std::uint64_t request_id, const std::string& robot_id,
+                                                   bool has_footprint, const v1::Footprint& footprint) {
   auto robot = session->core().find_robot(robot_id);
   if (!robot) {
-    session->send_error(v1::ERROR_UNKNOWN_ROBOT, prefix + ".robot_id", "no robot '" + robot_id + "' is registered",
+    session->send_error(v1::ERROR_UNKNOWN_ROBOT, kind + ".robot_id", "no robot '" + robot_id + "' is registered",
                         request_id);
     return std::nullopt;
   }
-  if (auto error = check_pose(pose, prefix + ".pose", session->core().config().limits)) {
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, error->field, error->message, request_id);
-    return std::nullopt;
-  }
-  QueryTarget target{robot, robot->model().footprint, {pose.x(), pose.y(), pose.theta()}};
+  QueryTarget target{robot, robot->model().footprint};
   if (has_footprint) {
     FieldError error;
-    auto override_footprint = footprint_from_proto(footprint, prefix + ".footprint", error);
+    auto override_footprint = footprint_from_proto(footprint, kind + ".footprint", error);
     if (!override_footprint) {
       session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message, request_id);
       return std::nullopt;
@@ -46,25 +34,16 @@ std::optional<QueryTarget> resolve_target(const SessionPtr& session, const char*
   return target;
 }
 
-void set_cell(const geometry::CellIndex& cell, v1::CellIndex& out) {
-  out.set_ix(cell.ix);
-  out.set_iy(cell.iy);
+std::optional<geometry::Pose2> resolve_pose(const SessionPtr& session, const v1::Pose2D& pose, const std::string& field,
+                                            std::uint64_t request_id) {
+  if (auto error = check_pose(pose, field, session->core().config().limits)) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, error->field, error->message, request_id);
+    return std::nullopt;
+  }
+  return geometry::Pose2{pose.x(), pose.y(), pose.theta()};
 }
 
-void set_vector(const Eigen::Vector3d& v, v1::Vector3& out) {
-  out.set_x(v.x());
-  out.set_y(v.y());
-  out.set_z(v.z());
-}
-
-double footprint_height(const geometry::Footprint& footprint) {
-  return std::visit([](const auto& shape) { return shape.height; }, footprint);
-}
-
-// The models a query asks about, in its order without repeats; all three (GRID, OCTOMAP, PTEM)
-// when it names none. An unknown value is answered with ERROR_INVALID_ARGUMENT naming
-// `<kind>.models[i]`, and nullopt is returned.
-std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, const char* kind,
+std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, const std::string& kind,
                                                      std::uint64_t request_id,
                                                      const google::protobuf::RepeatedField<int>& asked) {
   if (asked.empty()) return std::vector<v1::Model>{v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM};
@@ -72,7 +51,7 @@ std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, 
   for (int i = 0; i < asked.size(); ++i) {
     const int value = asked.Get(i);
     if (value != v1::MODEL_GRID && value != v1::MODEL_OCTOMAP && value != v1::MODEL_PTEM) {
-      session->send_error(v1::ERROR_INVALID_ARGUMENT, std::string(kind) + ".models[" + std::to_string(i) + "]",
+      session->send_error(v1::ERROR_INVALID_ARGUMENT, kind + ".models[" + std::to_string(i) + "]",
                           "must be MODEL_GRID, MODEL_OCTOMAP or MODEL_PTEM, got " + std::to_string(value), request_id);
       return std::nullopt;
     }
@@ -82,112 +61,170 @@ std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, 
   return models;
 }
 
+std::shared_ptr<World> resolve_world(const SessionPtr& session, const std::string& kind, std::uint64_t request_id,
+                                     const std::string& world) {
+  const std::string name = world.empty() ? session->core().config().default_world : world;
+  auto found = session->core().find_world(name);
+  if (!found) {
+    session->send_error(v1::ERROR_UNKNOWN_WORLD, kind + ".world", "no world '" + name + "' exists", request_id);
+  }
+  return found;
+}
+
+bool check_count(const SessionPtr& session, std::size_t count, std::size_t limit, const std::string& field,
+                 std::uint64_t request_id) {
+  if (count >= 1 && count <= limit) return true;
+  session->send_error(v1::ERROR_INVALID_ARGUMENT, field,
+                      "must hold 1 to " + std::to_string(limit) + " entries, got " + std::to_string(count), request_id);
+  return false;
+}
+
+namespace {
+
+// Checks a clearance search radius; 0 means the server default.
+std::optional<double> resolve_max_distance(const SessionPtr& session, double max_distance, const std::string& field,
+                                           std::uint64_t request_id) {
+  const LimitsConfig& limits = session->core().config().limits;
+  if (!std::isfinite(max_distance) || max_distance < 0.0 || max_distance > limits.max_query_distance_m) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, field,
+                        "must be between 0 and " + std::to_string(limits.max_query_distance_m) + " m", request_id);
+    return std::nullopt;
+  }
+  return max_distance == 0.0 ? session->core().config().queries.clearance_max_distance_m : max_distance;
+}
+
 }  // namespace
 
 void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
-  auto target = resolve_target(session, "collision", query.request_id(), query.robot_id(), query.pose(),
-                               query.has_footprint(), query.footprint());
+  auto target = resolve_robot_footprint(session, "collision", query.request_id(), query.robot_id(),
+                                        query.has_footprint(), query.footprint());
   if (!target) return;
+  const auto pose = resolve_pose(session, query.pose(), "collision.pose", query.request_id());
+  if (!pose) return;
   auto models = resolve_models(session, "collision", query.request_id(), query.models());
   if (!models) return;
   asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
-                                            request_id = query.request_id()] {
+                                            request_id = query.request_id(), pose = *pose] {
     run_guarded(session, "collision", request_id, [&] {
       const WorldSnapshot snapshot = target.robot->world().snapshots();
       v1::ServerMessage reply;
       auto* out = reply.mutable_collision();
       out->set_request_id(request_id);
-      for (const v1::Model model : models) {
-        if (model == v1::MODEL_GRID) {
-          const geometry::CollisionResult result =
-              geometry::check_collision({target.footprint, target.pose}, *snapshot.grid);
-          out->set_cells_tested(static_cast<std::uint32_t>(result.cells_tested));
-          if (!result.hit) continue;
-          out->set_hit(true);
-          if (result.cell) {
-            set_cell(*result.cell, *out->mutable_cell());
-            const Eigen::Vector2d center = geometry::GridGeometry(snapshot.grid->cell_size()).center_of(*result.cell);
-            out->mutable_cell_center()->set_x(center.x());
-            out->mutable_cell_center()->set_y(center.y());
-            set_vector(Eigen::Vector3d(center.x(), center.y(), 0.0), *out->mutable_contact());
-          }
-        } else if (model == v1::MODEL_OCTOMAP) {
-          const mapping::OctoCollision result = collide_octomap(*snapshot.octomap, target.footprint, target.pose);
-          if (!result.hit) continue;
-          out->set_hit(true);
-          set_vector(result.contact_W, *out->mutable_contact());
-        } else {
-          const PtemContact result = collide_ptem(*snapshot.ptem, target.footprint, target.pose);
-          if (!result.hit) continue;
-          out->set_hit(true);
-          set_vector(Eigen::Vector3d(result.point_W.x(), result.point_W.y(), 0.0), *out->mutable_contact());
-        }
-        out->set_model(model);
-        break;
-      }
+      answer_collision(snapshot, target.footprint, geometry::bounding_radius(target.footprint), pose, models, *out);
       session->send(std::move(reply));
     });
   });
 }
 
 void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query) {
-  auto target = resolve_target(session, "clearance", query.request_id(), query.robot_id(), query.pose(),
-                               query.has_footprint(), query.footprint());
+  auto target = resolve_robot_footprint(session, "clearance", query.request_id(), query.robot_id(),
+                                        query.has_footprint(), query.footprint());
   if (!target) return;
-  const LimitsConfig& limits = session->core().config().limits;
-  double max_distance = query.max_distance_m();
-  if (!std::isfinite(max_distance) || max_distance < 0.0 || max_distance > limits.max_query_distance_m) {
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, "clearance.max_distance_m",
-                        "must be between 0 and " + std::to_string(limits.max_query_distance_m) + " m",
-                        query.request_id());
-    return;
-  }
+  const auto pose = resolve_pose(session, query.pose(), "clearance.pose", query.request_id());
+  if (!pose) return;
+  const auto max_distance =
+      resolve_max_distance(session, query.max_distance_m(), "clearance.max_distance_m", query.request_id());
+  if (!max_distance) return;
   auto models = resolve_models(session, "clearance", query.request_id(), query.models());
   if (!models) return;
-  if (max_distance == 0.0) max_distance = session->core().config().queries.clearance_max_distance_m;
+  asio::post(session->core().query_pool(),
+             [session, target = std::move(*target), models = std::move(*models), request_id = query.request_id(),
+              pose = *pose, max_distance = *max_distance] {
+               run_guarded(session, "clearance", request_id, [&] {
+                 const WorldSnapshot snapshot = target.robot->world().snapshots();
+                 v1::ServerMessage reply;
+                 auto* out = reply.mutable_clearance();
+                 out->set_request_id(request_id);
+                 answer_clearance(snapshot, target.footprint, pose, max_distance, models, *out);
+                 session->send(std::move(reply));
+               });
+             });
+}
+
+void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQuery& query) {
+  const std::uint64_t request_id = query.request_id();
+  auto target = resolve_robot_footprint(session, "collision_batch", request_id, query.robot_id(), query.has_footprint(),
+                                        query.footprint());
+  if (!target) return;
+  if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, "collision_batch.poses",
+                   request_id)) {
+    return;
+  }
+  std::vector<geometry::Pose2> poses;
+  poses.reserve(static_cast<std::size_t>(query.poses_size()));
+  for (int i = 0; i < query.poses_size(); ++i) {
+    const auto pose =
+        resolve_pose(session, query.poses(i), "collision_batch.poses[" + std::to_string(i) + "]", request_id);
+    if (!pose) return;
+    poses.push_back(*pose);
+  }
+  auto models = resolve_models(session, "collision_batch", request_id, query.models());
+  if (!models) return;
+  asio::post(session->core().query_pool(),
+             [session, target = std::move(*target), models = std::move(*models), request_id, poses = std::move(poses)] {
+               run_guarded(session, "collision_batch", request_id, [&] {
+                 const WorldSnapshot snapshot = target.robot->world().snapshots();
+                 const double radius = geometry::bounding_radius(target.footprint);
+                 v1::ServerMessage reply;
+                 auto* out = reply.mutable_collision_batch();
+                 out->set_request_id(request_id);
+                 out->mutable_results()->Reserve(static_cast<int>(poses.size()));
+                 std::uint32_t hits = 0;
+                 for (const geometry::Pose2& pose : poses) {
+                   v1::CollisionReply* result = out->add_results();
+                   answer_collision(snapshot, target.footprint, radius, pose, models, *result);
+                   hits += result->hit() ? 1 : 0;
+                 }
+                 out->set_hits(hits);
+                 session->send(std::move(reply));
+               });
+             });
+}
+
+void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQuery& query) {
+  const std::uint64_t request_id = query.request_id();
+  auto target = resolve_robot_footprint(session, "clearance_batch", request_id, query.robot_id(), query.has_footprint(),
+                                        query.footprint());
+  if (!target) return;
+  if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, "clearance_batch.poses",
+                   request_id)) {
+    return;
+  }
+  std::vector<geometry::Pose2> poses;
+  poses.reserve(static_cast<std::size_t>(query.poses_size()));
+  for (int i = 0; i < query.poses_size(); ++i) {
+    const auto pose =
+        resolve_pose(session, query.poses(i), "clearance_batch.poses[" + std::to_string(i) + "]", request_id);
+    if (!pose) return;
+    poses.push_back(*pose);
+  }
+  const auto max_distance =
+      resolve_max_distance(session, query.max_distance_m(), "clearance_batch.max_distance_m", request_id);
+  if (!max_distance) return;
+  auto models = resolve_models(session, "clearance_batch", request_id, query.models());
+  if (!models) return;
   asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
-                                            request_id = query.request_id(), max_distance] {
-    run_guarded(session, "clearance", request_id, [&] {
+                                            request_id, poses = std::move(poses), max_distance = *max_distance] {
+    run_guarded(session, "clearance_batch", request_id, [&] {
       const WorldSnapshot snapshot = target.robot->world().snapshots();
-      const geometry::ClearanceRequest request{target.footprint, target.pose, max_distance};
       v1::ServerMessage reply;
-      auto* out = reply.mutable_clearance();
+      auto* out = reply.mutable_clearance_batch();
       out->set_request_id(request_id);
-      out->set_clearance_m(max_distance);
-      // Keeps the nearest answer over the models; ties go to the model asked first.
-      const auto offer = [&](v1::Model model, bool found, double clearance_m, const Eigen::Vector2d& point_W,
-                             const std::optional<geometry::CellIndex>& cell) {
-        if (!found || (out->found() && clearance_m >= out->clearance_m())) return;
-        out->set_found(true);
-        out->set_clearance_m(clearance_m);
-        out->set_model(model);
-        out->mutable_nearest_point()->set_x(point_W.x());
-        out->mutable_nearest_point()->set_y(point_W.y());
-        if (cell) {
-          set_cell(*cell, *out->mutable_nearest_cell());
-        } else {
-          out->clear_nearest_cell();
-        }
-      };
-      for (const v1::Model model : models) {
-        if (model == v1::MODEL_GRID) {
-          // The distance field answers (within one cell of exact, falling back to the exact search itself
-          // when the query reaches beyond the field).
-          const geometry::ClearanceResult result = snapshot.distance->compute_clearance(request);
-          offer(model, result.found, result.clearance_m, result.nearest_point_W, result.nearest_cell);
-        } else if (model == v1::MODEL_OCTOMAP) {
-          const OctoMapColumns columns(*snapshot.octomap, footprint_height(target.footprint));
-          const geometry::ClearanceResult result = geometry::compute_clearance(request, columns);
-          offer(model, result.found, result.clearance_m, result.nearest_point_W, result.nearest_cell);
-        } else {
-          const PtemClearance result = ptem_clearance(*snapshot.ptem, target.footprint, target.pose, max_distance);
-          offer(model, result.found, result.clearance_m, result.nearest_point_W, std::nullopt);
-        }
+      out->mutable_results()->Reserve(static_cast<int>(poses.size()));
+      for (const geometry::Pose2& pose : poses) {
+        answer_clearance(snapshot, target.footprint, pose, max_distance, models, *out->add_results());
       }
       session->send(std::move(reply));
     });
   });
 }
+
+namespace {
+void set_cell(const geometry::CellIndex& cell, v1::CellIndex& out) {
+  out.set_ix(cell.ix);
+  out.set_iy(cell.iy);
+}
+}  // namespace
 
 void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request) {
   ServerCore& core = session->core();
@@ -222,6 +259,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
           0.0, std::chrono::duration<double>(control.lease->expires_at - std::chrono::steady_clock::now()).count()));
     }
     out->set_sensor_stale(control.sensor_stale);
+    *out->mutable_guard() = state.guard;
     out->set_last_linear_mps(state.last_linear_mps);
     out->set_last_angular_radps(state.last_angular_radps);
   }

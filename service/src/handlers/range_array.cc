@@ -4,8 +4,6 @@
 
 namespace occgeo::service {
 
-namespace {
-
 // HIMM updates only the cells on each element's acoustic axis, traced from the element itself:
 // tracing from the robot centre instead (seed 001 §3) shifts every obstacle by the ring's radius.
 // The OctoMap gets the same axis from the element's full 6-DoF pose X_WB ∘ X_BS ∘ X_SE.
@@ -21,8 +19,6 @@ void insert_range_array(IngestTarget& target, const geometry::Pose2& X_WB, const
   }
 }
 
-}  // namespace
-
 void handle_range_array(const SessionPtr& session, v1::RangeArray message) {
   auto robot = session->info().robot;
   if (auto error = check_range_array(message, robot->model())) {
@@ -33,7 +29,7 @@ void handle_range_array(const SessionPtr& session, v1::RangeArray message) {
     run_guarded(session, "range_array", 0, [&] {
       const RangeArrayModel& array = *robot->model().find_range_array(message.sensor());
       ingest_sensor_message_on_strand(
-          session, *robot, {"range_array", message.seq(), message.stamp_s()},
+          session, *robot, {"range_array", message.seq(), message.stamp_s(), &message},
           [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_range_array(target, X_WB, array, message); });
     });
   });

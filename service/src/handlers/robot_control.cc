@@ -95,7 +95,147 @@ v1::MotionCommand make_stop(const std::string& behaviour, const std::string& sta
 
 }  // namespace
 
-bool known_behaviour(const std::string& name) { return name == "bearcat" || name == "stop" || name == "teleop"; }
+bool known_behaviour(const std::string& name) {
+  return name == "bearcat" || name == "stop" || name == "teleop" || name == "wander" || name == "goto" ||
+         name == "waypoints";
+}
+
+namespace {
+
+control::RobotShape robot_shape(const RobotModel& model) {
+  control::RobotShape shape;
+  shape.footprint = model.footprint;
+  if (!model.lasers.empty()) shape.laser_x_m = model.lasers.front().X_BS.translation().x();
+  if (const auto* skid = std::get_if<geometry::SkidSteerParams>(&model.drive)) {
+    shape.max_linear_mps = skid->max_track_speed_mps;
+  } else {
+    shape.max_linear_mps = std::get<geometry::DifferentialDriveParams>(model.drive).max_wheel_speed_mps;
+  }
+  return shape;
+}
+
+// Speeds from a behaviour as the drive executes them: differential wheel speeds as the behaviour computed them, or
+// the body velocity through the drive's kinematics (skid steer: the slippage model); clamped keeping their ratio.
+ClampedVelocity executable(const RobotModel& model, const control::BehaviourCommand& wanted) {
+  if (const auto* drive = std::get_if<geometry::DifferentialDriveParams>(&model.drive); drive && wanted.wheels) {
+    ClampedVelocity out;
+    out.wheels = geometry::clamp_to_max_speed(*wanted.wheels, *drive);
+    out.body = geometry::to_body(out.wheels, *drive);
+    return out;
+  }
+  return clamp_velocity(model, wanted.linear_mps, wanted.angular_radps);
+}
+
+void fill_guard(const control::GuardDecision& decision, double requested_linear_mps, double requested_angular_radps,
+                v1::GuardDecision& out) {
+  out.set_checked(true);
+  out.set_action(std::string(control::guard_action_name(decision.action)));
+  out.set_zone(std::string(decision.zone));
+  out.set_model(std::string(decision.model));
+  out.set_time_to_contact_s(decision.time_to_contact_s);
+  out.set_distance_to_contact_m(decision.distance_to_contact_m);
+  out.set_requested_linear_mps(requested_linear_mps);
+  out.set_requested_angular_radps(requested_angular_radps);
+}
+
+}  // namespace
+
+std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
+                                                   const RobotModel& model, const ServerConfig& config) {
+  const control::RobotShape shape = robot_shape(model);
+  if (name == "bearcat") return control::make_bearcat(config.bearcat);
+  if (name == "wander") return control::make_wander(control::WanderParams{}, shape);
+  if ((name == "goto" || name == "waypoints") && request.escape()) {
+    v1::DriveRequest plain = request;
+    plain.set_escape(false);
+    return control::make_escape([plain, name, &model, &config] { return make_behaviour(name, plain, model, config); },
+                                shape);
+  }
+  if (name == "waypoints") {
+    std::vector<Eigen::Vector2d> waypoints_W;
+    for (const auto& w : request.waypoints()) waypoints_W.emplace_back(w.x_m(), w.y_m());
+    return control::make_waypoints(shape, std::move(waypoints_W));
+  }
+  if (name == "goto") {
+    double half_width_m = 0.0;
+    std::visit(
+        [&](const auto& shape_of) {
+          if constexpr (requires { shape_of.width; }) {
+            half_width_m = shape_of.width / 2.0;
+          } else {
+            half_width_m = shape_of.radius;
+          }
+        },
+        model.footprint);
+    return control::make_goto(control::pointbug_params_for(shape), request.goal().x_m(), request.goal().y_m(), 0.1,
+                              half_width_m + 0.1);
+  }
+  return nullptr;
+}
+
+v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
+                                             double expiry_s, const ServerConfig& config) {
+  const RobotModel& model = robot.model();
+  const ControlState control = robot.control().state();
+  v1::MotionCommand command;
+  command.set_expires_after_s(expiry_s);
+  command.set_behaviour(control.behaviour);
+  if (control.estop || control.behaviour == "stop") {
+    command.set_state(control.estop ? "estop" : "stop");
+    command.set_stop(true);
+    robot.update_state([](RobotState& s) { s.guard.Clear(); });
+    return command;
+  }
+  const std::optional<geometry::Pose2> X_WB = robot.state().X_WB;
+  const WorldSnapshot snapshot = robot.world().snapshots();
+  control::BehaviourCommand wanted;
+  if (control.behaviour == "teleop") {
+    wanted.linear_mps = control.teleop_linear_mps;
+    wanted.angular_radps = control.teleop_angular_radps;
+    wanted.state = "teleop";
+  } else {
+    auto& active = robot.active_behaviour_on_strand();
+    try {
+      if (!active || robot.active_generation_on_strand() != control.drive_generation ||
+          active->name() != control.behaviour) {
+        active = make_behaviour(control.behaviour, control.drive, model, config);
+        robot.active_generation_on_strand() = control.drive_generation;
+      }
+      if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
+      wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get()});
+    } catch (const std::invalid_argument& e) {
+      log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
+      wanted = control::BehaviourCommand{};
+      wanted.stop = true;
+      wanted.state = "behaviour_error";
+    }
+  }
+  command.set_state(wanted.state);
+  if (wanted.stop) {
+    command.set_stop(true);
+    robot.update_state([](RobotState& s) { s.guard.Clear(); });
+    return command;
+  }
+  ClampedVelocity velocity = executable(model, wanted);
+  v1::GuardDecision guard;
+  if (config.guard.enabled && X_WB) {
+    const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
+    const control::GuardDecision decision = control::guard_command(
+        models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard);
+    fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);
+    if (decision.action != control::GuardAction::kPass) {
+      velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);
+    }
+  }
+  command.set_left_wheel_mps(velocity.wheels.left_mps);
+  command.set_right_wheel_mps(velocity.wheels.right_mps);
+  command.set_linear_mps(velocity.body.linear_mps);
+  command.set_angular_radps(velocity.body.angular_radps);
+  command.set_stop(velocity.wheels.left_mps == 0.0 && velocity.wheels.right_mps == 0.0);
+  *command.mutable_guard() = guard;
+  robot.update_state([&](RobotState& s) { s.guard = guard; });
+  return command;
+}
 
 v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const std::string& state, double expiry_s,
                                std::uint64_t answers_scan_seq) {

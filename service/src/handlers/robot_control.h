@@ -46,6 +46,19 @@ struct ClampedVelocity {
 };
 [[nodiscard]] ClampedVelocity clamp_velocity(const RobotModel& model, double linear_mps, double angular_radps);
 
+// The command answering one scan of the robot's first laser (sensor frame view, stamp in seconds): a stop while the
+// e-stop is latched or the behaviour is "stop", the teleop velocities, or the decision of the behaviour the lease
+// holder set (rebuilt when a new DriveRequest was accepted); every moving command then passes the safety guard
+// (config.guard) against the world's latest snapshot, and the guard's verdict is recorded in the robot's state.
+// answers_scan_seq and seq are left to the caller. Call only from the world's strand.
+v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
+                                             double expiry_s, const ServerConfig& config);
+
+// The behaviour a DriveRequest names, built for this robot; nullptr for "stop" and "teleop" (no decision needed).
+// Throws std::invalid_argument naming the field when its parameters are wrong.
+std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
+                                                   const RobotModel& model, const ServerConfig& config);
+
 // A session ends: a driver's robot has no driver any more; every lease a controller held is freed
 // and its robot stopped (behaviour "stop", a stop command to its driver) at once.
 void release_session_control(ServerCore& core, const SessionInfo& info);

@@ -4,12 +4,16 @@
 #include <cmath>
 #include <string>
 
+#include "../metrics.h"
+#include "../durability/journal.h"
+#include "occgeo/service/log.h"
 #include "robot_control.h"
 
 namespace occgeo::service {
 
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq) {
   robot.update_state([](RobotState& state) { ++state.scans_rejected; });
+  metrics::counter("occgeo_scans_rejected_total", {{"robot", robot.model().id}}).inc();
   session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message + "; the message was discarded", 0, seq);
 }
 
@@ -34,12 +38,29 @@ bool ingest_sensor_message_on_strand(
   }
   if (!order_error.empty()) {
     robot.update_state([](RobotState& state) { ++state.scans_rejected; });
+    metrics::counter("occgeo_scans_rejected_total", {{"robot", robot.model().id}}).inc();
     session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the message was discarded", 0,
                         header.seq);
     return false;
   }
 
   World& world = robot.world();
+  // Written ahead of the map: what the map holds is in the journal, and a message that cannot be made durable is not
+  // applied at all.
+  durability::WorldJournal* journal = header.message ? world.journal() : nullptr;
+  std::uint64_t lsn = 0;
+  if (journal) {
+    const auto model = robot.model_ptr();
+    const auto appended = journal->append_sensor(model->id, model, model->spec, *before.X_WB, kind, *header.message);
+    if (!appended.error.empty()) {
+      robot.update_state([](RobotState& state) { ++state.scans_rejected; });
+      log::error("journal_write_failed", {{"world", world.name()}, {"robot", model->id}, {"error", appended.error}});
+      session->send_error(v1::ERROR_INTERNAL, "durability",
+                          appended.error + "; the message was not applied and is not acknowledged", 0, header.seq);
+      return false;
+    }
+    lsn = appended.lsn;
+  }
   IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   insert(*before.X_WB, target);
   world.publish_on_strand(target.touched, before.X_WB->position());
@@ -50,12 +71,26 @@ bool ingest_sensor_message_on_strand(
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
+  metrics::counter("occgeo_scans_ingested_total", {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
+      .inc();
   note_sensor_message_on_strand(robot, session->core().config().control);
 
   v1::ServerMessage ack;
   ack.mutable_scan_ack()->set_seq(header.seq);
   ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-  session->send(std::move(ack));
+  if (!journal) {
+    session->send(std::move(ack));
+    return true;
+  }
+  journal->when_durable(lsn, [session, ack = std::move(ack), seq = header.seq](const std::string* error) mutable {
+    if (!error) {
+      session->send(std::move(ack));
+      return;
+    }
+    session->send_error(v1::ERROR_INTERNAL, "durability",
+                        *error + "; the message is in the live map but was not made durable, so it is not acknowledged",
+                        0, seq);
+  });
   return true;
 }
 

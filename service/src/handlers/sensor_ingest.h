@@ -14,6 +14,8 @@ struct SensorMessageHeader {
   std::string_view kind;  // its ClientMessage field, e.g. "range_array"; errors name fields under it
   std::uint64_t seq = 0;
   double stamp_s = 0.0;
+  // The message itself, written to the world's journal before it is applied (replay needs it whole).
+  const google::protobuf::MessageLite* message = nullptr;
 };
 
 // Answers a sensor message that failed validation: counts the rejection in the robot's status
@@ -40,9 +42,24 @@ struct IngestTarget {
 // distance field in step over target.touched), sends the ScanAck and records the message in the
 // robot's state, then returns true. Otherwise sends ERROR_OUT_OF_ORDER naming the field, counts
 // the rejection and returns false, leaving the map alone.
+// Before insert runs, the message and the pose are written to the world's journal; the ScanAck
+// goes out only once that record is durable under durability.policy. A journal that cannot be
+// written (disk full, I/O error) gets ERROR_INTERNAL with field "durability" instead, and the
+// message is not applied.
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
     const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert);
+
+// What each sensor kind's ingest does to the maps once the message is placed at X_WB; replaying a
+// journal calls the same functions, so a restored map equals the one ingest built.
+void insert_laser_scan(World& world, IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
+                       const v1::LaserScan& scan);
+void insert_range_array(IngestTarget& target, const geometry::Pose2& X_WB, const RangeArrayModel& array,
+                        const v1::RangeArray& message);
+void insert_servo_range(IngestTarget& target, const geometry::Pose2& X_WB, const ServoRangeModel& servo,
+                        const v1::ServoRange& message);
+void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const RobotModel& model,
+                        const PointCloudModel& cloud, const v1::PointCloud& message);
 
 // The ground-plane pose of a beam that lies in a sensor's x-y plane at X_SE (metres, radians) and
 // measures along its own x axis, for a robot at X_WB carrying the sensor at X_BS. Composed in 3D

@@ -4,6 +4,18 @@
 
 namespace occgeo::service {
 
+void insert_servo_range(IngestTarget& target, const geometry::Pose2& X_WB, const ServoRangeModel& servo,
+                        const v1::ServoRange& message) {
+  // The servo turns the beam about the sensor frame's z axis.
+  const geometry::Pose2 X_SE{0.0, 0.0, message.servo_angle_rad()};
+  const geometry::Pose2 X_WE = planar_beam_pose(X_WB, servo.X_BS, X_SE);
+  const auto reading = static_cast<double>(message.range_m());
+  insert_beam(target.grid, X_WE, reading, servo.range_min_m, servo.range_max_m);
+  const geometry::Pose3 X_WE3 =
+      geometry::Pose3::from_pose2(X_WB).compose(servo.X_BS).compose(geometry::Pose3::from_pose2(X_SE));
+  insert_beam_3d(target, X_WE3, reading, servo.range_min_m, servo.range_max_m);
+}
+
 void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
   auto robot = session->info().robot;
   if (auto error = check_servo_range(message, robot->model())) {
@@ -14,17 +26,8 @@ void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
     run_guarded(session, "servo_range", 0, [&] {
       const ServoRangeModel& servo = *robot->model().find_servo_range(message.sensor());
       ingest_sensor_message_on_strand(
-          session, *robot, {"servo_range", message.seq(), message.stamp_s()},
-          [&](const geometry::Pose2& X_WB, IngestTarget& target) {
-            // The servo turns the beam about the sensor frame's z axis.
-            const geometry::Pose2 X_SE{0.0, 0.0, message.servo_angle_rad()};
-            const geometry::Pose2 X_WE = planar_beam_pose(X_WB, servo.X_BS, X_SE);
-            const auto reading = static_cast<double>(message.range_m());
-            insert_beam(target.grid, X_WE, reading, servo.range_min_m, servo.range_max_m);
-            const geometry::Pose3 X_WE3 =
-                geometry::Pose3::from_pose2(X_WB).compose(servo.X_BS).compose(geometry::Pose3::from_pose2(X_SE));
-            insert_beam_3d(target, X_WE3, reading, servo.range_min_m, servo.range_max_m);
-          });
+          session, *robot, {"servo_range", message.seq(), message.stamp_s(), &message},
+          [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_servo_range(target, X_WB, servo, message); });
     });
   });
 }

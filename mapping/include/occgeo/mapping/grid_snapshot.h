@@ -40,6 +40,11 @@ class GridSnapshot final : public geometry::OccupiedCellSource {
   // negative size or a window beyond int32 cell indices.
   [[nodiscard]] std::vector<std::uint8_t> window(geometry::CellIndex min, int width, int height) const;
 
+  // The parts of box (clipped to storage tiles) that inserts after `version` may have written: every allocated tile
+  // overlapping box whose latest write came at a later grid version, clipped to box, in no particular order. A reader
+  // holding the window's cells as of `version` gets this snapshot's cells by copying these parts over.
+  [[nodiscard]] std::vector<CellBox> changed_since(std::uint64_t version, const CellBox& box) const;
+
   // The grid's version when the snapshot was taken.
   [[nodiscard]] std::uint64_t version() const { return version_; }
   // Certainty from which a cell counts as occupied.

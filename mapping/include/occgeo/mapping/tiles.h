@@ -42,6 +42,9 @@ struct Tile {
   std::vector<std::uint8_t> cells;
   // Number of cells whose certainty is at least the grid's occupied threshold.
   std::int32_t occupied_cells = 0;
+  // The grid version of the latest insert that may have written the tile (0: loaded or never written), so that
+  // readers can tell which tiles changed after a version they hold.
+  std::uint64_t version = 0;
 };
 
 // Cell <-> tile arithmetic for tiles of a power-of-two side; works for negative indices (floor division).

@@ -13,6 +13,7 @@
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/safety_guard.h"
 
 namespace occgeo::service {
 
@@ -37,6 +38,10 @@ struct LimitsConfig {
   std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
   std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
                                                                // max_send_queue_bytes / 2) is refused
+  std::size_t max_batch_queries = 1024;        // queries in one batch request
+  std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
+  std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
+  double write_timeout_s = 60.0;               // a client that accepts no bytes for this long while some wait is dropped
 };
 
 // Server-side control of the robots.
@@ -45,17 +50,51 @@ struct ControlConfig {
   double lease_timeout_s = 2.0;       // a control lease not retained for this long lapses (LeaseRequest.timeout_s 0)
   double max_lease_timeout_s = 30.0;  // the longest LeaseRequest.timeout_s a controller may ask for
   double sensor_timeout_s = 0.5;      // a driven robot with no sensor message for this long is sent a stop
+  std::string initial_behaviour = "bearcat";  // a newly registered robot's behaviour: "bearcat" or "stop"
 };
 
 // Who may do what beyond their role.
 struct AuthConfig {
-  // Hello.auth_token that lets a session TAKE a lease forcibly; empty (the default) disables TAKE.
+  // Hello.auth_token that lets a session TAKE a lease forcibly; empty (the default) disables TAKE. It also
+  // authenticates a hello of any role.
   std::string operator_token;
+  // Hello.auth_token each role must present; empty leaves the role open (only allowed on a loopback listen address).
+  std::string driver_token;
+  std::string controller_token;
+  std::string observer_token;
+  std::string query_token;
+  // After this many refused hellos from one address within failure_window_s, its further hellos are refused
+  // unchecked until the window has passed.
+  std::size_t max_failures = 5;
+  double failure_window_s = 60.0;
+};
+
+// TLS on the occgeo.v1 socket: both files (PEM) or neither (plain TCP).
+struct TlsConfig {
+  std::filesystem::path cert;  // certificate chain
+  std::filesystem::path key;   // its private key
+  [[nodiscard]] bool enabled() const { return !cert.empty(); }
+};
+
+// How accepted sensor data is made durable (section `durability:`; docs/ARCHITECTURE.md, "Durability").
+struct DurabilityConfig {
+  // When a sensor message counts as durable, hence is acknowledged: "every" (fdatasync of its journal record before
+  // the ack), "batch" (acks wait for a group fsync at most batch_interval_s later) or "none" (written to the OS only).
+  std::string policy = "every";
+  double batch_interval_s = 0.005;  // batch: the group-commit window, seconds
+  // A world whose journal grew is snapshotted (and its journal emptied) this often, seconds; 0: only on clean shutdown.
+  double snapshot_interval_s = 300.0;
 };
 
 // Geometry query defaults.
 struct QueryConfig {
   double clearance_max_distance_m = 5.0;  // search radius when the query leaves it 0
+};
+
+// The HTTP listener: the live web view (/), its WebSocket (/ws) and Prometheus metrics (/metrics).
+struct HttpConfig {
+  std::string listen = "127.0.0.1:7701";  // host:port; port 0 picks a free one
+  bool enabled = true;                    // false: no HTTP listener at all
 };
 
 // What one world's PTEM overrides of the `ptem:` section (`ptem.worlds.<name>`); unset fields take the section's.
@@ -105,9 +144,13 @@ struct ServerConfig {
   LimitsConfig limits;
   ControlConfig control;
   AuthConfig auth;
+  TlsConfig tls;
   QueryConfig queries;
+  DurabilityConfig durability;
+  HttpConfig http;
   mapping::HimmParams himm;
   control::BearcatParams bearcat;
+  control::GuardParams guard;  // the safety guard every motion command passes (section `guard:`)
   PtemConfig ptem;
   // Every world's OctoMap (section `octomap:`, keys as the fields of mapping::OctoMapParams, e.g. resolution_m,
   // prob_hit, voxel_filter_enabled, outlier_mean_k, min_publish_interval_s).

@@ -1,0 +1,94 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occgeo/geometry/footprint.h"
+#include "occgeo/geometry/kinematics.h"
+#include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/grid_snapshot.h"
+#include "occgeo/mapping/ptem.h"
+#include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/pointbug.h"
+#include "occgeo/service/control/wander.h"
+
+// The one interface every behaviour the server can run implements, so that the scan handler drives any of them the
+// same way: each control cycle gets the robot's first laser scan and its pose, and returns a body velocity (and, for
+// behaviours that compute them, differential wheel speeds). Behaviours are deterministic given their inputs.
+
+namespace occgeo::service::control {
+
+// What a behaviour sees in one control cycle.
+struct BehaviourInput {
+  ScanView scan;                                // the robot's first laser, sensor frame
+  std::optional<geometry::Pose2> X_WB;          // base_link in the world frame (odometry), when known
+  double stamp_s = 0.0;                         // the scan's stamp, seconds
+  const mapping::GridSnapshot* grid = nullptr;  // the world's latest models, when the caller has them
+  const mapping::PtemSnapshot* ptem = nullptr;
+};
+
+// What a behaviour commands.
+struct BehaviourCommand {
+  double linear_mps = 0.0;                      // forward speed of base_link, m/s
+  double angular_radps = 0.0;                   // counter-clockwise yaw rate, rad/s
+  std::optional<geometry::WheelSpeeds> wheels;  // differential wheel speeds, when the behaviour computes them
+  bool stop = false;                            // stand still
+  std::string state;                            // e.g. "steer_gap", "step_to_goal", "reached"
+};
+
+class Behaviour {
+ public:
+  virtual ~Behaviour() = default;
+  // The name a DriveRequest gives it, e.g. "wander".
+  [[nodiscard]] virtual std::string_view name() const = 0;
+  // One decision; throws std::invalid_argument naming the field when the input is malformed.
+  virtual BehaviourCommand decide(const BehaviourInput& input) = 0;
+  // Where the behaviour is heading now (goto's goal, the current waypoint), world frame; nullopt without a goal.
+  [[nodiscard]] virtual std::optional<Eigen::Vector2d> current_goal() const { return std::nullopt; }
+};
+
+// What the robot is, as the behaviours need it.
+struct RobotShape {
+  geometry::Footprint footprint;
+  double laser_x_m = 0.0;       // the first laser's position ahead of base_link, metres
+  double max_linear_mps = 1.0;  // the drive's largest forward speed, m/s
+};
+
+// The Bearcat behaviour (seed 000 §4.2–4.3); params must be valid.
+std::unique_ptr<Behaviour> make_bearcat(const BearcatParams& params);
+
+// Seed 001's wander/avoid on the laser's beams, with the obstacle threshold raised to 1.5 robot widths measured
+// from base_link's front edge for robots larger than the seed's Scout; params must be valid.
+std::unique_ptr<Behaviour> make_wander(const WanderParams& params, const RobotShape& robot);
+
+// PointBug's parameters for a robot with a forward laser: the seed's ActivityBot values scaled to the robot's size
+// (obstacle range, distance and angle corrections) and speed.
+PointBugParams pointbug_params_for(const RobotShape& robot);
+
+// PointBug to (goal_x_m, goal_y_m), world frame, fed a ±90° sweep at whole degrees taken from the laser scan;
+// velocities are limited so that each control cycle (period_s) ends at, not beyond, the current turn or leg. With
+// corridor_half_width_m > 0 (beyond the seed) the reading straight ahead is the nearest return inside the corridor
+// that wide either side of the heading, so an obstacle off the centre beam but in the body's way stops the approach.
+std::unique_ptr<Behaviour> make_goto(const PointBugParams& params, double goal_x_m, double goal_y_m, double period_s,
+                                     double corridor_half_width_m = 0.0);
+
+// PTEM waypoint guidance (seed 004 §4.4–4.5) along waypoints_W (world frame) against the input's PTEM snapshot, with
+// the body radius and speeds of this robot.
+std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<Eigen::Vector2d> waypoints_W);
+
+// Beyond the seeds: deadlock escape. Runs the inner behaviour; when it reports no_path, or the loop detector sees it
+// loop or stall, plans a global path over the remembered HIMM grid (inflated by the footprint) to the inner
+// behaviour's current goal and follows it by pure pursuit (state "escape"), then resumes a fresh inner behaviour from
+// `rebuild`. An inner behaviour without a goal runs unchanged.
+std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot);
+
+// The ±90°, 1° sweep PointBug reads, taken from a laser scan: each whole degree reads the nearest beam within half a
+// beam step (or half a degree), else no return. laser_x_m shifts nothing: ranges stay the sensor's.
+std::vector<SweepReading> sweep_from_scan(const ScanView& scan);
+
+}  // namespace occgeo::service::control

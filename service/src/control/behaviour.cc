@@ -1,0 +1,336 @@
+#include "occgeo/service/control/behaviour.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "occgeo/service/control/global_path.h"
+#include "occgeo/service/control/loop_detector.h"
+#include "occgeo/service/control/ptem_guidance.h"
+
+namespace occgeo::service::control {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+double footprint_width(const geometry::Footprint& footprint) {
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->width;
+  return 2.0 * std::get<geometry::CylinderFootprint>(footprint).radius;
+}
+
+double footprint_front(const geometry::Footprint& footprint) {
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->center_x + box->length / 2.0;
+  return std::get<geometry::CylinderFootprint>(footprint).radius;
+}
+
+class BearcatAdapter final : public Behaviour {
+ public:
+  explicit BearcatAdapter(const BearcatParams& params) : behaviour_(params) {}
+  [[nodiscard]] std::string_view name() const override { return "bearcat"; }
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    const BearcatDecision decision = behaviour_.decide(input.scan);
+    BehaviourCommand command;
+    command.linear_mps = decision.linear_mps;
+    command.angular_radps = decision.angular_radps;
+    command.wheels = geometry::WheelSpeeds{decision.left_wheel_mps, decision.right_wheel_mps};
+    command.stop = decision.stop;
+    command.state = std::string(decision.state);
+    return command;
+  }
+
+ private:
+  BearcatBehaviour behaviour_;
+};
+
+class WanderAdapter final : public Behaviour {
+ public:
+  explicit WanderAdapter(const WanderParams& params) : behaviour_(params) {}
+  [[nodiscard]] std::string_view name() const override { return "wander"; }
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    WanderProgress progress;
+    if (last_stamp_s_) progress.elapsed_s = std::max(0.0, input.stamp_s - *last_stamp_s_);
+    if (input.X_WB && last_pose_) {
+      progress.travelled_m = std::hypot(input.X_WB->x - last_pose_->x, input.X_WB->y - last_pose_->y);
+      progress.turned_rad = std::abs(geometry::wrap_angle(input.X_WB->theta - last_pose_->theta));
+    }
+    last_stamp_s_ = input.stamp_s;
+    last_pose_ = input.X_WB;
+    const WanderDecision decision = behaviour_.decide(range_set_from_scan(input.scan), progress);
+    BehaviourCommand command;
+    command.linear_mps = decision.linear_mps;
+    command.angular_radps = decision.angular_radps;
+    command.stop = decision.stop;
+    command.state = std::string(decision.state);
+    return command;
+  }
+
+ private:
+  WanderBehaviour behaviour_;
+  std::optional<double> last_stamp_s_;
+  std::optional<geometry::Pose2> last_pose_;
+};
+
+class GotoAdapter final : public Behaviour {
+ public:
+  GotoAdapter(const PointBugParams& params, double goal_x_m, double goal_y_m, double period_s,
+              double corridor_half_width_m)
+      : behaviour_(params, goal_x_m, goal_y_m),
+        goal_W_(goal_x_m, goal_y_m),
+        period_s_(period_s),
+        corridor_half_width_m_(corridor_half_width_m) {}
+  [[nodiscard]] std::string_view name() const override { return "goto"; }
+  [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return goal_W_; }
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    BehaviourCommand command;
+    if (!input.X_WB) {
+      command.stop = true;
+      command.state = "no_pose";
+      return command;
+    }
+    std::vector<SweepReading> readings = sweep_from_scan(input.scan);
+    // Beyond the seed: the ActivityBot's one forward beam stands for its whole 0.13 m width, a wider robot's does
+    // not; straight ahead reads the nearest return inside the corridor the body sweeps driving forward.
+    if (corridor_half_width_m_ > 0.0) {
+      for (SweepReading& reading : readings) {
+        if (reading.angle_rad == 0.0) reading.range_m = std::min(reading.range_m, corridor_range(input.scan));
+      }
+    }
+    const Sweep sweep{readings, input.scan.range_max_m};
+    const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    const PointBugDecision decision = behaviour_.decide(pose, sweep);
+    command.state = std::string(decision.state);
+    command.stop = decision.stop;
+    // The seed's drive_goto ends each turn and leg exactly; a velocity held for one control cycle must not
+    // overshoot them, or the heading tolerance would make the robot oscillate.
+    command.angular_radps =
+        std::copysign(std::min(std::abs(decision.angular_radps), std::abs(decision.target.turn_rad) / period_s_),
+                      decision.angular_radps);
+    command.linear_mps = decision.linear_mps;
+    if (decision.linear_mps > 0.0) {
+      command.linear_mps = std::min(decision.linear_mps, decision.target.distance_m / period_s_);
+      // Small heading errors while driving are corrected on the way rather than by stopping to re-aim.
+      command.angular_radps = std::clamp(decision.target.turn_rad / period_s_ / 4.0, -0.3, 0.3);
+    }
+    return command;
+  }
+
+ private:
+  // Forward distance to the nearest return whose lateral offset lies within the corridor, sensor frame.
+  [[nodiscard]] double corridor_range(const ScanView& scan) const {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+      const double range = static_cast<double>(scan.ranges_m[i]);
+      if (!(range < scan.range_max_m)) continue;
+      const double bearing = scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
+      const double ahead = range * std::cos(bearing);
+      if (ahead > 0.0 && std::abs(range * std::sin(bearing)) <= corridor_half_width_m_) {
+        nearest = std::min(nearest, ahead);
+      }
+    }
+    return nearest;
+  }
+
+  PointBugBehaviour behaviour_;
+  Eigen::Vector2d goal_W_;
+  double period_s_;
+  double corridor_half_width_m_;
+};
+
+// No threat anywhere: the guidance then just tracks its target (a world whose PTEM has not been published yet).
+class NoThreat final : public ThreatField {
+ public:
+  [[nodiscard]] mapping::PtemThreat threat_and_gradient(const Eigen::Vector2d& /*p_W*/) const override { return {}; }
+  [[nodiscard]] std::optional<double> restricted_threshold() const override { return std::nullopt; }
+};
+
+class WaypointsAdapter final : public Behaviour {
+ public:
+  WaypointsAdapter(const PtemGuidanceParams& params, std::vector<Eigen::Vector2d> waypoints_W)
+      : guidance_(params, std::move(waypoints_W)) {}
+  [[nodiscard]] std::string_view name() const override { return "waypoints"; }
+  [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override {
+    return guidance_.waypoints_W()[std::min(guidance_.waypoint_index(), guidance_.waypoints_W().size() - 1)];
+  }
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    BehaviourCommand command;
+    if (!input.X_WB) {
+      command.stop = true;
+      command.state = "no_pose";
+      return command;
+    }
+    const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    const PtemGuidanceDecision decision = input.ptem != nullptr ? guidance_.decide(pose, input.stamp_s, *input.ptem)
+                                                                : guidance_.decide(pose, input.stamp_s, NoThreat{});
+    command.linear_mps = decision.linear_mps;
+    command.angular_radps = decision.angular_radps;
+    command.stop = decision.stop;
+    command.state = decision.reached ? "reached" : std::string(decision.state);
+    return command;
+  }
+
+ private:
+  PtemGuidance guidance_;
+};
+
+class EscapeWrapper final : public Behaviour {
+ public:
+  EscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
+      : rebuild_(std::move(rebuild)), inner_(rebuild_()), detector_(detector_params()) {
+    planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint) * 0.75;
+    planner_.window_margin_m = 6.0;
+    follower_.linear_speed_mps = std::min(0.4, robot.max_linear_mps);
+    follower_.lookahead_m = 0.6;
+    follower_.goal_tolerance_m = 0.15;
+    follower_.max_angular_radps = 0.8;
+  }
+  [[nodiscard]] std::string_view name() const override { return inner_->name(); }
+  [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
+
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    const std::optional<Eigen::Vector2d> goal = inner_->current_goal();
+    if (!goal || !input.X_WB) return inner_->decide(input);
+    const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    if (!path_.empty()) return follow(input, pose, *goal);
+    BehaviourCommand command = inner_->decide(input);
+    if (command.state == "reached") return command;
+    const LoopStatus status =
+        detector_.update({pose, input.stamp_s, goal, std::optional<std::string_view>(command.state)});
+    const bool stuck = command.state == "no_path" || status.loop || status.stalled;
+    if (stuck && input.stamp_s >= next_plan_s_) {
+      trigger_ = command.state == "no_path" ? "no_path" : std::string(status.reason);
+      if (plan(input, pose, *goal)) return follow(input, pose, *goal);
+      next_plan_s_ = input.stamp_s + 2.0;
+    }
+    return command;
+  }
+
+ private:
+  static LoopDetectorParams detector_params() {
+    LoopDetectorParams params;
+    params.stall_time_s = 8.0;
+    return params;
+  }
+
+  bool plan(const BehaviourInput& input, const Pose2& pose, const Eigen::Vector2d& goal) {
+    if (input.grid == nullptr) return false;
+    const GlobalPathResult result = plan_global_path(*input.grid, {pose.x_m, pose.y_m}, goal, planner_);
+    if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) return false;
+    path_ = result.waypoints_W;
+    segment_ = 0;
+    planned_at_s_ = input.stamp_s;
+    return true;
+  }
+
+  BehaviourCommand follow(const BehaviourInput& input, const Pose2& pose, const Eigen::Vector2d& goal) {
+    // The map grows while the robot drives: replan now and then so the path keeps up with what it has seen.
+    if (input.stamp_s - planned_at_s_ > 3.0) {
+      const std::vector<Eigen::Vector2d> previous = path_;
+      const std::size_t previous_segment = segment_;
+      if (!plan(input, pose, goal)) {
+        path_ = previous;
+        segment_ = previous_segment;
+        planned_at_s_ = input.stamp_s;
+      }
+    }
+    const PurePursuitCommand step = pure_pursuit(pose, path_, follower_, segment_);
+    segment_ = step.segment;
+    BehaviourCommand command;
+    command.linear_mps = step.linear_mps;
+    command.angular_radps = step.angular_radps;
+    command.state = "escape_" + trigger_;
+    if (step.reached) {
+      // At the goal the escape ends the run; elsewhere a fresh inner behaviour resumes from here.
+      path_.clear();
+      detector_.reset();
+      // PointBug's no_path is final, so goto starts afresh (at the goal it reports reached at once); the waypoint
+      // guidance keeps its target, which waits at the waypoint the escape led to.
+      if (inner_->name() == "goto") inner_ = rebuild_();
+      command = inner_->decide(input);
+    }
+    return command;
+  }
+
+  std::function<std::unique_ptr<Behaviour>()> rebuild_;
+  std::unique_ptr<Behaviour> inner_;
+  LoopDetector detector_;
+  GlobalPathParams planner_;
+  PurePursuitParams follower_;
+  std::vector<Eigen::Vector2d> path_;
+  std::size_t segment_ = 0;
+  double planned_at_s_ = 0.0;
+  double next_plan_s_ = -std::numeric_limits<double>::infinity();
+  std::string trigger_;
+};
+
+}  // namespace
+
+std::unique_ptr<Behaviour> make_bearcat(const BearcatParams& params) {
+  return std::make_unique<BearcatAdapter>(params);
+}
+
+std::unique_ptr<Behaviour> make_wander(const WanderParams& params, const RobotShape& robot) {
+  WanderParams scaled = params;
+  const double front_m = footprint_front(robot.footprint) - robot.laser_x_m;
+  scaled.obstacle_threshold_m = std::max(params.obstacle_threshold_m, front_m + 1.5 * footprint_width(robot.footprint));
+  scaled.linear_speed_mps = std::min(params.linear_speed_mps, robot.max_linear_mps);
+  return std::make_unique<WanderAdapter>(scaled);
+}
+
+PointBugParams pointbug_params_for(const RobotShape& robot) {
+  PointBugParams params;
+  const double width_m = footprint_width(robot.footprint);
+  constexpr double kSeedWidth_m = 0.13;  // the ActivityBot the seed's corrections were made for
+  if (width_m <= kSeedWidth_m * 1.5) return params;
+  const double front_m = std::max(0.0, footprint_front(robot.footprint) - robot.laser_x_m);
+  const double scale = width_m / kSeedWidth_m;
+  params.obstacle_range_m = front_m + params.obstacle_range_m * scale / 2.0;
+  params.distance_extension_m = width_m / 2.0 + 0.2;
+  // The seed's +15° clears its half width plus a margin at its stopping range; keep that clearance for this robot.
+  params.angle_extension_deg = std::clamp(std::atan2(width_m / 2.0 + 0.15, params.obstacle_range_m) / kDeg, 15.0, 45.0);
+  params.step_m = 0.05;
+  params.goal_tolerance_m = 0.05;
+  params.heading_tolerance_rad = 2.0 * kDeg;
+  params.linear_speed_mps = std::min(0.5, robot.max_linear_mps);
+  params.turn_speed_radps = 0.8;
+  return params;
+}
+
+std::unique_ptr<Behaviour> make_goto(const PointBugParams& params, double goal_x_m, double goal_y_m, double period_s,
+                                     double corridor_half_width_m) {
+  return std::make_unique<GotoAdapter>(params, goal_x_m, goal_y_m, std::max(period_s, 1e-3),
+                                       std::max(corridor_half_width_m, 0.0));
+}
+
+std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<Eigen::Vector2d> waypoints_W) {
+  PtemGuidanceParams params;
+  params.body_radius_m = footprint_width(robot.footprint) / 2.0;
+  params.max_speed_mps = std::min(params.max_speed_mps, robot.max_linear_mps);
+  params.target_speed_mps = std::min(params.target_speed_mps, params.max_speed_mps);
+  return std::make_unique<WaypointsAdapter>(params, std::move(waypoints_W));
+}
+
+std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot) {
+  return std::make_unique<EscapeWrapper>(std::move(rebuild), robot);
+}
+
+std::vector<SweepReading> sweep_from_scan(const ScanView& scan) {
+  std::vector<SweepReading> readings;
+  if (scan.ranges_m.empty() || !(scan.angle_increment_rad > 0.0)) return readings;
+  const double tolerance_rad = std::max(scan.angle_increment_rad / 2.0, 0.5 * kDeg);
+  readings.reserve(181);
+  for (int degree = -90; degree <= 90; ++degree) {
+    const double angle_rad = degree * kDeg;
+    const double index = std::round((angle_rad - scan.angle_min_rad) / scan.angle_increment_rad);
+    if (index < 0.0 || index >= static_cast<double>(scan.ranges_m.size())) continue;
+    const auto i = static_cast<std::size_t>(index);
+    const double bearing_rad = scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
+    if (std::abs(bearing_rad - angle_rad) > tolerance_rad) continue;
+    const double range_m = static_cast<double>(scan.ranges_m[i]);
+    readings.push_back({angle_rad, range_m >= scan.range_max_m ? std::numeric_limits<double>::infinity() : range_m});
+  }
+  return readings;
+}
+
+}  // namespace occgeo::service::control

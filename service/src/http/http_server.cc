@@ -1,0 +1,294 @@
+#include "http_server.h"
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <deque>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+
+#include "../core.h"
+#include "../metrics.h"
+#include "live_view.h"
+#include "occgeo/service/log.h"
+#include "web_assets.h"
+
+namespace occgeo::service::http {
+
+namespace {
+
+namespace beast = boost::beast;
+namespace bhttp = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using Request = bhttp::request<bhttp::string_body>;
+using Response = bhttp::response<bhttp::string_body>;
+
+// How often the page gets a frame: robot state at ~10 Hz, the map's changes with it.
+constexpr auto kFramePeriod = std::chrono::milliseconds(100);
+// Page messages queued for writing at most (replies to select/estop); more are refused.
+constexpr std::size_t kMaxQueuedReplies = 16;
+
+// The label a request's path gets in occgeo_http_requests_total: known paths only, so scans for random URLs cannot
+// grow the registry.
+std::string path_label(std::string_view target) {
+  if (target == "/" || target == "/metrics" || target == "/ws") return std::string(target);
+  for (const auto& asset : web_assets()) {
+    if (asset.path == target) return std::string(target);
+  }
+  return "other";
+}
+
+Response make_response(const Request& request, bhttp::status status, std::string_view content_type, std::string body) {
+  Response response{status, request.version()};
+  response.set(bhttp::field::server, "occgeod");
+  response.set(bhttp::field::content_type, beast::string_view(content_type.data(), content_type.size()));
+  response.set(bhttp::field::cache_control, "no-store");
+  response.keep_alive(request.keep_alive());
+  response.body() = std::move(body);
+  response.prepare_payload();
+  return response;
+}
+
+Response route(const Request& request) {
+  std::string_view target(request.target().data(), request.target().size());
+  if (const auto query = target.find('?'); query != std::string_view::npos) target = target.substr(0, query);
+  if (request.method() != bhttp::verb::get) {
+    auto response = make_response(request, bhttp::status::method_not_allowed, "text/plain; charset=utf-8",
+                                  "only GET is served here\n");
+    response.set(bhttp::field::allow, "GET");
+    return response;
+  }
+  if (target == "/metrics") {
+    return make_response(request, bhttp::status::ok, "text/plain; version=0.0.4; charset=utf-8", metrics::render());
+  }
+  const std::string_view asset_path = target == "/" ? "/index.html" : target;
+  for (const auto& asset : web_assets()) {
+    if (asset.path == asset_path) {
+      return make_response(request, bhttp::status::ok, asset.content_type, std::string(asset.body));
+    }
+  }
+  if (target == "/ws") {
+    return make_response(request, bhttp::status::upgrade_required, "text/plain; charset=utf-8",
+                         "/ws is a WebSocket endpoint\n");
+  }
+  return make_response(request, bhttp::status::not_found, "text/plain; charset=utf-8",
+                       "no such page; the live view is at /, metrics at /metrics\n");
+}
+
+// One browser's live view over a WebSocket. At most one frame is being written and at most one more waits; a frame
+// is built only when it is about to be written, so a slow browser gets fewer, newer frames (the older waiting one is
+// dropped and counted) and never misses a map change (tile differences are computed against what it was sent).
+class LiveViewSocket : public std::enable_shared_from_this<LiveViewSocket> {
+ public:
+  LiveViewSocket(ServerCore& core, tcp::socket socket)
+      : ws_(std::move(socket)), timer_(ws_.get_executor()), state_(core) {}
+
+  ~LiveViewSocket() {
+    if (accepted_) metrics::gauge("occgeo_web_clients").dec();
+  }
+
+  void run(Request request) {
+    request_ = std::move(request);
+    beast::get_lowest_layer(ws_).expires_never();
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.read_message_max(64 * 1024);
+    ws_.async_accept(request_, [self = shared_from_this()](const beast::error_code& error) {
+      if (error) return;
+      self->accepted_ = true;
+      metrics::gauge("occgeo_web_clients").inc();
+      self->read();
+      self->frame_waiting_ = true;
+      self->pump();
+      self->tick();
+    });
+  }
+
+ private:
+  void read() {
+    ws_.async_read(read_buffer_, [self = shared_from_this()](const beast::error_code& error, std::size_t) {
+      if (error) {
+        self->close();
+        return;
+      }
+      const std::string text = beast::buffers_to_string(self->read_buffer_.data());
+      self->read_buffer_.consume(self->read_buffer_.size());
+      if (self->replies_.size() < kMaxQueuedReplies) {
+        self->replies_.push_back(self->state_.handle_message(text));
+      } else {
+        metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+      }
+      self->pump();
+      self->read();
+    });
+  }
+
+  void tick() {
+    timer_.expires_after(kFramePeriod);
+    timer_.async_wait([self = shared_from_this()](const beast::error_code& error) {
+      if (error || self->closed_) return;
+      if (self->frame_waiting_) metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+      self->frame_waiting_ = true;
+      self->pump();
+      self->tick();
+    });
+  }
+
+  void pump() {
+    if (writing_ || closed_) return;
+    if (!replies_.empty()) {
+      outgoing_ = std::move(replies_.front());
+      replies_.pop_front();
+    } else if (frame_waiting_) {
+      frame_waiting_ = false;
+      outgoing_ = state_.next_frame();
+    } else {
+      return;
+    }
+    writing_ = true;
+    ws_.text(true);
+    ws_.async_write(asio::buffer(outgoing_), [self = shared_from_this()](const beast::error_code& error, std::size_t) {
+      self->writing_ = false;
+      if (error) {
+        self->close();
+        return;
+      }
+      self->pump();
+    });
+  }
+
+  void close() {
+    closed_ = true;
+    timer_.cancel();
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  asio::steady_timer timer_;
+  LiveViewState state_;
+  Request request_;
+  beast::flat_buffer read_buffer_;
+  std::string outgoing_;
+  std::deque<std::string> replies_;
+  bool accepted_ = false;
+  bool writing_ = false;
+  bool frame_waiting_ = false;
+  bool closed_ = false;
+};
+
+// One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket.
+class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
+ public:
+  HttpConnection(ServerCore& core, tcp::socket socket) : core_(core), stream_(std::move(socket)) {}
+
+  void read() {
+    parser_.emplace();
+    parser_->header_limit(16 * 1024);
+    parser_->body_limit(64 * 1024);
+    stream_.expires_after(std::chrono::seconds(30));
+    bhttp::async_read(
+        stream_, buffer_, *parser_,
+        [self = shared_from_this()](const beast::error_code& error, std::size_t) { self->on_read(error); });
+  }
+
+ private:
+  void on_read(const beast::error_code& error) {
+    if (error) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
+      return;
+    }
+    Request request = parser_->release();
+    const std::string_view target(request.target().data(), request.target().size());
+    if (websocket::is_upgrade(request) && target == "/ws") {
+      metrics::counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
+      std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request));
+      return;
+    }
+    auto response = std::make_shared<Response>(route(request));
+    metrics::counter("occgeo_http_requests_total",
+                     {{"path", path_label(target)}, {"code", std::to_string(response->result_int())}})
+        .inc();
+    bhttp::async_write(stream_, *response,
+                       [self = shared_from_this(), response](const beast::error_code& write_error, std::size_t) {
+                         if (write_error || response->need_eof()) {
+                           beast::error_code ignored;
+                           self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+                           return;
+                         }
+                         self->read();
+                       });
+  }
+
+  ServerCore& core_;
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+};
+
+}  // namespace
+
+struct HttpServer::Impl {
+  Impl(ServerCore& server_core) : core(server_core) {}
+
+  ServerCore& core;
+  asio::io_context io{1};
+  tcp::acceptor acceptor{io};
+  std::thread thread;
+
+  void accept() {
+    acceptor.async_accept([this](const beast::error_code& error, tcp::socket socket) {
+      if (error) {
+        if (error == asio::error::operation_aborted) return;
+        log::warn("http_accept_failed", {{"error", error.message()}});
+      } else {
+        std::make_shared<HttpConnection>(core, std::move(socket))->read();
+      }
+      accept();
+    });
+  }
+};
+
+HttpServer::HttpServer(ServerCore& core, const std::string& listen) : impl_(std::make_unique<Impl>(core)) {
+  const auto [host, port] = split_host_port(listen, "http.listen");
+  boost::system::error_code error;
+  const auto address = asio::ip::make_address(host, error);
+  if (error) throw ConfigError("http.listen address '" + host + "' is not an IP address");
+  const tcp::endpoint endpoint(address, port);
+  impl_->acceptor.open(endpoint.protocol());
+  impl_->acceptor.set_option(tcp::acceptor::reuse_address(true));
+  impl_->acceptor.bind(endpoint, error);
+  if (error) throw std::runtime_error("cannot listen for HTTP on " + listen + ": " + error.message());
+  impl_->acceptor.listen();
+}
+
+HttpServer::~HttpServer() { stop(); }
+
+std::uint16_t HttpServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void HttpServer::start() {
+  impl_->accept();
+  impl_->thread = std::thread([this] { impl_->io.run(); });
+}
+
+void HttpServer::stop() {
+  if (!impl_) return;
+  // Stopping the context abandons every connection's pending work; their sockets close when the context (and the
+  // handlers it still holds) is destroyed with this object.
+  asio::post(impl_->io, [this] {
+    boost::system::error_code ignored;
+    impl_->acceptor.close(ignored);
+    impl_->io.stop();
+  });
+  if (impl_->thread.joinable()) {
+    impl_->thread.join();
+  } else {
+    impl_->io.stop();
+  }
+}
+
+}  // namespace occgeo::service::http

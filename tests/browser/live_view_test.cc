@@ -1,0 +1,212 @@
+// The live view in a real browser: occgeod and a simulated Bearcat (lockstep) on 127.0.0.1, then headless Chromium
+// opens the page. The page writes what it drew into #summary (read with --dump-dom); the screenshot is kept as
+// tests/browser/live_view.png in the build tree and its pixels are checked where the robot and the walls are drawn.
+// Boost.PropertyTree (the JSON reader here) pulls in boost/bind.hpp, which otherwise warns about its placeholders.
+#define BOOST_BIND_GLOBAL_PLACEHOLDERS
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <boost/property_tree/json_parser.hpp>
+#include <boost/property_tree/ptree.hpp>
+#include <cmath>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "../integration/test_clients.h"
+#include "../support/process.h"
+
+namespace occgeo::testing {
+namespace {
+
+using boost::property_tree::ptree;
+
+constexpr const char* kChromium = "/usr/bin/chromium";
+
+std::uint16_t http_port(const ServerProcess& server) {
+  const std::regex pattern(R"re("event":"http_listening".*"port":([0-9]+))re");
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    std::smatch match;
+    const std::string log = server.log();
+    if (std::regex_search(log, match, pattern)) return static_cast<std::uint16_t>(std::stoi(match[1]));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  throw std::runtime_error("occgeod did not log http_listening: " + server.log());
+}
+
+// An 8-bit RGB or RGBA PNG (what Chromium writes), decoded to RGB.
+struct Image {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgb;
+  [[nodiscard]] std::array<int, 3> at(int x, int y) const {
+    const std::size_t k =
+        (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)) * 3;
+    return {rgb[k], rgb[k + 1], rgb[k + 2]};
+  }
+};
+
+std::uint32_t big_endian(const std::string& bytes, std::size_t at) {
+  return (std::uint32_t{static_cast<std::uint8_t>(bytes[at])} << 24) |
+         (std::uint32_t{static_cast<std::uint8_t>(bytes[at + 1])} << 16) |
+         (std::uint32_t{static_cast<std::uint8_t>(bytes[at + 2])} << 8) | static_cast<std::uint8_t>(bytes[at + 3]);
+}
+
+Image read_png(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() < 8 || bytes.compare(1, 3, "PNG") != 0) throw std::runtime_error("not a PNG: " + file.string());
+  Image image;
+  int channels = 0;
+  std::string compressed;
+  for (std::size_t at = 8; at + 8 <= bytes.size();) {
+    const std::uint32_t length = big_endian(bytes, at);
+    const std::string type = bytes.substr(at + 4, 4);
+    if (type == "IHDR") {
+      image.width = static_cast<int>(big_endian(bytes, at + 8));
+      image.height = static_cast<int>(big_endian(bytes, at + 12));
+      const int depth = static_cast<std::uint8_t>(bytes[at + 16]);
+      const int colour = static_cast<std::uint8_t>(bytes[at + 17]);
+      const int interlace = static_cast<std::uint8_t>(bytes[at + 20]);
+      if (depth != 8 || (colour != 2 && colour != 6) || interlace != 0) throw std::runtime_error("unsupported PNG");
+      channels = colour == 6 ? 4 : 3;
+    } else if (type == "IDAT") {
+      compressed += bytes.substr(at + 8, length);
+    }
+    at += 12 + length;
+  }
+  const std::size_t stride = static_cast<std::size_t>(image.width) * static_cast<std::size_t>(channels);
+  std::vector<std::uint8_t> raw((stride + 1) * static_cast<std::size_t>(image.height));
+  uLongf raw_size = raw.size();
+  if (uncompress(raw.data(), &raw_size, reinterpret_cast<const Bytef*>(compressed.data()), compressed.size()) != Z_OK ||
+      raw_size != raw.size()) {
+    throw std::runtime_error("PNG data does not inflate");
+  }
+  std::vector<std::uint8_t> pixels(stride * static_cast<std::size_t>(image.height));
+  const auto bpp = static_cast<std::size_t>(channels);
+  for (std::size_t y = 0; y < static_cast<std::size_t>(image.height); ++y) {
+    const std::uint8_t filter = raw[y * (stride + 1)];
+    const std::uint8_t* line = &raw[y * (stride + 1) + 1];
+    std::uint8_t* out = &pixels[y * stride];
+    const std::uint8_t* up = y > 0 ? &pixels[(y - 1) * stride] : nullptr;
+    for (std::size_t i = 0; i < stride; ++i) {
+      const int a = i >= bpp ? out[i - bpp] : 0;
+      const int b = up ? up[i] : 0;
+      const int c = up && i >= bpp ? up[i - bpp] : 0;
+      int predicted = 0;
+      switch (filter) {
+        case 0:
+          break;
+        case 1:
+          predicted = a;
+          break;
+        case 2:
+          predicted = b;
+          break;
+        case 3:
+          predicted = (a + b) / 2;
+          break;
+        case 4: {
+          const int p = a + b - c;
+          const int pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+          predicted = pa <= pb && pa <= pc ? a : (pb <= pc ? b : c);
+          break;
+        }
+        default:
+          throw std::runtime_error("bad PNG filter");
+      }
+      out[i] = static_cast<std::uint8_t>(line[i] + predicted);
+    }
+  }
+  image.rgb.reserve(static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height) * 3);
+  for (std::size_t p = 0; p < pixels.size(); p += bpp) image.rgb.insert(image.rgb.end(), &pixels[p], &pixels[p] + 3);
+  return image;
+}
+
+std::vector<std::string> chromium_args(const std::filesystem::path& profile) {
+  return {kChromium,
+          "--headless=new",
+          "--no-sandbox",  // CI runs as root
+          "--disable-gpu",
+          "--no-first-run",
+          "--hide-scrollbars",
+          "--user-data-dir=" + profile.string(),
+          "--window-size=1300,720",
+          "--virtual-time-budget=4000"};
+}
+
+TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
+  if (!std::filesystem::exists(kChromium)) GTEST_SKIP() << kChromium << " is not installed (Debian package chromium)";
+  TempDir dir;
+  ServerProcess server(dir.path(), {"--http", "127.0.0.1:0"});
+  const std::uint16_t port = http_port(server);
+  // 30 simulated seconds of a Bearcat in lockstep, then the simulator leaves: the map and the pose stay still.
+  const auto sim = run_process(
+      {binary("clients/sim/occgeo-sim").string(), "--world", source("clients/sim/worlds/open_field.yaml").string(),
+       "--server", server.address(), "--id", "bearcat-1", "--lockstep", "--duration", "30"},
+      std::chrono::seconds(60));
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  auto query = open_query_session(server.address());
+  v1::ClientMessage request;
+  request.mutable_status()->set_request_id(1);
+  const v1::StatusReply status = query.call(request, 1).status();
+  ASSERT_EQ(status.robots_size(), 1);
+  ASSERT_EQ(status.worlds_size(), 1);
+  ASSERT_GT(status.worlds(0).occupied_cells(), 0u);
+
+  const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
+  auto args = chromium_args(dir.path() / "profile-dom");
+  args.push_back("--dump-dom");
+  args.push_back(url);
+  const auto dom = run_process(args, std::chrono::seconds(40));
+  ASSERT_EQ(dom.exit_code, 0) << dom.err;
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(dom.out, match, std::regex(R"(<pre id="summary"[^>]*>([^<]*)</pre>)"))) << dom.out;
+  ptree summary;
+  std::istringstream summary_text(match[1].str());
+  boost::property_tree::read_json(summary_text, summary);
+  std::cout << "page summary: " << match[1].str() << "\n";
+
+  EXPECT_TRUE(summary.get<bool>("map_complete"));
+  EXPECT_EQ(summary.get<std::uint64_t>("map_version"), status.worlds(0).version());
+  EXPECT_EQ(summary.get<std::uint64_t>("occupied_cells_rendered"), status.worlds(0).occupied_cells());
+  ASSERT_EQ(summary.get_child("robots").size(), 1u);
+  const ptree& robot = summary.get_child("robots").begin()->second;
+  EXPECT_EQ(robot.get<std::string>("id"), "bearcat-1");
+  EXPECT_DOUBLE_EQ(robot.get<double>("x"), status.robots(0).pose().x());
+  EXPECT_DOUBLE_EQ(robot.get<double>("y"), status.robots(0).pose().y());
+  EXPECT_DOUBLE_EQ(robot.get<double>("theta"), status.robots(0).pose().theta());
+  const double px = robot.get<double>("px") + summary.get<double>("canvas.left");
+  const double py = robot.get<double>("py") + summary.get<double>("canvas.top");
+
+  // The screenshot, kept for people: the robot's own pixel has the robot's colour, and walls are drawn black.
+  const auto artifact_dir = std::filesystem::path(OCCGEO_BINARY_DIR) / "tests" / "browser";
+  std::filesystem::create_directories(artifact_dir);
+  const auto png = artifact_dir / "live_view.png";
+  std::filesystem::remove(png);
+  args = chromium_args(dir.path() / "profile-shot");
+  args.push_back("--screenshot=" + png.string());
+  args.push_back(url);
+  const auto shot = run_process(args, std::chrono::seconds(40));
+  ASSERT_EQ(shot.exit_code, 0) << shot.err;
+  const Image image = read_png(png);
+  std::cout << "screenshot " << png.string() << ": " << image.width << " x " << image.height << "\n";
+  ASSERT_GT(image.width, static_cast<int>(px));
+  ASSERT_GT(image.height, static_cast<int>(py));
+  const auto centre = image.at(static_cast<int>(std::floor(px)), static_cast<int>(std::floor(py)));
+  EXPECT_EQ(centre, (std::array<int, 3>{255, 140, 0})) << "at " << px << ", " << py;
+  const int left = summary.get<int>("canvas.left"), top = summary.get<int>("canvas.top");
+  const int width = summary.get<int>("canvas.width"), height = summary.get<int>("canvas.height");
+  int black = 0;
+  for (int y = top; y < std::min(image.height, top + height); ++y) {
+    for (int x = left; x < std::min(image.width, left + width); ++x) {
+      if (image.at(x, y) == std::array<int, 3>{0, 0, 0}) ++black;
+    }
+  }
+  std::cout << black << " black (occupied) pixels on the canvas\n";
+  EXPECT_GT(black, 0);
+}
+
+}  // namespace
+}  // namespace occgeo::testing

@@ -1,0 +1,439 @@
+// Slow and hostile clients against ingest: an observer that reads nothing, a client that stops reading, a client
+// flooding queries, a controller that vanishes. Ingest latency is printed beside a baseline measured in the same
+// run (figures, not assertions); what is asserted is what a user relies on: every scan acknowledged, every event
+// accounted for, memory bounded, the robot stopped.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/asio/connect.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/read.hpp>
+#include <boost/asio/write.hpp>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <numbers>
+#include <thread>
+
+#include "occgeo/proto/framing.h"
+#include "process.h"
+#include "test_clients.h"
+
+namespace occgeo::testing {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+// How long the slow observers read nothing: OCCGEO_SLOW_OBSERVER_S (the acceptance form is 30), default 6 s.
+double slow_observer_seconds() {
+  const char* text = std::getenv("OCCGEO_SLOW_OBSERVER_S");
+  if (text == nullptr) return 6.0;
+  const double value = std::atof(text);
+  return value > 0.0 && value <= 600.0 ? value : 6.0;
+}
+
+std::unique_ptr<ServerProcess> start_server(const TempDir& dir, const std::string& yaml) {
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << yaml;
+  return std::make_unique<ServerProcess>(dir.path(), std::vector<std::string>{"--config", config.string()});
+}
+
+// The server's resident memory in bytes, from /proc (the process whose command line names this data directory).
+std::size_t server_rss_bytes(const TempDir& dir) {
+  const std::string port_file = (dir.path() / "occgeod.port").string();
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    std::ifstream cmdline(entry.path() / "cmdline");
+    std::string args((std::istreambuf_iterator<char>(cmdline)), std::istreambuf_iterator<char>());
+    if (args.find("occgeod") == std::string::npos || args.find(port_file) == std::string::npos) continue;
+    std::ifstream status(entry.path() / "status");
+    std::string line;
+    while (std::getline(status, line)) {
+      if (line.rfind("VmRSS:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+    }
+  }
+  return 0;
+}
+
+// Ranges of the Bearcat's laser (181 beams over 180 degrees) at X_WB inside a 12 m square room centred on the origin.
+std::vector<float> room_ranges(double x, double y, double theta) {
+  std::vector<float> ranges(181);
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    const double angle = theta - std::numbers::pi / 2.0 + static_cast<double>(i) * std::numbers::pi / 180.0;
+    const double c = std::cos(angle);
+    const double s = std::sin(angle);
+    double range = 1e9;
+    if (std::abs(c) > 1e-9) range = std::min(range, ((c > 0 ? 6.0 : -6.0) - x) / c);
+    if (std::abs(s) > 1e-9) range = std::min(range, ((s > 0 ? 6.0 : -6.0) - y) / s);
+    ranges[i] = static_cast<float>(std::min(range, 8.5));  // past 8 m: no return
+  }
+  return ranges;
+}
+
+// A driver in lockstep: each scan waits for its ScanAck; the latency of each is kept.
+class LockstepDriver {
+ public:
+  LockstepDriver(const std::string& address, const std::string& robot_id, const std::string& world)
+      : connection_(client::Connection::open(client::Endpoint::parse(address))) {
+    v1::Hello hello;
+    hello.set_protocol_version(1);
+    hello.set_role(v1::ROLE_DRIVER);
+    hello.set_robot_id(robot_id);
+    hello.set_world(world);
+    connection_.hello(hello);
+    v1::ClientMessage spec;
+    *spec.mutable_robot_spec() = bearcat_spec();
+    connection_.send(spec);
+  }
+
+  // One odometry + scan along a fixed slow circle; returns false when no ack came within 10 s.
+  bool step() {
+    ++seq_;
+    const double t = static_cast<double>(seq_) * 0.1;
+    const double x = 2.0 * std::cos(t * 0.05);
+    const double y = 2.0 * std::sin(t * 0.05);
+    const double theta = t * 0.05 + std::numbers::pi / 2.0;
+    const auto sent = Clock::now();
+    connection_.send(sim::make_odometry_message(seq_, t, {x, y, theta}, {0.1, 0.05}));
+    connection_.send(sim::make_laser_scan_message("front_laser", seq_, t, room_ranges(x, y, theta)));
+    const auto deadline = sent + 10s;
+    while (Clock::now() < deadline) {
+      const auto reply = connection_.receive(100ms);
+      if (!reply) continue;
+      if (reply->has_error()) ADD_FAILURE() << client::describe(reply->error());
+      if (reply->has_motion_command()) commands_.push_back(reply->motion_command());
+      if (reply->has_scan_ack() && reply->scan_ack().seq() == seq_) {
+        latencies_us_.push_back(std::chrono::duration<double, std::micro>(Clock::now() - sent).count());
+        return true;
+      }
+    }
+    return false;
+  }
+
+  // Steps until `seconds` have passed; returns the number of scans acknowledged (stops at the first missing ack).
+  std::size_t run_for(double seconds, const std::function<void()>& every_second = {}) {
+    const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+    auto next_tick = Clock::now() + 1s;
+    std::size_t acked = 0;
+    while (Clock::now() < end) {
+      if (!step()) return acked;
+      ++acked;
+      if (every_second && Clock::now() >= next_tick) {
+        every_second();
+        next_tick += 1s;
+      }
+    }
+    return acked;
+  }
+
+  [[nodiscard]] double percentile_us(double p) const {
+    if (latencies_us_.empty()) return 0.0;
+    std::vector<double> sorted = latencies_us_;
+    std::sort(sorted.begin(), sorted.end());
+    return sorted[static_cast<std::size_t>(p * static_cast<double>(sorted.size() - 1))];
+  }
+  [[nodiscard]] std::uint64_t last_seq() const { return seq_; }
+  // The motion commands received so far (also those that arrive within `wait`), oldest first; clears them.
+  std::vector<v1::MotionCommand> take_commands(std::chrono::milliseconds wait) {
+    while (const auto message = connection_.receive(wait)) {
+      if (message->has_motion_command()) commands_.push_back(message->motion_command());
+    }
+    return std::exchange(commands_, {});
+  }
+
+ private:
+  client::Connection connection_;
+  std::uint64_t seq_ = 0;
+  std::vector<double> latencies_us_;
+  std::vector<v1::MotionCommand> commands_;
+};
+
+// A raw observer socket whose receive buffer is tiny, so the server's writes to it stall as soon as it stops
+// reading (a phone on a bad link, a hung process).
+class RawClient {
+ public:
+  explicit RawClient(std::uint16_t port, int receive_buffer_bytes = 4096) : socket_(io_) {
+    socket_.open(boost::asio::ip::tcp::v4());
+    socket_.set_option(boost::asio::socket_base::receive_buffer_size(receive_buffer_bytes));
+    socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  }
+  void send(const v1::ClientMessage& message) {
+    boost::asio::write(socket_, boost::asio::buffer(proto::encode_frame(message)));
+  }
+  // Sends without ever blocking longer than `limit`; false when the bytes could not all be written in time.
+  bool send_within(const v1::ClientMessage& message, std::chrono::milliseconds limit) {
+    const std::string frame = proto::encode_frame(message);
+    bool done = false;
+    boost::asio::async_write(socket_, boost::asio::buffer(frame),
+                             [&](const boost::system::error_code& error, std::size_t) { done = !error; });
+    io_.restart();
+    io_.run_for(limit);
+    if (!io_.stopped()) {
+      boost::system::error_code ignored;
+      socket_.cancel(ignored);
+      io_.restart();
+      io_.run();
+      return false;
+    }
+    return done;
+  }
+  // The next message, or nullopt at end of stream or after `limit`.
+  std::optional<v1::ServerMessage> receive(std::chrono::milliseconds limit) {
+    const auto deadline = Clock::now() + limit;
+    v1::ServerMessage message;
+    while (decoder_.next(message) != proto::FrameStatus::frame) {
+      if (closed_ || Clock::now() >= deadline) return std::nullopt;
+      std::size_t got = 0;
+      boost::system::error_code result = boost::asio::error::would_block;
+      socket_.async_read_some(boost::asio::buffer(buffer_), [&](const boost::system::error_code& error, std::size_t n) {
+        result = error;
+        got = n;
+      });
+      io_.restart();
+      io_.run_until(deadline);
+      if (!io_.stopped()) {
+        boost::system::error_code ignored;
+        socket_.cancel(ignored);
+        io_.restart();
+        io_.run();
+        return std::nullopt;
+      }
+      if (result) {
+        closed_ = true;
+        return std::nullopt;
+      }
+      decoder_.append(buffer_.data(), got);
+    }
+    return message;
+  }
+  [[nodiscard]] bool closed() const { return closed_; }
+
+ private:
+  boost::asio::io_context io_;
+  boost::asio::ip::tcp::socket socket_;
+  proto::FrameDecoder decoder_{std::size_t{64} << 20};
+  std::array<char, 65536> buffer_{};
+  bool closed_ = false;
+};
+
+v1::ClientMessage hello_message(v1::Role role) {
+  v1::ClientMessage message;
+  message.mutable_hello()->set_protocol_version(1);
+  message.mutable_hello()->set_role(role);
+  message.mutable_hello()->set_client_name("backpressure-test");
+  return message;
+}
+
+v1::ClientMessage watch_message(const std::string& world) {
+  v1::ClientMessage message;
+  message.mutable_watch()->set_request_id(1);
+  message.mutable_watch()->set_world(world);
+  return message;
+}
+
+TEST(Backpressure, SlowObserversLoseTheirOldestEventsAndAreToldWhileIngestAndMemoryStayPut) {
+  const double seconds = slow_observer_seconds();
+  constexpr int kObservers = 8;
+  TempDir dir;
+  auto server = start_server(dir, "limits:\n  max_watch_queue_messages: 64\n");
+
+  // Baseline: the same trajectory in a world nobody watches.
+  LockstepDriver baseline(server->address(), "baseline-bot", "baseline");
+  const std::size_t baseline_scans = baseline.run_for(seconds);
+  ASSERT_GT(baseline_scans, 10U);
+
+  std::vector<std::unique_ptr<RawClient>> observers;
+  for (int i = 0; i < kObservers; ++i) {
+    observers.push_back(std::make_unique<RawClient>(server->port()));
+    observers.back()->send(hello_message(v1::ROLE_OBSERVER));
+    observers.back()->send(watch_message("watched"));
+    ASSERT_TRUE(observers.back()->receive(5s)) << "no welcome";
+    const auto reply = observers.back()->receive(5s);
+    ASSERT_TRUE(reply && reply->has_watch()) << (reply ? reply->DebugString() : "nothing");
+  }
+  LockstepDriver watched(server->address(), "watched-bot", "watched");
+  const std::size_t rss_before = server_rss_bytes(dir);
+  std::size_t rss_max = rss_before;
+  std::vector<std::size_t> rss_samples;
+  const std::size_t watched_scans = watched.run_for(seconds, [&] {
+    rss_samples.push_back(server_rss_bytes(dir));
+    rss_max = std::max(rss_max, rss_samples.back());
+  });
+  ASSERT_GT(watched_scans, 10U);
+  const std::size_t rss_after = server_rss_bytes(dir);
+
+  const double base_p50 = baseline.percentile_us(0.5);
+  const double watched_p50 = watched.percentile_us(0.5);
+  std::printf("slow observers: %d reading nothing for %.0f s\n", kObservers, seconds);
+  std::printf("  ingest ack latency  baseline: p50 %.0f us p99 %.0f us (%zu scans)\n", base_p50,
+              baseline.percentile_us(0.99), baseline_scans);
+  std::printf("  ingest ack latency  observed: p50 %.0f us p99 %.0f us (%zu scans)  p50 ratio %.3f\n", watched_p50,
+              watched.percentile_us(0.99), watched_scans, watched_p50 / base_p50);
+  std::printf("  server VmRSS: %.1f MiB before, %.1f MiB max, %.1f MiB after; per second:", rss_before / 1048576.0,
+              rss_max / 1048576.0, rss_after / 1048576.0);
+  for (const std::size_t sample : rss_samples) std::printf(" %.1f", sample / 1048576.0);
+  std::printf("\n");
+
+  // Now the observers read: every event is either delivered or counted as dropped, and the newest ones arrive.
+  for (int i = 0; i < kObservers; ++i) {
+    std::uint64_t received = 0;
+    std::uint64_t dropped = 0;
+    std::uint64_t last_seq = 0;
+    while (last_seq < watched.last_seq()) {
+      const auto message = observers[i]->receive(10s);
+      ASSERT_TRUE(message) << "observer " << i << " stopped at seq " << last_seq;
+      if (!message->has_watch_event()) continue;
+      EXPECT_EQ(message->watch_event().robot_id(), "watched-bot");
+      EXPECT_GT(message->watch_event().seq(), last_seq);
+      ++received;
+      dropped += message->watch_event().dropped_since_last();
+      last_seq = message->watch_event().seq();
+    }
+    EXPECT_EQ(received + dropped, watched_scans) << "observer " << i;
+    if (i == 0) {
+      std::printf("  observer 0: %llu events delivered, %llu dropped (oldest first)\n",
+                  static_cast<unsigned long long>(received), static_cast<unsigned long long>(dropped));
+    }
+  }
+  // Queued events are bounded per observer; 64 MiB is far above the models' own growth over this run.
+  EXPECT_LT(rss_max, rss_before + (std::size_t{64} << 20));
+}
+
+TEST(Backpressure, DISABLED_AClientThatStopsReadingIsDisconnectedAfterTheWriteTimeout) {
+  TempDir dir;
+  auto server = start_server(dir, "limits:\n  write_timeout_s: 1.0\n");
+  RawClient stalled(server->port(), 2048);
+  stalled.send(hello_message(v1::ROLE_QUERY));
+  // Whole-grid requests of a mapped world: large replies that fill the socket at once.
+  LockstepDriver driver(server->address(), "bot", "default");
+  const std::size_t warmup_acked = driver.run_for(0.5);
+  ASSERT_EQ(warmup_acked, driver.last_seq());
+  for (std::uint64_t id = 1; id <= 40; ++id) {
+    v1::ClientMessage grid;
+    grid.mutable_grid()->set_request_id(id);
+    grid.mutable_grid()->set_world("default");
+    if (!stalled.send_within(grid, 1000ms)) break;
+  }
+  const auto start = Clock::now();
+  bool dropped = false;
+  while (Clock::now() < start + 10s && !dropped) {
+    ASSERT_TRUE(driver.step());  // ingest goes on meanwhile
+    dropped = server->log().find("session_write_timeout") != std::string::npos;
+  }
+  EXPECT_TRUE(dropped) << server->log();
+  const double after_s = std::chrono::duration<double>(Clock::now() - start).count();
+  std::printf("stalled client dropped %.2f s after its requests (write_timeout_s 1.0)\n", after_s);
+  // What the kernel had buffered drains, then the stream ends.
+  for (int i = 0; i < 100000 && !stalled.closed(); ++i) {
+    if (!stalled.receive(2s)) break;
+  }
+  EXPECT_TRUE(stalled.closed());
+}
+
+TEST(Backpressure, AQueryFloodDoesNotStarveIngestOrOtherClients) {
+  TempDir dir;
+  auto server = start_server(dir, "log_level: info\n");
+  LockstepDriver driver(server->address(), "bot", "default");
+  constexpr std::size_t kScans = 300;
+  for (std::size_t i = 0; i < kScans; ++i) ASSERT_TRUE(driver.step());
+  const double quiet_p50 = driver.percentile_us(0.5);
+
+  // The flooder sends collision queries as fast as TCP lets it and reads nothing back.
+  std::atomic<bool> stop{false};
+  std::atomic<std::uint64_t> flood_sent{0};
+  std::thread flooder([&] {
+    RawClient client(server->port());
+    client.send(hello_message(v1::ROLE_QUERY));
+    v1::ClientMessage query;
+    auto* collision = query.mutable_collision();
+    collision->set_robot_id("bot");
+    while (!stop.load()) {
+      collision->set_request_id(flood_sent.load() + 1);
+      if (!client.send_within(query, 200ms)) continue;
+      ++flood_sent;
+    }
+  });
+  std::this_thread::sleep_for(300ms);
+
+  LockstepDriver flooded(server->address(), "bot-2", "default");
+  auto polite = open_query_session(server->address());
+  std::size_t polite_answers = 0;
+  double polite_worst_ms = 0.0;
+  for (std::size_t i = 0; i < kScans; ++i) {
+    ASSERT_TRUE(flooded.step()) << "scan " << i << " not acknowledged during the flood";
+    if (i % 10 == 0) {
+      v1::ClientMessage status;
+      status.mutable_status()->set_request_id(i + 1);
+      const auto asked = Clock::now();
+      const auto reply = polite.call(status, i + 1, 5s);
+      polite_worst_ms =
+          std::max(polite_worst_ms, std::chrono::duration<double, std::milli>(Clock::now() - asked).count());
+      if (reply.has_status()) ++polite_answers;
+    }
+  }
+  stop = true;
+  flooder.join();
+  EXPECT_EQ(polite_answers, kScans / 10);
+  std::printf(
+      "query flood: %llu queries sent unread; ingest ack p50 %.0f us flooded vs %.0f us quiet; "
+      "another client's worst status reply %.1f ms\n",
+      static_cast<unsigned long long>(flood_sent.load()), flooded.percentile_us(0.5), quiet_p50, polite_worst_ms);
+  EXPECT_TRUE(server->running());
+}
+
+TEST(Backpressure, AControllerThatVanishesLeavesTheRobotStopped) {
+  TempDir dir;
+  auto server = start_server(dir, "log_level: info\n");
+  LockstepDriver driver(server->address(), "bot", "default");
+  ASSERT_TRUE(driver.step());
+
+  // The controller takes a 1 s lease, sets teleop, then falls silent with its socket open (a hung process or a
+  // cut cable: no FIN ever comes).
+  RawClient controller(server->port());
+  controller.send(hello_message(v1::ROLE_CONTROLLER));
+  v1::ClientMessage lease;
+  lease.mutable_lease()->set_request_id(1);
+  lease.mutable_lease()->set_robot_id("bot");
+  lease.mutable_lease()->set_action(v1::LeaseRequest::ACQUIRE);
+  lease.mutable_lease()->set_timeout_s(1.0);
+  controller.send(lease);
+  v1::ClientMessage drive;
+  drive.mutable_drive()->set_request_id(2);
+  drive.mutable_drive()->set_robot_id("bot");
+  drive.mutable_drive()->set_behaviour("teleop");
+  drive.mutable_drive()->set_linear_mps(0.4);
+  controller.send(drive);
+  bool granted = false;
+  for (int i = 0; i < 20 && !granted; ++i) {
+    const auto reply = controller.receive(500ms);
+    granted = reply && reply->has_drive();
+  }
+  ASSERT_TRUE(granted);
+
+  // The robot is driven, then stopped within the lease timeout plus the watchdog's latency.
+  const auto silent_from = Clock::now();
+  bool moving = false;
+  bool stopped_after_moving = false;
+  double stopped_after_s = 0.0;
+  while (Clock::now() < silent_from + 5s && !stopped_after_moving) {
+    ASSERT_TRUE(driver.step());
+    for (const auto& command : driver.take_commands(10ms)) {
+      if (!command.stop() && command.linear_mps() > 0.1) moving = true;
+      if (moving && command.stop()) {
+        stopped_after_moving = true;
+        stopped_after_s = std::chrono::duration<double>(Clock::now() - silent_from).count();
+      }
+    }
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_TRUE(moving);
+  EXPECT_TRUE(stopped_after_moving) << server->log();
+  EXPECT_LT(stopped_after_s, 2.0);
+  std::printf("silent controller: robot stopped %.2f s after the controller fell silent (lease 1.0 s)\n",
+              stopped_after_s);
+}
+
+}  // namespace
+}  // namespace occgeo::testing

@@ -1,0 +1,53 @@
+// A bounded load run: occgeo-load starts its own occgeod and runs simulated robots, pipelined query clients and
+// observers against it for about 25 s. Any protocol error, lost request or server crash fails the test; the figures
+// are printed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <regex>
+#include <string>
+
+#include "../support/process.h"
+
+namespace occgeo::testing {
+namespace {
+
+// The number after "key": in a one-line JSON object; NaN when absent.
+double json_value(const std::string& json, const std::string& key) {
+  const std::regex pattern("\"" + key + "\":(-?[0-9.eE+-]+)");
+  std::smatch match;
+  if (!std::regex_search(json, match, pattern)) return std::nan("");
+  return std::stod(match[1].str());
+}
+
+TEST(LoadTest, RobotsClientsAndObserversRunWithoutAnyErrorAndTheServerSurvives) {
+  const ProcessResult run =
+      run_process({binary("clients/load/occgeo-load").string(), "--robots", "3", "--clients", "16", "--depth", "4",
+                   "--observers", "4", "--mix",
+                   "collision=4,clearance=4,ptem=1,status=1,grid=1,collision_batch=1,clearance_batch=1,raycast=1,"
+                   "raycast_batch=1,occupancy=1,occupancy_batch=1,swept=1,swept_batch=1,grid_window=1,octree_window=1",
+                   "--batch", "50", "--duration", "25", "--warmup-scans", "50", "--json"},
+                  std::chrono::seconds(120));
+  std::cout << run.out << '\n';
+  ASSERT_FALSE(run.timed_out) << run.err;
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_EQ(json_value(run.out, "errors"), 0.0) << run.out;
+  EXPECT_NE(run.out.find("\"server_alive\":true"), std::string::npos) << run.out;
+  EXPECT_GT(json_value(run.out, "queries"), 1000.0) << run.out;
+  EXPECT_GT(json_value(run.out, "scans"), 50.0) << "the robots streamed hardly any scans: " << run.out;
+  EXPECT_GT(json_value(run.out, "observer_polls"), 100.0) << run.out;
+  EXPECT_GT(json_value(run.out, "p99_us"), 0.0) << run.out;
+}
+
+TEST(LoadTest, RefusesServersOffThisMachine) {
+  const ProcessResult run =
+      run_process({binary("clients/load/occgeo-load").string(), "--server", "192.0.2.7:7700", "--duration", "1"},
+                  std::chrono::seconds(20));
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--server"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("loopback"), std::string::npos) << run.err;
+}
+
+}  // namespace
+}  // namespace occgeo::testing

@@ -1,0 +1,329 @@
+#include "scenario_runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <queue>
+#include <sstream>
+#include <thread>
+
+#include "../support/json_fields.h"
+#include "../support/process.h"
+#include "occgeo/client/connection.h"
+#include "occgeo/sim/presets.h"
+#include "occgeo/sim/sim_world.h"
+
+namespace occgeo::testing {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+client::Connection open_controller(const std::string& address) {
+  auto connection = client::Connection::open(client::Endpoint::parse(address));
+  v1::Hello hello;
+  hello.set_protocol_version(1);
+  hello.set_role(v1::ROLE_CONTROLLER);
+  hello.set_client_name("scenario-runner");
+  connection.hello(hello);
+  return connection;
+}
+
+std::optional<v1::RobotStatus> robot_status(client::Connection& connection, const std::string& robot,
+                                            std::uint64_t request_id) {
+  v1::ClientMessage request;
+  request.mutable_status()->set_request_id(request_id);
+  const v1::StatusReply status = connection.call(request, request_id).status();
+  for (const auto& r : status.robots()) {
+    if (r.id() == robot) return r;
+  }
+  return std::nullopt;
+}
+
+v1::LeaseReply lease(client::Connection& connection, const std::string& robot, v1::LeaseRequest::Action action,
+                     std::uint64_t request_id) {
+  v1::ClientMessage request;
+  request.mutable_lease()->set_request_id(request_id);
+  request.mutable_lease()->set_robot_id(robot);
+  request.mutable_lease()->set_action(action);
+  request.mutable_lease()->set_timeout_s(10.0);
+  return connection.call(request, request_id).lease();
+}
+
+struct TraceRow {
+  double t = 0.0;
+  double x = 0.0;
+  double y = 0.0;
+  double theta = 0.0;
+};
+
+std::vector<TraceRow> read_trace(const std::filesystem::path& file) {
+  std::vector<TraceRow> rows;
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream fields(line);
+    TraceRow row;
+    if (fields >> row.t >> row.x >> row.y >> row.theta) rows.push_back(row);
+  }
+  return rows;
+}
+
+std::string read_file(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string last_state_of(const std::string& json) {
+  const std::string key = "\"last_state\": \"";
+  const auto at = json.find(key);
+  if (at == std::string::npos) return {};
+  const auto end = json.find('"', at + key.size());
+  return json.substr(at + key.size(), end - at - key.size());
+}
+
+}  // namespace
+
+std::optional<double> optimal_path_length(const std::string& world_file, const std::string& preset_name,
+                                          const Eigen::Vector2d& start, const Eigen::Vector2d& goal) {
+  const auto world = sim::load_sim_world(source("clients/sim/worlds/" + world_file));
+  const sim::RobotPreset* preset = sim::find_robot_preset(preset_name);
+  if (preset == nullptr) return std::nullopt;
+  constexpr double kCell = 0.05;
+  constexpr double kMargin = 4.0;
+  const Eigen::Vector2d lo = start.cwiseMin(goal) - Eigen::Vector2d(kMargin, kMargin);
+  const Eigen::Vector2d hi = start.cwiseMax(goal) + Eigen::Vector2d(kMargin, kMargin);
+  const int nx = static_cast<int>(std::ceil((hi.x() - lo.x()) / kCell));
+  const int ny = static_cast<int>(std::ceil((hi.y() - lo.y()) / kCell));
+  const auto index = [&](int ix, int iy) { return static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx) + ix; };
+  // Obstacle cells: a cell-sized prism as tall as the robot overlaps an obstacle.
+  const geometry::BoxFootprint probe{
+      .length = kCell, .width = kCell, .height = preset->footprint.height, .center_x = 0};
+  std::vector<char> blocked(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), 0);
+  const double radius = preset->footprint.width / 2.0;
+  const int reach = static_cast<int>(std::ceil(radius / kCell));
+  for (int iy = 0; iy < ny; ++iy) {
+    for (int ix = 0; ix < nx; ++ix) {
+      const geometry::Pose2 centre{lo.x() + (ix + 0.5) * kCell, lo.y() + (iy + 0.5) * kCell, 0.0};
+      if (!world->find_collision(probe, centre, 0.0)) continue;
+      // A disc of the robot's half width about any free cell must not hold this obstacle cell.
+      for (int dy = -reach; dy <= reach; ++dy) {
+        for (int dx = -reach; dx <= reach; ++dx) {
+          const int x = ix + dx;
+          const int y = iy + dy;
+          if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
+          if (std::hypot(dx, dy) * kCell > radius + kCell / 2.0) continue;
+          blocked[index(x, y)] = 1;
+        }
+      }
+    }
+  }
+  const auto cell_of = [&](const Eigen::Vector2d& p) {
+    return std::pair{static_cast<int>((p.x() - lo.x()) / kCell), static_cast<int>((p.y() - lo.y()) / kCell)};
+  };
+  const auto [sx, sy] = cell_of(start);
+  const auto [gx, gy] = cell_of(goal);
+  std::vector<double> cost(blocked.size(), std::numeric_limits<double>::infinity());
+  using Entry = std::pair<double, std::size_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
+  cost[index(sx, sy)] = 0.0;
+  open.push({0.0, index(sx, sy)});
+  while (!open.empty()) {
+    const auto [c, at] = open.top();
+    open.pop();
+    if (c > cost[at]) continue;
+    const int x = static_cast<int>(at % static_cast<std::size_t>(nx));
+    const int y = static_cast<int>(at / static_cast<std::size_t>(nx));
+    if (x == gx && y == gy) return c;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (dx == 0 && dy == 0) continue;
+        const int u = x + dx;
+        const int v = y + dy;
+        if (u < 0 || v < 0 || u >= nx || v >= ny || blocked[index(u, v)]) continue;
+        const double next = c + std::hypot(dx, dy) * kCell;
+        if (next < cost[index(u, v)]) {
+          cost[index(u, v)] = next;
+          open.push({next, index(u, v)});
+        }
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir) {
+  ScenarioResult result;
+  result.name = scenario.name;
+  const Clock::time_point started = Clock::now();
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "log_level: warn\ncontrol:\n  initial_behaviour: stop\n" << scenario.extra_config;
+  ServerProcess server(dir.path(), {"--config", config.string()});
+  const std::string robot = "scenario-robot";
+  std::vector<std::string> argv = {binary("clients/sim/occgeo-sim").string(),
+                                   "--server",
+                                   server.address(),
+                                   "--robot",
+                                   scenario.preset,
+                                   "--world",
+                                   source("clients/sim/worlds/" + scenario.world).string(),
+                                   "--start",
+                                   scenario.start,
+                                   "--id",
+                                   robot,
+                                   "--lockstep",
+                                   "--duration",
+                                   std::to_string(scenario.duration_s),
+                                   "--json",
+                                   "--trace-out",
+                                   (dir.path() / "trace.csv").string()};
+  if (picture_dir) {
+    std::filesystem::create_directories(*picture_dir);
+    argv.insert(argv.end(), {"--png-out", (std::filesystem::path(*picture_dir) / (scenario.name + ".png")).string()});
+  }
+  BackgroundProcess sim(argv, dir.path() / "sim.out", dir.path() / "sim.err");
+  try {
+    auto controller = open_controller(server.address());
+    std::uint64_t id = 0;
+    // The robot registers when the simulator's spec arrives; it stands still (initial_behaviour: stop) until then.
+    const Clock::time_point registering = Clock::now();
+    while (!robot_status(controller, robot, ++id)) {
+      if (seconds_since(registering) > 20.0 || !sim.running()) throw std::runtime_error("the robot never registered");
+      std::this_thread::sleep_for(20ms);
+    }
+    if (!lease(controller, robot, v1::LeaseRequest::ACQUIRE, ++id).granted()) {
+      throw std::runtime_error("the lease was refused");
+    }
+    v1::ClientMessage drive;
+    drive.mutable_drive()->set_request_id(++id);
+    drive.mutable_drive()->set_robot_id(robot);
+    drive.mutable_drive()->set_behaviour(scenario.behaviour);
+    drive.mutable_drive()->set_linear_mps(scenario.teleop_linear_mps);
+    drive.mutable_drive()->set_angular_radps(scenario.teleop_angular_radps);
+    drive.mutable_drive()->set_escape(scenario.escape);
+    for (const Eigen::Vector2d& w : scenario.waypoints) {
+      auto* waypoint = drive.mutable_drive()->add_waypoints();
+      waypoint->set_x_m(w.x());
+      waypoint->set_y_m(w.y());
+    }
+    if (scenario.goal) {
+      drive.mutable_drive()->mutable_goal()->set_x_m(scenario.goal->x());
+      drive.mutable_drive()->mutable_goal()->set_y_m(scenario.goal->y());
+    }
+    const v1::ServerMessage reply = controller.call(drive, id);
+    if (!reply.has_drive()) throw std::runtime_error("drive refused: " + reply.DebugString());
+    // Hold the lease while the simulator runs (bounded: lockstep runs far faster than real time).
+    Clock::time_point last_retain = Clock::now();
+    while (sim.running()) {
+      if (seconds_since(started) > 240.0) {
+        static_cast<void>(sim.stop(SIGTERM, std::chrono::seconds(10)));
+        throw std::runtime_error("the simulation ran past 240 s of wall time");
+      }
+      std::this_thread::sleep_for(20ms);
+      if (seconds_since(last_retain) > 2.0) {
+        static_cast<void>(lease(controller, robot, v1::LeaseRequest::RETAIN, ++id));
+        last_retain = Clock::now();
+      }
+    }
+    static_cast<void>(lease(controller, robot, v1::LeaseRequest::RETURN, ++id));
+  } catch (const std::exception& e) {
+    result.failure = e.what();
+    static_cast<void>(sim.stop(SIGTERM, std::chrono::seconds(10)));
+    result.wall_s = seconds_since(started);
+    return result;
+  }
+  const std::optional<int> code = sim.stop(SIGTERM, std::chrono::seconds(10));
+  result.wall_s = seconds_since(started);
+  const std::string out = read_file(dir.path() / "sim.out");
+  if (code != 0) {
+    result.failure = "occgeo-sim exited with " + (code ? std::to_string(*code) : std::string("no code")) + ": " +
+                     read_file(dir.path() / "sim.err");
+    return result;
+  }
+  try {
+    result.collisions = static_cast<int>(json_number(out, "collisions"));
+  } catch (const std::exception& e) {
+    result.failure = e.what();
+    return result;
+  }
+  result.last_state = last_state_of(out);
+  const std::vector<TraceRow> trace = read_trace(dir.path() / "trace.csv");
+  if (trace.empty()) {
+    result.failure = "empty trace";
+    return result;
+  }
+  // Sim time counts from the first motion: the robot stood still until the controller set its behaviour.
+  std::size_t first = 0;
+  while (first + 1 < trace.size() &&
+         std::hypot(trace[first + 1].x - trace[0].x, trace[first + 1].y - trace[0].y) < 1e-4 &&
+         std::abs(trace[first + 1].theta - trace[0].theta) < 1e-4) {
+    ++first;
+  }
+  std::size_t last = trace.size() - 1;
+  if (scenario.goal) {
+    result.reached = false;
+    for (std::size_t i = first; i < trace.size(); ++i) {
+      if (std::hypot(trace[i].x - scenario.goal->x(), trace[i].y - scenario.goal->y()) <= scenario.goal_tolerance_m) {
+        result.reached = true;
+        last = i;
+        break;
+      }
+    }
+    result.optimal_m = optimal_path_length(scenario.world, scenario.preset, {trace[0].x, trace[0].y}, *scenario.goal);
+  }
+  for (std::size_t i = first + 1; i <= last; ++i) {
+    result.path_m += std::hypot(trace[i].x - trace[i - 1].x, trace[i].y - trace[i - 1].y);
+  }
+  result.sim_s = trace[last].t - trace[first].t;
+  result.final_pose = {trace.back().x, trace.back().y, trace.back().theta};
+  result.ran = true;
+  return result;
+}
+
+std::string results_table(const std::vector<Scenario>& scenarios, const std::vector<ScenarioResult>& results) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(2);
+  out << std::left << std::setw(34) << "scenario" << std::setw(9) << "reached" << std::setw(11) << "collisions"
+      << std::setw(9) << "path_m" << std::setw(11) << "optimal_m" << std::setw(7) << "ratio" << std::setw(9) << "sim_s"
+      << std::setw(8) << "wall_s"
+      << "last state / note\n";
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const ScenarioResult& r = results[i];
+    out << std::left << std::setw(34) << r.name;
+    if (!r.ran) {
+      out << "did not run: " << r.failure << '\n';
+      continue;
+    }
+    out << std::setw(9) << (r.reached ? (*r.reached ? "yes" : "no") : "-") << std::setw(11) << r.collisions
+        << std::setw(9) << r.path_m << std::setw(11);
+    if (r.optimal_m) {
+      out << *r.optimal_m;
+    } else {
+      out << "-";
+    }
+    out << std::setw(7);
+    if (r.ratio()) {
+      out << *r.ratio();
+    } else {
+      out << "-";
+    }
+    out << std::setw(9) << r.sim_s << std::setw(8) << r.wall_s << (r.last_state.empty() ? "-" : r.last_state);
+    if (i < scenarios.size() && !scenarios[i].note.empty()) out << "  (" << scenarios[i].note << ")";
+    out << '\n';
+  }
+  return out.str();
+}
+
+}  // namespace occgeo::testing

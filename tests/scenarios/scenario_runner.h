@@ -1,0 +1,61 @@
+#pragma once
+
+// Runs one simulated scenario against the real server in lockstep: occgeod, occgeo-sim with a robot preset in a
+// shipped world, and a controller session that takes the robot's lease and sets its behaviour; then measures the run
+// from the simulator's ground truth (collisions, the true trajectory) and compares its path with the shortest one a
+// grid search finds on the true world.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace occgeo::testing {
+
+struct Scenario {
+  std::string name;
+  std::string world;                       // file under clients/sim/worlds/
+  std::string preset;                      // occgeo-sim --robot
+  std::string start;                       // occgeo-sim --start X,Y,THETA
+  std::string behaviour;                   // DriveRequest.behaviour: bearcat | wander | goto | teleop
+  std::optional<Eigen::Vector2d> goal;     // goto's goal (waypoints: the last one), world frame, metres
+  std::vector<Eigen::Vector2d> waypoints;  // waypoints' list, world frame, metres
+  bool escape = true;                      // deadlock escape on (the full stack) or off (the seed's behaviour alone)
+  double teleop_linear_mps = 0.0;
+  double teleop_angular_radps = 0.0;
+  double duration_s = 60.0;  // sim seconds
+  std::string extra_config;  // YAML appended to the server's configuration (e.g. a guard: section)
+  double goal_tolerance_m = 0.3;
+  std::string note;  // printed with the table: what the scenario shows
+};
+
+struct ScenarioResult {
+  std::string name;
+  bool ran = false;                 // the server, the simulator and the controller all worked
+  std::string failure;              // why it did not run, when it did not
+  std::optional<bool> reached;      // set when the scenario has a goal
+  int collisions = -1;              // ground truth, whole run
+  double path_m = 0.0;              // true trajectory length until the goal was reached (or the run ended)
+  std::optional<double> optimal_m;  // shortest collision-free path on the true world, when there is a goal
+  double sim_s = 0.0;               // sim time from the first motion until the goal was reached (or the run ended)
+  double wall_s = 0.0;              // wall time of the whole run
+  std::string last_state;           // the behaviour's last state as the simulator received it
+  Eigen::Vector3d final_pose = Eigen::Vector3d::Zero();  // x, y, theta of the last trace row
+  [[nodiscard]] std::optional<double> ratio() const {
+    if (!optimal_m || *optimal_m <= 0.0 || !reached || !*reached) return std::nullopt;
+    return path_m / *optimal_m;
+  }
+};
+
+// Runs the scenario; every wait is bounded. picture_dir, when set, receives NAME.png of the true trajectory.
+ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir);
+
+// One table of every result: scenario, reached, collisions, path, optimal, ratio, sim time, wall time, last state.
+std::string results_table(const std::vector<Scenario>& scenarios, const std::vector<ScenarioResult>& results);
+
+// Shortest 8-connected path on a 0.05 m lattice from start to goal over the true world, for a disc as wide as the
+// preset's footprint (a lower bound for the robot's own path up to the lattice; the table's reference).
+std::optional<double> optimal_path_length(const std::string& world_file, const std::string& preset,
+                                          const Eigen::Vector2d& start, const Eigen::Vector2d& goal);
+
+}  // namespace occgeo::testing

@@ -1,0 +1,129 @@
+// The safety guard on its own: a footprint swept along the commanded motion against occupied cells.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+#include <stdexcept>
+#include <utility>
+
+#include "occgeo/service/control/safety_guard.h"
+
+namespace occgeo::service::control {
+namespace {
+
+// Occupied cells given explicitly, 0.1 m each: the grid model as the guard reads it.
+class CellSet final : public geometry::OccupiedCellSource {
+ public:
+  [[nodiscard]] double cell_size() const override { return 0.1; }
+  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                         const std::function<bool(const geometry::CellIndex&)>& visit) const override {
+    for (const auto& [ix, iy] : cells_) {
+      if (ix < min.ix || ix > max.ix || iy < min.iy || iy > max.iy) continue;
+      if (!visit({ix, iy})) return;
+    }
+  }
+  void add(int ix, int iy) { cells_.insert({ix, iy}); }
+  // A wall of cells across x = [wall_x, wall_x + 0.1), y in [-2, 2).
+  static CellSet wall_at(double wall_x_m) {
+    CellSet set;
+    const int ix = static_cast<int>(std::floor(wall_x_m / 0.1 + 1e-9));
+    for (int iy = -20; iy < 20; ++iy) set.add(ix, iy);
+    return set;
+  }
+
+ private:
+  std::set<std::pair<int, int>> cells_;
+};
+
+// The simulator's Bearcat: 1.0 m x 0.8 m, base_link at its centre.
+const geometry::Footprint kBearcat =
+    geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
+
+GuardDecision guard_towards_wall(double gap_m, double linear_mps, double angular_radps = 0.0) {
+  // The robot's front is gap_m short of the wall.
+  const CellSet wall = CellSet::wall_at(0.5 + gap_m);
+  return guard_command({&wall, nullptr, nullptr}, kBearcat, {0.0, 0.0, 0.0}, linear_mps, angular_radps, GuardParams{});
+}
+
+TEST(SafetyGuard, StopsFullSpeedShortlyBeforeAWall) {
+  const GuardDecision near = guard_towards_wall(0.3, 1.2);
+  EXPECT_EQ(near.action, GuardAction::kStop);
+  EXPECT_EQ(near.zone, "stop");
+  EXPECT_EQ(near.model, "grid");
+  EXPECT_EQ(near.linear_mps, 0.0);
+  EXPECT_NEAR(near.time_to_contact_s, 0.3 / 1.2, 0.05);
+  EXPECT_NEAR(near.distance_to_contact_m, 0.3, 0.06);
+}
+
+TEST(SafetyGuard, SlowsDownWhenContactLiesWithinTheHorizonButNotSoon) {
+  const GuardDecision decision = guard_towards_wall(0.9, 1.2);
+  EXPECT_EQ(decision.action, GuardAction::kSlow);
+  EXPECT_EQ(decision.zone, "slowdown");
+  EXPECT_NEAR(decision.linear_mps, 0.6, 1e-12);
+  EXPECT_NEAR(decision.time_to_contact_s, 0.75, 0.05);
+}
+
+TEST(SafetyGuard, PassesWhenTheWallIsBeyondTheHorizonOrTheRobotTurnsAway) {
+  const GuardDecision far = guard_towards_wall(2.0, 1.2);
+  EXPECT_EQ(far.action, GuardAction::kPass);
+  EXPECT_EQ(far.linear_mps, 1.2);
+  EXPECT_EQ(far.time_to_contact_s, 1.0);
+  const GuardDecision backing = guard_towards_wall(0.5, -0.5);
+  EXPECT_EQ(backing.action, GuardAction::kPass);
+  EXPECT_EQ(backing.linear_mps, -0.5);
+}
+
+TEST(SafetyGuard, ATurnInPlaceThatSwingsACornerIntoTheWallIsStopped) {
+  // The box's corners reach 0.64 m from its centre; a wall 0.1 m ahead of the front face is within that reach.
+  const GuardDecision turning = guard_towards_wall(0.15, 0.0, 2.0);
+  EXPECT_EQ(turning.action, GuardAction::kStop);
+  // With the wall 0.3 m away the corners clear it: the turn passes (limited, as the wall is close).
+  const GuardDecision clear = guard_towards_wall(0.3, 0.0, 0.5);
+  EXPECT_NE(clear.action, GuardAction::kStop);
+}
+
+TEST(SafetyGuard, LimitsSpeedsAlongsideAnObstacle) {
+  CellSet side;
+  for (int ix = -20; ix < 40; ++ix) side.add(ix, 6);  // a wall 0.2 m beside the left face (y = 0.4)
+  const GuardDecision decision =
+      guard_command({&side, nullptr, nullptr}, kBearcat, {0.0, 0.0, 0.0}, 1.0, 0.0, GuardParams{});
+  EXPECT_EQ(decision.action, GuardAction::kLimit);
+  EXPECT_EQ(decision.zone, "limit");
+  EXPECT_NEAR(decision.linear_mps, GuardParams{}.limit_linear_mps, 1e-12);
+}
+
+TEST(SafetyGuard, ARobotAlreadyTouchingMayOnlyBackAwayOrTurn) {
+  const CellSet wall = CellSet::wall_at(0.45);  // overlaps the front face
+  const GuardModels models{&wall, nullptr, nullptr};
+  const GuardDecision forward = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, 0.5, 0.0, GuardParams{});
+  EXPECT_EQ(forward.action, GuardAction::kStop);
+  EXPECT_EQ(forward.zone, "contact");
+  const GuardDecision reverse = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, -1.0, 0.0, GuardParams{});
+  EXPECT_EQ(reverse.action, GuardAction::kLimit);
+  EXPECT_NEAR(reverse.linear_mps, -GuardParams{}.limit_linear_mps, 1e-12);
+}
+
+TEST(SafetyGuard, DisabledOrStandingStillChangesNothing) {
+  GuardParams off;
+  off.enabled = false;
+  const CellSet wall = CellSet::wall_at(0.6);
+  EXPECT_EQ(guard_command({&wall, nullptr, nullptr}, kBearcat, {}, 1.2, 0.0, off).action, GuardAction::kPass);
+  EXPECT_EQ(guard_command({&wall, nullptr, nullptr}, kBearcat, {}, 0.0, 0.0, GuardParams{}).action, GuardAction::kPass);
+}
+
+TEST(SafetyGuard, ParamsOutOfRangeAreNamed) {
+  GuardParams bad;
+  bad.stop_time_s = 2.0;  // beyond the horizon
+  try {
+    bad.validate();
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("stop_time_s"), std::string::npos) << e.what();
+  }
+  bad = GuardParams{};
+  bad.slowdown_ratio = 0.0;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace occgeo::service::control

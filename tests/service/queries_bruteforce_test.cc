@@ -1,0 +1,476 @@
+// Every query kind of the query kernels (the code the single and batch handlers share) against brute force on random
+// worlds: collision, clearance with its gradient, raycast, occupancy and swept motion, at least 1000 cases each, and
+// the grid's change tracking (a copy patched with the changes since its version equals a fresh window).
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include "handlers/query_kernels.h"
+#include "occgeo/geometry/footprint.h"
+#include "occgeo/mapping/distance_field.h"
+#include "occgeo/mapping/himm_grid.h"
+#include "occgeo/mapping/octomap_model.h"
+#include "occgeo/mapping/ptem.h"
+
+namespace occgeo::service {
+namespace {
+
+using geometry::CellIndex;
+constexpr double kCell = 0.1;
+
+// A world of width x height cells from cell (0, 0), with its models as a server publishes them.
+struct RandomWorld {
+  int width = 0;
+  int height = 0;
+  std::vector<bool> occupied;
+  WorldSnapshot snapshot;
+
+  [[nodiscard]] bool at(int x, int y) const {
+    return x >= 0 && y >= 0 && x < width && y < height && occupied[static_cast<std::size_t>(y) * width + x];
+  }
+  [[nodiscard]] std::vector<CellIndex> occupied_cells() const {
+    std::vector<CellIndex> cells;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        if (at(x, y)) cells.push_back({x, y});
+      }
+    }
+    return cells;
+  }
+};
+
+RandomWorld make_world(std::mt19937& rng, int width, int height, int boxes, int singles) {
+  RandomWorld world;
+  world.width = width;
+  world.height = height;
+  world.occupied.assign(static_cast<std::size_t>(width) * height, false);
+  std::uniform_int_distribution<int> x_of(0, width - 1);
+  std::uniform_int_distribution<int> y_of(0, height - 1);
+  std::uniform_int_distribution<int> side(1, 8);
+  for (int b = 0; b < boxes; ++b) {
+    const int x0 = x_of(rng), y0 = y_of(rng), w = side(rng), h = side(rng);
+    for (int y = y0; y < std::min(y0 + h, height); ++y) {
+      for (int x = x0; x < std::min(x0 + w, width); ++x) world.occupied[static_cast<std::size_t>(y) * width + x] = true;
+    }
+  }
+  for (int s = 0; s < singles; ++s) world.occupied[static_cast<std::size_t>(y_of(rng)) * width + x_of(rng)] = true;
+
+  mapfile::OccupancyImage image;
+  image.width = static_cast<std::uint32_t>(width);
+  image.height = static_cast<std::uint32_t>(height);
+  image.resolution = kCell;
+  image.pixels.resize(world.occupied.size());
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      image.pixels[static_cast<std::size_t>(height - 1 - y) * width + x] = world.at(x, y) ? 0 : 254;
+    }
+  }
+  const auto grid = mapping::HimmGrid::from_image(image, mapping::HimmParams{}).snapshot();
+  mapping::DistanceField field(mapping::DistanceFieldParams{});
+  field.update(grid);
+  static const mapping::OctoMapParams octomap_params;
+  mapping::OctoMapModel octomap(octomap_params);
+  mapping::PtemModel ptem(mapping::PtemParams{});
+  // A few PTEM clusters from points scattered over the world.
+  std::vector<Eigen::Vector2d> points;
+  std::uniform_real_distribution<double> px(0.0, width * kCell), py(0.0, height * kCell);
+  for (int i = 0; i < 6; ++i) points.emplace_back(px(rng), py(rng));
+  mapping::PtemScan scan;
+  scan.stamp_s = 1.0;
+  scan.p_WS = {width * kCell / 2, height * kCell / 2};
+  scan.field_of_view_rad = 2 * M_PI;
+  scan.max_range_m = 100.0;
+  scan.points_W = points;
+  ptem.insert_scan(scan);
+  world.snapshot = {grid, ptem.snapshot(), field.snapshot(), octomap.publish()};
+  return world;
+}
+
+// ---- Independent exact geometry (separating axes, closed sets; touching counts) ----
+
+struct Outline {
+  bool is_box = true;
+  Eigen::Vector2d center;
+  Eigen::Vector2d axis_x, axis_y;  // unit axes (box)
+  double half_x = 0.0, half_y = 0.0, radius = 0.0;
+};
+
+Outline outline_of(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
+  Outline o;
+  o.axis_x = {std::cos(X_WB.theta), std::sin(X_WB.theta)};
+  o.axis_y = {-o.axis_x.y(), o.axis_x.x()};
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
+    o.center = X_WB.position() + box->center_x * o.axis_x;
+    o.half_x = box->length / 2;
+    o.half_y = box->width / 2;
+  } else {
+    o.is_box = false;
+    o.center = X_WB.position();
+    o.radius = std::get<geometry::CylinderFootprint>(footprint).radius;
+  }
+  return o;
+}
+
+// Distance from point p to the outline (0 inside).
+double point_distance(const Outline& o, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d d = p - o.center;
+  if (!o.is_box) return std::max(0.0, d.norm() - o.radius);
+  const double ox = std::max(std::abs(d.dot(o.axis_x)) - o.half_x, 0.0);
+  const double oy = std::max(std::abs(d.dot(o.axis_y)) - o.half_y, 0.0);
+  return std::hypot(ox, oy);
+}
+
+// Distance between the outline and a cell's closed square (0 when they overlap): the minimum over the segment pairs
+// and containment, evaluated by dense enough vertex/edge tests for convex polygons, or disc-square.
+double cell_distance(const Outline& o, const CellIndex& c) {
+  const Eigen::Vector2d lo(c.ix * kCell, c.iy * kCell);
+  const Eigen::Vector2d hi = lo + Eigen::Vector2d::Constant(kCell);
+  if (!o.is_box) {
+    const Eigen::Vector2d q = o.center.cwiseMax(lo).cwiseMin(hi);
+    return std::max(0.0, (o.center - q).norm() - o.radius);
+  }
+  // Separating axis test for overlap.
+  std::array<Eigen::Vector2d, 4> box_corners;
+  int k = 0;
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      box_corners[static_cast<std::size_t>(k++)] = o.center + sx * o.half_x * o.axis_x + sy * o.half_y * o.axis_y;
+    }
+  }
+  const std::array<Eigen::Vector2d, 4> cell_corners = {lo, Eigen::Vector2d(hi.x(), lo.y()), hi,
+                                                       Eigen::Vector2d(lo.x(), hi.y())};
+  bool separated = false;
+  for (const Eigen::Vector2d& axis : {Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1), o.axis_x, o.axis_y}) {
+    double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
+    for (const auto& p : box_corners) a0 = std::min(a0, p.dot(axis)), a1 = std::max(a1, p.dot(axis));
+    for (const auto& p : cell_corners) b0 = std::min(b0, p.dot(axis)), b1 = std::max(b1, p.dot(axis));
+    if (a1 < b0 || b1 < a0) separated = true;
+  }
+  if (!separated) return 0.0;
+  // Disjoint convex polygons: the closest pair includes a vertex of one of them.
+  double best = 1e300;
+  for (const auto& p : box_corners) best = std::min(best, (p - p.cwiseMax(lo).cwiseMin(hi)).norm());
+  for (const auto& p : cell_corners) best = std::min(best, point_distance(o, p));
+  return best;
+}
+
+double brute_clearance(const std::vector<CellIndex>& cells, const Outline& o) {
+  double best = 1e300;
+  for (const CellIndex& c : cells) best = std::min(best, cell_distance(o, c));
+  return best;
+}
+
+geometry::Footprint random_footprint(std::mt19937& rng) {
+  std::uniform_real_distribution<double> size(0.15, 0.9);
+  if (std::bernoulli_distribution(0.5)(rng)) {
+    return geometry::BoxFootprint{size(rng), size(rng), 0.5, std::uniform_real_distribution<double>(-0.3, 0.3)(rng)};
+  }
+  return geometry::CylinderFootprint{size(rng) / 2, 0.5};
+}
+
+geometry::Pose2 random_pose(std::mt19937& rng, const RandomWorld& world) {
+  std::uniform_real_distribution<double> x(-0.5, world.width * kCell + 0.5), y(-0.5, world.height * kCell + 0.5),
+      theta(-M_PI, M_PI);
+  return {x(rng), y(rng), theta(rng)};
+}
+
+const std::vector<v1::Model> kGrid = {v1::MODEL_GRID};
+
+TEST(QueriesBruteForce, CollisionAgreesWithExactGeometryAndNamesATouchingCell) {
+  std::mt19937 rng(1);
+  int cases = 0, hits = 0, shortcut = 0;
+  for (int w = 0; w < 6; ++w) {
+    const RandomWorld world = make_world(rng, 60, 50, 10, 40);
+    const auto cells = world.occupied_cells();
+    for (int i = 0; i < 400; ++i, ++cases) {
+      const geometry::Footprint footprint = random_footprint(rng);
+      const geometry::Pose2 pose = random_pose(rng, world);
+      v1::CollisionReply reply;
+      answer_collision(world.snapshot, footprint, geometry::bounding_radius(footprint), pose, kGrid, reply);
+      const Outline o = outline_of(footprint, pose);
+      const bool expected = brute_clearance(cells, o) == 0.0;
+      ASSERT_EQ(reply.hit(), expected) << "case " << cases << " pose " << pose.x << "," << pose.y << "," << pose.theta;
+      if (reply.hit()) {
+        ++hits;
+        EXPECT_EQ(reply.model(), v1::MODEL_GRID);
+        const CellIndex c{reply.cell().ix(), reply.cell().iy()};
+        EXPECT_TRUE(world.at(c.ix, c.iy)) << "the contact cell is occupied";
+        EXPECT_EQ(cell_distance(o, c), 0.0) << "and touches the footprint";
+      } else if (reply.cells_tested() == 0) {
+        ++shortcut;
+      }
+    }
+  }
+  std::printf("%d cases, %d hits, %d answered by the distance field alone\n", cases, hits, shortcut);
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(hits, cases / 10);
+  EXPECT_GT(shortcut, 0) << "the distance-field shortcut was never taken";
+}
+
+TEST(QueriesBruteForce, ClearanceIsWithinACellOfExactAndItsGradientPointsAway) {
+  std::mt19937 rng(2);
+  int cases = 0, with_gradient = 0;
+  const double max_distance = 2.0;
+  for (int w = 0; w < 5; ++w) {
+    const RandomWorld world = make_world(rng, 60, 50, 6, 20);
+    const auto cells = world.occupied_cells();
+    for (int i = 0; i < 250; ++i, ++cases) {
+      const geometry::Footprint footprint = random_footprint(rng);
+      const geometry::Pose2 pose = random_pose(rng, world);
+      v1::ClearanceReply reply;
+      answer_clearance(world.snapshot, footprint, pose, max_distance, kGrid, reply);
+      const Outline o = outline_of(footprint, pose);
+      const double exact = brute_clearance(cells, o);
+      if (exact > max_distance + kCell) {
+        EXPECT_FALSE(reply.found()) << "case " << cases;
+        continue;
+      }
+      if (exact < max_distance - kCell) {
+        ASSERT_TRUE(reply.found()) << "case " << cases;
+      }
+      if (!reply.found()) continue;
+      EXPECT_GE(reply.clearance_m(), exact - 1e-9) << "case " << cases;
+      EXPECT_LE(reply.clearance_m(), exact + kCell + 1e-9) << "case " << cases;
+      const Eigen::Vector2d nearest(reply.nearest_point().x(), reply.nearest_point().y());
+      const Eigen::Vector2d gradient(reply.gradient().x(), reply.gradient().y());
+      // In contact the nearest point is the cell's point nearest the footprint's centre, and the gradient points
+      // from it to that centre.
+      if (reply.clearance_m() <= 1e-6) continue;
+      EXPECT_NEAR(point_distance(o, nearest), reply.clearance_m(), 1e-9) << "case " << cases;
+      ++with_gradient;
+      ASSERT_NEAR(gradient.norm(), 1.0, 1e-9) << "case " << cases;
+      // Moving the footprint along the gradient moves it away from the nearest obstacle point at unit rate.
+      const double step = 0.01;
+      const geometry::Pose2 moved{pose.x + step * gradient.x(), pose.y + step * gradient.y(), pose.theta};
+      EXPECT_NEAR(point_distance(outline_of(footprint, moved), nearest), reply.clearance_m() + step, 1e-6)
+          << "case " << cases;
+    }
+  }
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(with_gradient, cases / 2);
+}
+
+// Range at which the ray enters the closed square of c, by the slab method; negative when it misses.
+double brute_entry(const Eigen::Vector2d& o, const Eigen::Vector2d& d, const CellIndex& c) {
+  double t0 = 0.0, t1 = 1e300;
+  for (int a = 0; a < 2; ++a) {
+    const double lo = (a == 0 ? c.ix : c.iy) * kCell, hi = lo + kCell;
+    if (d[a] == 0.0) {
+      if (o[a] < lo || o[a] > hi) return -1.0;
+      continue;
+    }
+    const double ta = (lo - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+    t0 = std::max(t0, std::min(ta, tb));
+    t1 = std::min(t1, std::max(ta, tb));
+  }
+  return t0 <= t1 ? t0 : -1.0;
+}
+
+TEST(QueriesBruteForce, RaycastFindsTheNearestOccupiedCell) {
+  std::mt19937 rng(3);
+  int cases = 0, hits = 0;
+  for (int w = 0; w < 5; ++w) {
+    const RandomWorld world = make_world(rng, 60, 50, 8, 30);
+    const auto cells = world.occupied_cells();
+    for (int i = 0; i < 300; ++i, ++cases) {
+      const geometry::Pose2 ray = random_pose(rng, world);
+      const double max_range = std::uniform_real_distribution<double>(0.5, 8.0)(rng);
+      v1::RaycastResult result;
+      answer_raycast(world.snapshot, ray, max_range, 0.3, kGrid, result);
+      const Eigen::Vector2d o = ray.position(), d(std::cos(ray.theta), std::sin(ray.theta));
+      double expected = max_range;
+      bool expected_hit = false;
+      for (const CellIndex& c : cells) {
+        const double t = brute_entry(o, d, c);
+        if (t >= 0.0 && t <= max_range && t < expected + 1e-12) {
+          expected = std::min(expected, t);
+          expected_hit = true;
+        }
+      }
+      ASSERT_EQ(result.hit(), expected_hit) << "case " << cases;
+      ASSERT_EQ(result.per_model_size(), 1);
+      EXPECT_NEAR(result.range_m(), expected, 1e-9) << "case " << cases;
+      if (result.hit()) {
+        ++hits;
+        EXPECT_EQ(result.model(), v1::MODEL_GRID);
+        EXPECT_TRUE(world.at(result.per_model(0).cell().ix(), result.per_model(0).cell().iy()));
+      }
+    }
+  }
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(hits, cases / 5);
+}
+
+TEST(QueriesBruteForce, OccupancyReadsTheGridCellAndTheThreatSum) {
+  std::mt19937 rng(4);
+  int cases = 0;
+  const std::vector<v1::Model> all = {v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM};
+  for (int w = 0; w < 3; ++w) {
+    const RandomWorld world = make_world(rng, 40, 40, 6, 30);
+    const auto& ptem = *world.snapshot.ptem;
+    ASSERT_FALSE(ptem.clusters().empty());
+    for (int i = 0; i < 400; ++i, ++cases) {
+      const geometry::Pose2 at = random_pose(rng, world);
+      v1::OccupancySample sample;
+      answer_occupancy(world.snapshot, {at.x, at.y, 0.3}, all, sample);
+      const int ix = static_cast<int>(std::floor(at.x / kCell)), iy = static_cast<int>(std::floor(at.y / kCell));
+      EXPECT_EQ(sample.cell().ix(), ix);
+      EXPECT_EQ(sample.cell().iy(), iy);
+      const bool inside = ix >= 0 && iy >= 0 && ix < world.width && iy < world.height;
+      EXPECT_EQ(sample.observed(), inside);
+      EXPECT_EQ(sample.occupied(), world.at(ix, iy));
+      EXPECT_EQ(sample.certainty(), world.at(ix, iy) ? 15U : 0U);
+      EXPECT_FALSE(sample.octree_known()) << "nothing was inserted into the octree";
+      double threat = 0.0;
+      for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+        const double s2 = cluster.sigma_m * cluster.sigma_m;
+        threat +=
+            std::exp(-(Eigen::Vector2d(at.x, at.y) - cluster.centre_W).squaredNorm() / (2 * s2)) / (2 * M_PI * s2);
+      }
+      EXPECT_NEAR(sample.threat(), threat, 1e-9 * std::max(1.0, threat));
+      EXPECT_EQ(sample.restricted(), ptem.restricted({at.x, at.y}));
+    }
+  }
+  EXPECT_GE(cases, 1000);
+}
+
+TEST(QueriesBruteForce, SweptMotionNeverStepsOverAContact) {
+  std::mt19937 rng(5);
+  int cases = 0, hits = 0;
+  for (int w = 0; w < 5; ++w) {
+    const RandomWorld world = make_world(rng, 50, 40, 5, 15);
+    const auto cells = world.occupied_cells();
+    for (int i = 0; i < 200; ++i, ++cases) {
+      const geometry::Footprint footprint = random_footprint(rng);
+      v1::SweptMotion motion;
+      const geometry::Pose2 start = random_pose(rng, world);
+      const bool as_path = i % 3 == 0;
+      if (as_path) {
+        geometry::Pose2 p = start;
+        for (int k = 0; k < 4; ++k) {
+          auto* pose = motion.add_path();
+          pose->set_x(p.x);
+          pose->set_y(p.y);
+          pose->set_theta(p.theta);
+          p = {p.x + std::uniform_real_distribution<double>(-0.6, 0.6)(rng),
+               p.y + std::uniform_real_distribution<double>(-0.6, 0.6)(rng),
+               geometry::wrap_angle(p.theta + std::uniform_real_distribution<double>(-1.0, 1.0)(rng))};
+        }
+        motion.set_path_dt_s(0.5);
+      } else {
+        motion.mutable_start()->set_x(start.x);
+        motion.mutable_start()->set_y(start.y);
+        motion.mutable_start()->set_theta(start.theta);
+        motion.set_linear_mps(std::uniform_real_distribution<double>(-0.8, 0.8)(rng));
+        motion.set_angular_radps(std::uniform_real_distribution<double>(-1.5, 1.5)(rng));
+        motion.set_duration_s(std::uniform_real_distribution<double>(0.0, 3.0)(rng));
+      }
+      v1::SweptResult result;
+      answer_swept(world.snapshot, footprint, kGrid, motion, result);
+      // Brute force: the first contact on a dense sampling of the motion (every 10 mm of the fastest point's travel);
+      // any contact found this way is a real one, which the server must not have stepped over.
+      const double radius = geometry::bounding_radius(footprint);
+      std::vector<std::pair<double, geometry::Pose2>> samples;  // (seconds, pose)
+      if (as_path) {
+        for (int k = 0; k + 1 < motion.path_size(); ++k) {
+          const auto& a = motion.path(k);
+          const auto& b = motion.path(k + 1);
+          const double dtheta = geometry::wrap_angle(b.theta() - a.theta());
+          const double travel = std::hypot(b.x() - a.x(), b.y() - a.y()) + std::abs(dtheta) * radius;
+          const int n = std::max(1, static_cast<int>(std::ceil(travel / 0.01)));
+          for (int j = 0; j <= n; ++j) {
+            const double s = static_cast<double>(j) / n;
+            samples.push_back(
+                {(k + s) * 0.5, {a.x() + s * (b.x() - a.x()), a.y() + s * (b.y() - a.y()), a.theta() + s * dtheta}});
+          }
+        }
+      } else {
+        const double rate = std::abs(motion.linear_mps()) + std::abs(motion.angular_radps()) * radius;
+        const int n = std::max(1, static_cast<int>(std::ceil(rate * motion.duration_s() / 0.01)));
+        for (int j = 0; j <= n; ++j) {
+          const double t = motion.duration_s() * j / n;
+          samples.push_back({t, geometry::integrate(start, {motion.linear_mps(), motion.angular_radps()}, t)});
+        }
+      }
+      // Only cells near the motion can touch it.
+      Eigen::AlignedBox2d reach;
+      for (const auto& sample : samples) reach.extend(sample.second.position());
+      reach.min().array() -= radius + 2 * kCell;
+      reach.max().array() += radius + 2 * kCell;
+      std::vector<CellIndex> near;
+      for (const CellIndex& c : cells) {
+        if (reach.contains(Eigen::Vector2d((c.ix + 0.5) * kCell, (c.iy + 0.5) * kCell))) near.push_back(c);
+      }
+      std::optional<double> first_contact;
+      for (const auto& [t, pose] : samples) {
+        if (brute_clearance(near, outline_of(footprint, pose)) == 0.0) {
+          first_contact = t;
+          break;
+        }
+      }
+      if (first_contact) {
+        ASSERT_TRUE(result.hit()) << "case " << cases << ": contact at " << *first_contact << " s was stepped over";
+        EXPECT_LE(result.time_s(), *first_contact + 1e-9) << "case " << cases;
+      }
+      if (result.hit()) {
+        ++hits;
+        const geometry::Pose2 at{result.pose().x(), result.pose().y(), result.pose().theta()};
+        EXPECT_LE(brute_clearance(cells, outline_of(footprint, at)), kSweptContact_m + 1e-9)
+            << "case " << cases << ": reported contact at a pose clear of everything";
+      }
+    }
+  }
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(hits, cases / 10);
+}
+
+TEST(QueriesBruteForce, ChangesSinceAVersionPatchAWindowIntoTheFreshOne) {
+  std::mt19937 rng(6);
+  mapping::HimmGrid grid(mapping::HimmParams{});
+  std::uniform_real_distribution<double> where(-6.0, 6.0), angle(-M_PI, M_PI), range(0.3, 5.0);
+  int cases = 0, unchanged_tiles_skipped = 0;
+  for (int round = 0; round < 1000; ++round, ++cases) {
+    const auto before = grid.snapshot();
+    const mapping::CellBox box{{static_cast<int>(where(rng) / kCell), static_cast<int>(where(rng) / kCell)}, {}};
+    mapping::CellBox window = box;
+    window.max = {window.min.ix + std::uniform_int_distribution<int>(0, 150)(rng),
+                  window.min.iy + std::uniform_int_distribution<int>(0, 150)(rng)};
+    const int width = window.max.ix - window.min.ix + 1, height = window.max.iy - window.min.iy + 1;
+    std::vector<std::uint8_t> copy = before->window(window.min, width, height);
+    const int scans = std::uniform_int_distribution<int>(0, 3)(rng);
+    for (int s = 0; s < scans; ++s) {
+      std::vector<float> ranges(90);
+      for (float& r : ranges) r = static_cast<float>(range(rng));
+      grid.insert_scan({where(rng), where(rng), angle(rng)}, -1.5F, 0.035F, ranges, 5.0F);
+    }
+    const auto after = grid.snapshot();
+    const auto parts = after->changed_since(before->version(), window);
+    if (scans == 0) {
+      EXPECT_TRUE(parts.empty());
+    }
+    for (const mapping::CellBox& part : parts) {
+      ASSERT_GE(part.min.ix, window.min.ix);
+      ASSERT_LE(part.max.ix, window.max.ix);
+      const int pw = part.max.ix - part.min.ix + 1, ph = part.max.iy - part.min.iy + 1;
+      const auto cells = after->window(part.min, pw, ph);
+      for (int y = 0; y < ph; ++y) {
+        std::copy_n(cells.begin() + static_cast<std::ptrdiff_t>(y) * pw, pw,
+                    copy.begin() + static_cast<std::ptrdiff_t>(part.min.iy - window.min.iy + y) * width +
+                        (part.min.ix - window.min.ix));
+      }
+    }
+    unchanged_tiles_skipped += static_cast<int>(after->tile_count()) - static_cast<int>(parts.size());
+    ASSERT_EQ(copy, after->window(window.min, width, height)) << "round " << round;
+  }
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(unchanged_tiles_skipped, 0);
+}
+
+}  // namespace
+}  // namespace occgeo::service
