@@ -3,6 +3,7 @@
 #include <boost/asio/post.hpp>
 #include <variant>
 
+#include "../metrics.h"
 #include "../validation.h"
 #include "occgeo/service/log.h"
 
@@ -225,6 +226,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);
+      metrics::counter("occgeo_guard_interventions_total", {{"robot", model.id}}).inc();
     }
   }
   command.set_left_wheel_mps(velocity.wheels.left_mps);
