@@ -28,6 +28,30 @@ constexpr std::string_view level_name(Level level) {
   return "info";
 }
 
+void append_value(std::string& out, const Field::Value& value) {
+  std::visit(
+      [&out](const auto& v) {
+        using T = std::decay_t<decltype(v)>;
+        if constexpr (std::is_same_v<T, std::string_view>) {
+          append_json_string(out, v);
+        } else if constexpr (std::is_same_v<T, bool>) {
+          out += v ? "true" : "false";
+        } else if constexpr (std::is_same_v<T, double>) {
+          if (std::isfinite(v)) {
+            char number[32];
+            std::snprintf(number, sizeof number, "%.6g", v);
+            out += number;
+          } else {
+            out += "null";
+          }
+        } else {
+          out += std::to_string(v);
+        }
+      },
+      value);
+}
+}  // namespace
+
 void append_json_string(std::string& out, std::string_view text) {
   out += '"';
   for (const char c : text) {
@@ -56,30 +80,6 @@ void append_json_string(std::string& out, std::string_view text) {
   }
   out += '"';
 }
-
-void append_value(std::string& out, const Field::Value& value) {
-  std::visit(
-      [&out](const auto& v) {
-        using T = std::decay_t<decltype(v)>;
-        if constexpr (std::is_same_v<T, std::string_view>) {
-          append_json_string(out, v);
-        } else if constexpr (std::is_same_v<T, bool>) {
-          out += v ? "true" : "false";
-        } else if constexpr (std::is_same_v<T, double>) {
-          if (std::isfinite(v)) {
-            char number[32];
-            std::snprintf(number, sizeof number, "%.6g", v);
-            out += number;
-          } else {
-            out += "null";
-          }
-        } else {
-          out += std::to_string(v);
-        }
-      },
-      value);
-}
-}  // namespace
 
 Level parse_level(std::string_view text) {
   for (const Level level : {Level::debug, Level::info, Level::warn, Level::error}) {

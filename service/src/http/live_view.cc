@@ -13,32 +13,7 @@ namespace occgeo::service::http {
 
 namespace {
 
-void append_string(std::string& out, std::string_view text) {
-  out += '"';
-  for (const char c : text) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          static constexpr char kHex[] = "0123456789abcdef";
-          out += "\\u00";
-          out += kHex[(c >> 4) & 0xf];
-          out += kHex[c & 0xf];
-        } else {
-          out += c;
-        }
-    }
-  }
-  out += '"';
-}
+void append_string(std::string& out, std::string_view text) { log::append_json_string(out, text); }
 
 // Shortest text that reads back as the same double, so the page draws exactly the pose the status reports.
 void append_number(std::string& out, double value) {

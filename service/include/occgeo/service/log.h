@@ -47,4 +47,7 @@ inline void error(std::string_view event, std::initializer_list<Field> fields = 
   write(Level::error, event, fields);
 }
 
+// Appends text to out as a quoted JSON string, escaping quotes, backslashes and control characters.
+void append_json_string(std::string& out, std::string_view text);
+
 }  // namespace occgeo::service::log
