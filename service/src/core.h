@@ -243,6 +243,9 @@ struct RobotState {
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
   v1::GuardDecision guard;  // the safety guard's verdict on the latest command
+  std::vector<Eigen::Vector2d> path_W;       // the active behaviour's planned path, world frame; empty without one
+  std::vector<Eigen::Vector2f> scan_W;       // the first laser's latest accepted returns, world frame
+  std::optional<double> scan_stamp_s;         // stamp of the scan in scan_W
 };
 
 class Robot : public std::enable_shared_from_this<Robot> {

@@ -50,6 +50,8 @@ class Behaviour {
   virtual BehaviourCommand decide(const BehaviourInput& input) = 0;
   // Where the behaviour is heading now (goto's goal, the current waypoint), world frame; nullopt without a goal.
   [[nodiscard]] virtual std::optional<Eigen::Vector2d> current_goal() const { return std::nullopt; }
+  // The path it follows from here, world frame (waypoints still ahead, a global escape path); empty when it has none.
+  [[nodiscard]] virtual std::vector<Eigen::Vector2d> planned_path() const { return {}; }
 };
 
 // What the robot is, as the behaviours need it.
