@@ -163,8 +163,11 @@ add("|---|---|---|")
 inprocess = {}
 to_ns = {"ns": 1.0, "us": 1e3, "ms": 1e6, "s": 1e9}
 for path in sorted(glob.glob(os.path.join(work, "inprocess", "*.json"))):
+    # Some benchmarks print a summary (each figure next to its goal) before Google Benchmark's JSON.
+    text = open(path).read()
+    start = 0 if text.startswith("{") else text.find("\n{\n") + 1
     try:
-        data = json.load(open(path))
+        data = json.loads(text[start:]) if start >= 0 else {}
     except ValueError:
         continue
     binary = os.path.basename(path)[:-5]
@@ -282,10 +285,15 @@ if collision:
          f"{worst['per_s']:,.0f}/s (`{worst_key}`, the slowest) to {best['per_s']:,.0f}/s (`{best_key}`), one thread")
 else:
     goal("in-process collision ≥ 1M checks/s per core", None, "no collision benchmark found")
-batched = [(k, v) for k, v in inprocess.items() if "batch" in k.lower() and "collision" in k.lower() and v["items"]]
+# The goal counts building the reply: the kernel-only figure is not the yardstick.
+batched = [(k, v) for k, v in inprocess.items() if "collisionbatchreply" in k.lower() and v["items"]]
 if batched:
     key, best = max(batched, key=lambda kv: kv[1]["per_s"] or 0)
-    goal("batched collision ≥ 5M poses/s", best["per_s"] >= 5e6, f"{best['per_s']:,.0f} poses/s in-process (`{key}`)")
+    loopback = ""
+    if batch and batch["kinds"].get("collision_batch"):
+        loopback = f"; over loopback {batch['kinds']['collision_batch']['entries_per_s']:,.0f} poses/s"
+    goal("batched collision ≥ 5M poses/s", best["per_s"] >= 5e6,
+         f"{best['per_s']:,.0f} poses/s in-process with the reply built (`{key}`){loopback}")
 elif batch and batch["kinds"].get("collision_batch"):
     rate = batch["kinds"]["collision_batch"]["entries_per_s"]
     goal("batched collision ≥ 5M poses/s", rate >= 5e6, f"{rate:,.0f} poses/s over loopback (no in-process batch benchmark)")
@@ -305,13 +313,14 @@ except ValueError:
 add("")
 add("## Where a single query's time goes in the server")
 add("")
-add("A single `CollisionQuery` is read and decoded on the network thread, posted to the query pool (a thread wake-up),")
-add("computed (about a microsecond, see above), encoded there and handed back to the network thread (a second")
-add("wake-up), which writes each reply with its own `async_write`, one frame per system call. redis answers on the")
-add("thread that read the request and writes all the replies of one read at once. So the loopback figures are bound by")
-add("per-request hand-offs and system calls rather than by the geometry: answering cheap single queries inline on the")
-add("network thread, and writing every queued frame of a session in one gathered write, are the two changes that")
-add("address the round-trip and pipelined goals.")
+add("A session reads what the socket holds and handles every whole frame of it before reading again. A single")
+add("`CollisionQuery` (or clearance, raycast, occupancy of at most 8 entries) is answered inline on the session's")
+add("network thread from the world's published snapshot, with no hand-off to the query pool; the replies of one read")
+add("go out together, and every queued frame of a session is gathered into one `writev`. Each network thread")
+add("(`queries.network_threads`, 2) runs its own event loop, so a session's read, answer and write stay on one thread.")
+add("Batches, swept motions and windows still go to the query pool. Most of a collision query's remaining server time")
+add("is the system calls and the octree (FCL descends the tree for every pose); the PTEM is ruled out by a cheap bound")
+add("on the sum of its PDFs away from its clusters before the footprint is sampled.")
 
 with open(out, "w") as f:
     f.write("\n".join(lines) + "\n")

@@ -6,11 +6,14 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 #include "format_number.h"
@@ -307,6 +310,150 @@ void PtemModel::insert_scan(const PtemScan& scan) {
 
 std::shared_ptr<const PtemSnapshot> PtemModel::make_snapshot() const {
   return std::shared_ptr<const PtemSnapshot>(new PtemSnapshot(clusters_, f_r_, scan_count_, latest_stamp_s_));
+}
+
+namespace {
+
+constexpr std::string_view kStateMagic = "OCCGEOP1";
+
+static_assert(std::endian::native == std::endian::little, "PTEM state is written in the host's byte order");
+
+std::uint64_t fnv1a(std::string_view bytes) {
+  std::uint64_t hash = 14695981039346656037ULL;
+  for (const char c : bytes) {
+    hash ^= static_cast<unsigned char>(c);
+    hash *= 1099511628211ULL;
+  }
+  return hash;
+}
+
+class StateWriter {
+ public:
+  template <typename T>
+  void put(T value) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    std::array<char, sizeof(T)> bytes{};
+    std::memcpy(bytes.data(), &value, sizeof(T));
+    out_.append(bytes.data(), bytes.size());
+  }
+  void put_optional(const std::optional<double>& value) {
+    put<std::uint8_t>(value ? 1 : 0);
+    put(value.value_or(0.0));
+  }
+  std::string& bytes() { return out_; }
+
+ private:
+  std::string out_;
+};
+
+class StateReader {
+ public:
+  explicit StateReader(std::string_view in) : in_(in) {}
+  template <typename T>
+  T get(const char* field) {
+    if (in_.size() < sizeof(T)) throw std::invalid_argument(std::string("PTEM state is truncated at ") + field);
+    T value{};
+    std::memcpy(&value, in_.data(), sizeof(T));
+    in_.remove_prefix(sizeof(T));
+    return value;
+  }
+  std::optional<double> get_optional(const char* field) {
+    const auto present = get<std::uint8_t>(field);
+    const auto value = get<double>(field);
+    if (present > 1) throw std::invalid_argument(std::string("PTEM state is damaged at ") + field);
+    return present ? std::optional<double>(value) : std::nullopt;
+  }
+  [[nodiscard]] bool at_end() const { return in_.empty(); }
+
+ private:
+  std::string_view in_;
+};
+
+}  // namespace
+
+std::string PtemModel::serialize() const {
+  StateWriter out;
+  out.bytes() += kStateMagic;
+  out.put(static_cast<std::uint8_t>(params_.construction));
+  out.put(params_.cluster_distance_m);
+  out.put(params_.initial_cluster_radius_m);
+  out.put(params_.restricted_threshold);
+  out.put_optional(params_.first_cluster_sigma_m);
+  out.put_optional(f_r_);
+  out.put(scan_count_);
+  out.put_optional(latest_stamp_s_);
+  out.put(static_cast<std::uint64_t>(clusters_.size()));
+  for (const PtemCluster& cluster : clusters_) {
+    out.put(cluster.centre_W.x());
+    out.put(cluster.centre_W.y());
+    out.put(cluster.radius_m);
+    out.put(cluster.sigma_m);
+    out.put<std::uint8_t>(cluster.threshold_reachable ? 1 : 0);
+    out.put(cluster.first_seen_scan);
+    out.put(cluster.first_seen_stamp_s);
+  }
+  out.put(fnv1a(out.bytes()));
+  return std::move(out.bytes());
+}
+
+bool PtemModel::restore(std::string_view bytes) {
+  constexpr std::size_t kChecksumBytes = sizeof(std::uint64_t);
+  if (bytes.size() < kStateMagic.size() + kChecksumBytes || bytes.substr(0, kStateMagic.size()) != kStateMagic) {
+    throw std::invalid_argument("PTEM state is damaged: it does not start with " + std::string(kStateMagic));
+  }
+  const std::string_view body = bytes.substr(0, bytes.size() - kChecksumBytes);
+  std::uint64_t checksum = 0;
+  std::memcpy(&checksum, bytes.data() + body.size(), kChecksumBytes);
+  if (checksum != fnv1a(body)) throw std::invalid_argument("PTEM state is damaged: its checksum does not match");
+
+  StateReader in(body.substr(kStateMagic.size()));
+  PtemParams saved;
+  const auto construction = in.get<std::uint8_t>("params.construction");
+  saved.construction = construction == 0 ? PtemConstruction::kCumulative : PtemConstruction::kSingleScan;
+  saved.cluster_distance_m = in.get<double>("params.cluster_distance_m");
+  saved.initial_cluster_radius_m = in.get<double>("params.initial_cluster_radius_m");
+  saved.restricted_threshold = in.get<double>("params.restricted_threshold");
+  saved.first_cluster_sigma_m = in.get_optional("params.first_cluster_sigma_m");
+  const auto f_r = in.get_optional("f_r");
+  const auto scan_count = in.get<std::uint64_t>("scan_count");
+  const auto latest_stamp_s = in.get_optional("latest_stamp_s");
+  const auto count = in.get<std::uint64_t>("cluster count");
+  // Every cluster takes 49 bytes; a count the rest cannot hold is damage, not a reason to allocate.
+  if (count > body.size() / 49) throw std::invalid_argument("PTEM state is damaged: its cluster count is impossible");
+  std::vector<PtemCluster> clusters(static_cast<std::size_t>(count));
+  for (PtemCluster& cluster : clusters) {
+    cluster.centre_W.x() = in.get<double>("clusters.centre_W");
+    cluster.centre_W.y() = in.get<double>("clusters.centre_W");
+    cluster.radius_m = in.get<double>("clusters.radius_m");
+    cluster.sigma_m = in.get<double>("clusters.sigma_m");
+    cluster.threshold_reachable = in.get<std::uint8_t>("clusters.threshold_reachable") != 0;
+    cluster.first_seen_scan = in.get<std::uint64_t>("clusters.first_seen_scan");
+    cluster.first_seen_stamp_s = in.get<double>("clusters.first_seen_stamp_s");
+    if (!cluster.centre_W.allFinite() || !(cluster.radius_m > 0.0) || !(cluster.sigma_m > 0.0) ||
+        cluster.first_seen_scan >= scan_count) {
+      throw std::invalid_argument("PTEM state is damaged: a cluster holds impossible values");
+    }
+  }
+  if (!in.at_end()) throw std::invalid_argument("PTEM state is damaged: bytes follow its last cluster");
+  if (construction > 1) throw std::invalid_argument("PTEM state is damaged at params.construction");
+
+  const auto same = [](const std::optional<double>& a, const std::optional<double>& b) {
+    return a.has_value() == b.has_value() &&
+           (!a || std::bit_cast<std::uint64_t>(*a) == std::bit_cast<std::uint64_t>(*b));
+  };
+  const auto same_value = [&](double a, double b) { return same(a, b); };
+  if (saved.construction != params_.construction || !same_value(saved.cluster_distance_m, params_.cluster_distance_m) ||
+      !same_value(saved.initial_cluster_radius_m, params_.initial_cluster_radius_m) ||
+      !same(saved.first_cluster_sigma_m, params_.first_cluster_sigma_m) ||
+      (!params_.first_cluster_sigma_m && !same_value(saved.restricted_threshold, params_.restricted_threshold))) {
+    return false;
+  }
+  clusters_ = std::move(clusters);
+  f_r_ = f_r;
+  scan_count_ = scan_count;
+  latest_stamp_s_ = latest_stamp_s;
+  snapshot_ = make_snapshot();
+  return true;
 }
 
 }  // namespace occgeo::mapping

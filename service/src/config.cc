@@ -53,7 +53,7 @@ class Section {
     const YAML::Node map = node_[key];
     if (!map.IsMap()) throw ConfigError(where(key) + " must be a mapping");
     for (const auto& entry : map) {
-      const auto name = entry.first.as<std::string>();
+      const auto name = key_name(entry.first, where(key));
       Section child(entry.second, where(key) + "." + name);
       read(name, child);
       child.reject_unknown();
@@ -74,7 +74,7 @@ class Section {
   void reject_unknown() const {
     if (!node_) return;
     for (const auto& entry : node_) {
-      const auto key = entry.first.as<std::string>();
+      const auto key = key_name(entry.first, path_);
       if (std::find(known_.begin(), known_.end(), key) == known_.end()) {
         throw ConfigError("unknown configuration key '" + where(key) + "'");
       }
@@ -82,6 +82,16 @@ class Section {
   }
 
  private:
+  // A key must be a plain name; YAML also allows sequences and mappings as keys ("? [a]: 1").
+  static std::string key_name(const YAML::Node& key, const std::string& within) {
+    if (!key.IsScalar()) {
+      throw ConfigError("a configuration key " +
+                        (within.empty() ? std::string("at the top level") : "in '" + within + "'") +
+                        " is not a plain name");
+    }
+    return key.Scalar();
+  }
+
   [[nodiscard]] std::string where(const std::string& key) const {
     if (path_.empty()) return key;
     return key.empty() ? path_ : path_ + "." + key;
@@ -210,16 +220,19 @@ void ServerConfig::validate() const {
           "must be in (0, 86400] seconds");
   if (!listen_is_loopback(listen)) {
     std::string missing;
-    for (const auto& [key, token] : {std::pair<const char*, const std::string*>{"auth.driver_token", &auth.driver_token},
-                                     {"auth.controller_token", &auth.controller_token},
-                                     {"auth.observer_token", &auth.observer_token},
-                                     {"auth.query_token", &auth.query_token},
-                                     {"auth.operator_token", &auth.operator_token}}) {
+    for (const auto& [key, token] :
+         {std::pair<const char*, const std::string*>{"auth.driver_token", &auth.driver_token},
+          {"auth.controller_token", &auth.controller_token},
+          {"auth.observer_token", &auth.observer_token},
+          {"auth.query_token", &auth.query_token},
+          {"auth.operator_token", &auth.operator_token}}) {
       if (token->empty()) missing += (missing.empty() ? "" : ", ") + std::string(key);
     }
     require(missing.empty(), "listen",
-            "is '" + listen + "', not a loopback address: anyone who can reach it could drive the robots, so every "
-            "role needs a token; missing: " + missing);
+            "is '" + listen +
+                "', not a loopback address: anyone who can reach it could drive the robots, so every "
+                "role needs a token; missing: " +
+                missing);
   }
   require(tls.cert.empty() == tls.key.empty(), tls.cert.empty() ? "tls.cert" : "tls.key",
           "must be set together with tls." + std::string(tls.cert.empty() ? "key" : "cert"));
@@ -229,6 +242,8 @@ void ServerConfig::validate() const {
   require(limits.write_timeout_s > 0 && limits.write_timeout_s <= 3600, "limits.write_timeout_s",
           "must be in (0, 3600] seconds");
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
+  require(queries.network_threads >= 1 && queries.network_threads <= 64, "queries.network_threads",
+          "must be between 1 and 64");
   require(durability.policy == "every" || durability.policy == "batch" || durability.policy == "none",
           "durability.policy", "must be every, batch or none");
   require(durability.batch_interval_s > 0 && durability.batch_interval_s <= 1, "durability.batch_interval_s",
@@ -243,6 +258,7 @@ void ServerConfig::validate() const {
   validate_block(ptem.params, "ptem");
   require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
   validate_block(octomap, "octomap");
+  require(octomap_publish_every_messages <= 1000000, "octomap.publish_every_messages", "must be in [0, 1000000]");
   validate_block(distance_field, "distance_field");
   for (const auto& [name, override_params] : ptem.worlds) {
     validate_block(ptem.params_for(name), "ptem.worlds." + name);
@@ -310,14 +326,18 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    config.tls.key = key;
                  })
         .section("queries",
-                 [&](Section& s) { s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m); })
+                 [&](Section& s) {
+                   s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m)
+                       .field("network_threads", config.queries.network_threads);
+                 })
         .section("durability",
                  [&](Section& s) {
                    s.field("policy", config.durability.policy)
                        .field("batch_interval_s", config.durability.batch_interval_s)
                        .field("snapshot_interval_s", config.durability.snapshot_interval_s);
                  })
-        .section("http", [&](Section& s) { s.field("listen", config.http.listen).field("enabled", config.http.enabled); })
+        .section("http",
+                 [&](Section& s) { s.field("listen", config.http.listen).field("enabled", config.http.enabled); })
         .section("himm",
                  [&](Section& s) {
                    auto& h = config.himm;
@@ -377,7 +397,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("outlier_filter_enabled", o.outlier_filter_enabled)
                        .field("outlier_mean_k", o.outlier_mean_k)
                        .field("outlier_stddev_mul", o.outlier_stddev_mul)
-                       .field("min_publish_interval_s", o.min_publish_interval_s);
+                       .field("min_publish_interval_s", o.min_publish_interval_s)
+                       .field("publish_every_messages", config.octomap_publish_every_messages);
                  })
         .section("guard",
                  [&](Section& s) {

@@ -15,7 +15,8 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
       octomap_(params.octomap),
       distance_field_(params.distance_field),
       strand_(std::move(strand)),
-      octomap_timer_(strand_) {
+      octomap_timer_(strand_),
+      octomap_publish_every_messages_(params.octomap_publish_every_messages) {
   auto grid_snapshot = grid_.snapshot();
   distance_field_.update(grid_snapshot);
   snapshot_ = {std::move(grid_snapshot), ptem_.snapshot(), distance_field_.snapshot(), octomap_.publish()};
@@ -24,7 +25,14 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
 void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::optional<Eigen::Vector2d> focus_W) {
   auto grid = grid_.snapshot();
   distance_field_.update(grid, touched, focus_W);
-  if (!octomap_.maybe_publish() && octomap_.version() != octomap_.snapshot()->version() && !octomap_timer_armed_) {
+  if (octomap_publish_every_messages_ > 0) {
+    // Counted in messages, not wall time, so lockstep runs repeat exactly.
+    if (++messages_since_octomap_ >= octomap_publish_every_messages_) {
+      messages_since_octomap_ = 0;
+      if (octomap_.version() != octomap_.snapshot()->version()) static_cast<void>(octomap_.publish());
+    }
+  } else if (!octomap_.maybe_publish() && octomap_.version() != octomap_.snapshot()->version() &&
+             !octomap_timer_armed_) {
     // The tree changed but its last snapshot is too recent: publish it once the interval has passed.
     octomap_timer_armed_ = true;
     octomap_timer_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -53,6 +61,12 @@ void World::insert_ptem_on_strand(mapping::PtemScan scan) {
   if (ptem_latest_stamp_s_) scan.stamp_s = std::max(scan.stamp_s, *ptem_latest_stamp_s_);
   ptem_.insert_scan(scan);
   ptem_latest_stamp_s_ = scan.stamp_s;
+}
+
+bool World::restore_ptem_on_strand(std::string_view state) {
+  if (!ptem_.restore(state)) return false;
+  ptem_latest_stamp_s_ = ptem_.snapshot()->latest_stamp_s();
+  return true;
 }
 
 std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
@@ -156,7 +170,8 @@ std::shared_ptr<World> ServerCore::add_world(const std::string& name, mapping::H
 }
 
 WorldParams ServerCore::world_params(const std::string& name) const {
-  return {config_.ptem.params_for(name), config_.octomap, config_.distance_field};
+  return {config_.ptem.params_for(name), config_.octomap, config_.distance_field,
+          config_.octomap_publish_every_messages};
 }
 
 std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {

@@ -52,6 +52,7 @@ struct WorldParams {
   mapping::PtemParams ptem;
   mapping::OctoMapParams octomap;
   mapping::DistanceFieldParams distance_field;
+  std::uint32_t octomap_publish_every_messages = 0;  // > 0: publish the octree every N-th message, not on a timer
 };
 
 // One world: the HIMM grid and the 3D OctoMap all its robots' sensors update, the distance field
@@ -73,6 +74,12 @@ class World : public std::enable_shared_from_this<World> {
   void insert_ptem_on_strand(mapping::PtemScan scan);
   // The PTEM's parameters (fixed when the world is made); safe from any thread.
   [[nodiscard]] const mapping::PtemParams& ptem_params() const { return ptem_params_; }
+  // The PTEM model's whole state, for a snapshot (mapping::PtemModel::serialize); call only from the world's strand.
+  [[nodiscard]] std::string serialize_ptem_on_strand() const { return ptem_.serialize(); }
+  // Replaces the PTEM by a snapshot's state (mapping::PtemModel::restore: false when it was written under other
+  // parameters, throws when damaged); call only before any work reaches the strand.
+  bool restore_ptem_on_strand(std::string_view state);
+  [[nodiscard]] std::uint64_t ptem_scan_count_on_strand() const { return ptem_.scan_count(); }
   // The mutable OctoMap; call only from the world's strand (or before any work reaches it).
   mapping::OctoMapModel& octomap_on_strand() { return octomap_; }
   // Makes the grid's and the PTEM's current state visible to readers, together, after bringing the
@@ -105,6 +112,8 @@ class World : public std::enable_shared_from_this<World> {
   IngestStrand strand_;
   asio::steady_timer octomap_timer_;
   bool octomap_timer_armed_ = false;
+  std::uint32_t octomap_publish_every_messages_ = 0;
+  std::uint32_t messages_since_octomap_ = 0;
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
   std::shared_ptr<durability::WorldJournal> journal_;
@@ -196,10 +205,10 @@ struct Lease {
 // requests) and the world's strand (commands, watchdogs).
 struct ControlState {
   std::optional<Lease> lease;
-  std::string behaviour = "bearcat";  // see known_behaviour(); control.initial_behaviour while no controller set one
-  v1::DriveRequest drive;             // the holder's last accepted request: goal, waypoints, escape
+  std::string behaviour = "bearcat";   // see known_behaviour(); control.initial_behaviour while no controller set one
+  v1::DriveRequest drive;              // the holder's last accepted request: goal, waypoints, escape
   std::uint64_t drive_generation = 0;  // counts accepted DriveRequests: the strand rebuilds the behaviour on change
-  double teleop_linear_mps = 0.0;     // teleop: the holder's velocities, already clamped to the robot's limits
+  double teleop_linear_mps = 0.0;      // teleop: the holder's velocities, already clamped to the robot's limits
   double teleop_angular_radps = 0.0;
   bool estop = false;         // latched: every command is a stop until the lease holder releases it
   bool sensor_stale = false;  // the sensor watchdog stopped the robot; cleared by the next sensor message
@@ -242,10 +251,11 @@ struct RobotState {
   std::string behaviour_state;
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
-  v1::GuardDecision guard;  // the safety guard's verdict on the latest command
-  std::vector<Eigen::Vector2d> path_W;       // the active behaviour's planned path, world frame; empty without one
-  std::vector<Eigen::Vector2f> scan_W;       // the first laser's latest accepted returns, world frame
-  std::optional<double> scan_stamp_s;         // stamp of the scan in scan_W
+  v1::GuardDecision guard;              // the safety guard's verdict on the latest command
+  std::vector<Eigen::Vector2d> path_W;  // the active behaviour's planned path, world frame; empty without one
+  // The first laser's latest accepted returns, world frame; shared so that copying the state stays cheap.
+  std::shared_ptr<const std::vector<Eigen::Vector2f>> scan_W;
+  std::optional<double> scan_stamp_s;  // stamp of the scan in scan_W
 };
 
 class Robot : public std::enable_shared_from_this<Robot> {

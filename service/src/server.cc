@@ -1,5 +1,6 @@
 #include "occgeo/service/server.h"
 
+#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/signal_set.hpp>
@@ -8,6 +9,7 @@
 #include <csignal>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include "core.h"
 #include "durability/world_store.h"
@@ -45,13 +47,21 @@ struct Server::Impl {
 
   ServerCore core;
   SessionShared session_shared;  // watch subscriptions, hello throttle, TLS context
+  // One event loop per network thread (queries.network_threads): `net`, run by the thread calling run(), and one
+  // more each, and every session lives on one of them (round robin). A session's reads, inline answers and writes
+  // then stay on one thread; a loop shared by several threads would hand every event from the thread waiting in
+  // epoll to another. The acceptor, the signals and the snapshot timer share the strand `control` of `net`.
   asio::io_context net{1};
-  tcp::acceptor acceptor{net};
-  asio::signal_set signals{net, SIGINT, SIGTERM};
+  std::vector<std::unique_ptr<asio::io_context>> more_loops;
+  std::vector<asio::executor_work_guard<asio::io_context::executor_type>> more_loops_work;  // kept until shutdown
+  std::size_t next_loop = 0;                                                                // on control
+  asio::strand<asio::io_context::executor_type> control = asio::make_strand(net);
+  tcp::acceptor acceptor{control};
+  asio::signal_set signals{control, SIGINT, SIGTERM};
   std::mutex sessions_mutex;
   std::vector<std::weak_ptr<Session>> sessions;
-  std::unique_ptr<http::HttpServer> http;  // live view and /metrics; after core, so it is destroyed first
-  asio::steady_timer snapshot_timer{net};  // durability.snapshot_interval_s
+  std::unique_ptr<http::HttpServer> http;      // live view and /metrics; after core, so it is destroyed first
+  asio::steady_timer snapshot_timer{control};  // durability.snapshot_interval_s
 
   // Snapshots every world whose journal grew, each on its own strand, every durability.snapshot_interval_s.
   void schedule_snapshots() {
@@ -66,8 +76,14 @@ struct Server::Impl {
     });
   }
 
+  asio::io_context& loop_for_next_session() {
+    const std::size_t index = next_loop++ % (more_loops.size() + 1);
+    return index == 0 ? net : *more_loops[index - 1];
+  }
+
   void accept() {
-    acceptor.async_accept(asio::make_strand(net), [this](const boost::system::error_code& error, tcp::socket socket) {
+    auto session_strand = asio::make_strand(loop_for_next_session());
+    acceptor.async_accept(session_strand, [this](const boost::system::error_code& error, tcp::socket socket) {
       if (error) {
         if (error != asio::error::operation_aborted) {
           log::warn("accept_failed", {{"error", error.message()}});
@@ -97,10 +113,14 @@ struct Server::Impl {
     acceptor.close(ignored);
     signals.cancel(ignored);
     snapshot_timer.cancel();
-    const std::lock_guard lock(sessions_mutex);
-    for (const auto& weak : sessions) {
-      if (auto session = weak.lock()) session->close();
+    {
+      const std::lock_guard lock(sessions_mutex);
+      for (const auto& weak : sessions) {
+        if (auto session = weak.lock()) session->close();
+      }
     }
+    // The other loops end once the closes just posted to them have run.
+    for (auto& work : more_loops_work) work.reset();
   }
 };
 
@@ -108,6 +128,10 @@ Server::Server(ServerConfig config) {
   config.validate();
   log::set_level(log::parse_level(config.log_level));
   impl_ = std::make_unique<Impl>(std::move(config));
+  for (std::size_t i = 1; i < impl_->core.config().queries.network_threads; ++i) {
+    impl_->more_loops.push_back(std::make_unique<asio::io_context>(1));
+    impl_->more_loops_work.push_back(asio::make_work_guard(*impl_->more_loops.back()));
+  }
   restore_worlds(impl_->core);
   impl_->core.world(impl_->core.config().default_world);
 
@@ -151,10 +175,13 @@ void Server::run() {
                                  {"data_dir", impl_->core.config().data_dir.string()}});
   if (impl_->http) {
     impl_->http->start();
-    log::info("http_listening", {{"address", impl_->core.config().http.listen},
-                                 {"port", static_cast<unsigned>(impl_->http->port())}});
+    log::info("http_listening",
+              {{"address", impl_->core.config().http.listen}, {"port", static_cast<unsigned>(impl_->http->port())}});
   }
+  std::vector<std::thread> more_network_threads;
+  for (auto& loop : impl_->more_loops) more_network_threads.emplace_back([&loop] { loop->run(); });
   impl_->net.run();
+  for (std::thread& thread : more_network_threads) thread.join();
   if (impl_->http) impl_->http->stop();
   impl_->core.drain();
   save_worlds(impl_->core);
@@ -162,7 +189,7 @@ void Server::run() {
 }
 
 void Server::stop() {
-  asio::post(impl_->net, [this] { impl_->shutdown(); });
+  asio::post(impl_->control, [this] { impl_->shutdown(); });
 }
 
 }  // namespace occgeo::service

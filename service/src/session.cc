@@ -12,52 +12,6 @@ namespace occgeo::service {
 
 namespace {
 
-// Client messages answered by exactly one reply or error: the ones counted against limits.max_pending_requests.
-bool is_request(const v1::ClientMessage& message) {
-  switch (message.body_case()) {
-    case v1::ClientMessage::kCollision:
-    case v1::ClientMessage::kClearance:
-    case v1::ClientMessage::kStatus:
-    case v1::ClientMessage::kGrid:
-    case v1::ClientMessage::kPtem:
-    case v1::ClientMessage::kOctree:
-    case v1::ClientMessage::kCollisionBatch:
-    case v1::ClientMessage::kClearanceBatch:
-    case v1::ClientMessage::kRaycast:
-    case v1::ClientMessage::kOccupancy:
-    case v1::ClientMessage::kSwept:
-    case v1::ClientMessage::kGridWindow:
-    case v1::ClientMessage::kOctreeWindow:
-      return true;
-    default:
-      return false;
-  }
-}
-
-// Server messages that answer a request. Errors count too (an error for something else only lets a few more
-// requests through early; it never stalls a session).
-bool is_answer(const v1::ServerMessage& message) {
-  switch (message.body_case()) {
-    case v1::ServerMessage::kCollision:
-    case v1::ServerMessage::kClearance:
-    case v1::ServerMessage::kStatus:
-    case v1::ServerMessage::kGrid:
-    case v1::ServerMessage::kPtem:
-    case v1::ServerMessage::kOctree:
-    case v1::ServerMessage::kCollisionBatch:
-    case v1::ServerMessage::kClearanceBatch:
-    case v1::ServerMessage::kRaycast:
-    case v1::ServerMessage::kOccupancy:
-    case v1::ServerMessage::kSwept:
-    case v1::ServerMessage::kGridWindow:
-    case v1::ServerMessage::kOctreeWindow:
-    case v1::ServerMessage::kError:
-      return true;
-    default:
-      return false;
-  }
-}
-
 std::chrono::steady_clock::duration seconds(double s) {
   return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
 }
@@ -168,32 +122,52 @@ void Session::on_read(const boost::system::error_code& error, std::size_t size) 
 }
 
 void Session::process_frames() {
+  // Cheap queries are answered inline while the frames are handled: their replies go out together in one write
+  // after the last frame of this read, not one write each.
+  corked_ = true;
+  const bool budget_spent = dispatch_frames();
+  corked_ = false;
+  if (closed_) return;
+  if (!writing_) write_next();
+  if (closed_ || close_after_write_ || read_paused_) return;
+  if (budget_spent) {
+    // More frames are buffered: let other work on this network thread run first, then go on.
+    asio::post(executor_, [self = shared_from_this()] {
+      if (!self->closed_ && !self->read_paused_) self->process_frames();
+    });
+    return;
+  }
+  if (!reading_) read_more();
+}
+
+bool Session::dispatch_frames() {
   const std::size_t max_pending = core_.config().limits.max_pending_requests;
-  while (!closed_ && !close_after_write_) {
+  for (std::size_t dispatched = 0; !closed_ && !close_after_write_; ++dispatched) {
+    if (dispatched == kMaxFramesPerRound) return true;
     if (pending_requests_.load() >= max_pending) {
       // Reading resumes when answers bring the count down (enqueue); until then TCP holds the client back.
       read_paused_ = true;
-      return;
+      return false;
     }
     v1::ClientMessage message;
     const proto::FrameStatus status = decoder_.next(message);
-    if (status == proto::FrameStatus::need_more) break;
+    if (status == proto::FrameStatus::need_more) return false;
     if (status == proto::FrameStatus::too_large) {
       fail_stream(v1::ERROR_FRAME_TOO_LARGE, "frame of " + std::to_string(decoder_.rejected_frame_bytes()) +
                                                  " bytes is over the limit of " +
                                                  std::to_string(core_.config().limits.max_frame_bytes));
-      return;
+      return false;
     }
     if (status == proto::FrameStatus::malformed) {
       fail_stream(v1::ERROR_BAD_FRAME, "the frame does not decode as an occgeo.v1 ClientMessage");
-      return;
+      return false;
     }
-    if (is_request(message)) ++pending_requests_;
+    if (is_request(message.body_case())) ++pending_requests_;
     const bool was_greeted = info_.greeted;
     dispatch(shared_from_this(), std::move(message));
     if (!was_greeted && info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
   }
-  if (!closed_ && !close_after_write_ && !reading_) read_more();
+  return false;
 }
 
 void Session::send(v1::ServerMessage message) {
@@ -202,7 +176,7 @@ void Session::send(v1::ServerMessage message) {
   if (message.has_scan_ack() && info_.role == v1::ROLE_DRIVER) {
     shared_.watch.publish(info_.world, info_.robot_id, message.scan_ack().seq(), message.scan_ack().world_version());
   }
-  if (is_answer(message)) {
+  if (is_answer(message.body_case())) {
     std::size_t pending = pending_requests_.load();
     while (pending > 0 && !pending_requests_.compare_exchange_weak(pending, pending - 1)) {
     }
@@ -215,7 +189,7 @@ void Session::send(v1::ServerMessage message) {
 
 void Session::close_after_send() {
   close_after_write_ = true;
-  if (!writing_) shutdown();
+  if (!writing_) write_next();  // writes what is queued, then shuts down
 }
 
 void Session::watch(const v1::WatchRequest& request) {
@@ -249,7 +223,7 @@ void Session::enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
     ++watch_dropped_;
   }
   watch_queue_.push_back(std::move(event));
-  if (!writing_) write_next();
+  if (!writing_ && !corked_) write_next();
 }
 
 void Session::enqueue(std::string frame) {
@@ -269,20 +243,23 @@ void Session::enqueue(std::string frame) {
       if (!self->closed_ && !self->read_paused_) self->process_frames();
     });
   }
-  if (!writing_) write_next();
+  if (!writing_ && !corked_) write_next();
 }
 
 void Session::write_next() {
-  if (outbox_.empty() && !watch_queue_.empty() && !close_after_write_) {
-    // Replies first; a watch event is encoded only when it is about to be written, carrying the drop count.
-    v1::ServerMessage message;
-    *message.mutable_watch_event() = *watch_queue_.front();
-    message.mutable_watch_event()->set_dropped_since_last(watch_dropped_);
-    watch_dropped_ = 0;
-    watch_queue_.pop_front();
-    std::string frame = proto::encode_frame(message);
-    outbox_bytes_ += frame.size();
-    outbox_.push_back(std::move(frame));
+  if (outbox_.empty() && !close_after_write_) {
+    // Replies first; watch events are encoded only when they are about to be written, the first carrying the drop
+    // count.
+    while (!watch_queue_.empty() && outbox_.size() < kMaxFramesPerWrite) {
+      v1::ServerMessage message;
+      *message.mutable_watch_event() = *watch_queue_.front();
+      message.mutable_watch_event()->set_dropped_since_last(watch_dropped_);
+      watch_dropped_ = 0;
+      watch_queue_.pop_front();
+      std::string frame = proto::encode_frame(message);
+      outbox_bytes_ += frame.size();
+      outbox_.push_back(std::move(frame));
+    }
   }
   if (outbox_.empty()) {
     writing_ = false;
@@ -292,16 +269,23 @@ void Session::write_next() {
   writing_ = true;
   write_started_ = std::chrono::steady_clock::now();
   arm_write_timer();
+  // Every queued frame (up to kMaxFramesPerWrite) in one gathered write: one system call for a burst of replies.
+  const std::size_t frames = std::min(outbox_.size(), kMaxFramesPerWrite);
+  std::vector<asio::const_buffer> buffers;
+  buffers.reserve(frames);
+  for (std::size_t i = 0; i < frames; ++i) buffers.push_back(asio::buffer(outbox_[i]));
   with_stream([&](auto& stream) {
-    asio::async_write(stream, asio::buffer(outbox_.front()),
-                      [self = shared_from_this()](const boost::system::error_code& error, std::size_t) {
+    asio::async_write(stream, buffers,
+                      [self = shared_from_this(), frames](const boost::system::error_code& error, std::size_t) {
                         if (self->closed_) return;
                         if (error) {
                           self->shutdown();
                           return;
                         }
-                        self->outbox_bytes_ -= self->outbox_.front().size();
-                        self->outbox_.pop_front();
+                        for (std::size_t i = 0; i < frames; ++i) {
+                          self->outbox_bytes_ -= self->outbox_.front().size();
+                          self->outbox_.pop_front();
+                        }
                         self->write_next();
                       });
   });
@@ -334,7 +318,7 @@ void Session::fail_stream(v1::ErrorCode code, const std::string& message) {
   reply.mutable_error()->set_message(message + "; closing the connection");
   enqueue(proto::encode_frame(reply));
   close_after_write_ = true;
-  if (!writing_) shutdown();
+  if (!writing_) write_next();  // writes the error, then shuts down
 }
 
 void Session::shutdown() {

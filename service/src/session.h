@@ -86,8 +86,11 @@ class Session final : public SessionContext, public std::enable_shared_from_this
 
   void read_more();
   void on_read(const boost::system::error_code& error, std::size_t size);
-  // Decodes and dispatches buffered frames until none is whole or too many queries are in flight.
+  // Decodes and dispatches buffered frames until none is whole or too many queries are in flight, then writes the
+  // replies queued meanwhile and reads on (unless paused).
   void process_frames();
+  // The decoding loop of process_frames; true when it stopped after kMaxFramesPerRound frames with more buffered.
+  bool dispatch_frames();
   void enqueue(std::string frame);
   void enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event);
   void write_next();
@@ -105,6 +108,10 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   SessionInfo info_;
   proto::FrameDecoder decoder_;
   std::array<char, std::size_t{64} * 1024> read_buffer_{};
+  // Frames gathered into one write at most (asio's writev takes up to 64 buffers).
+  static constexpr std::size_t kMaxFramesPerWrite = 64;
+  // Frames handled in one go before other sessions on the same network thread get a turn.
+  static constexpr std::size_t kMaxFramesPerRound = 256;
   std::deque<std::string> outbox_;
   std::size_t outbox_bytes_ = 0;
   std::deque<std::shared_ptr<const v1::WatchEvent>> watch_queue_;
@@ -115,6 +122,7 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   bool reading_ = false;
   bool read_paused_ = false;
   bool writing_ = false;
+  bool corked_ = false;  // frames are being dispatched: replies queue up for one write after them
   bool close_after_write_ = false;
   bool closed_ = false;
 };

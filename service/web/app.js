@@ -5,6 +5,10 @@
 const canvas = document.getElementById('map');
 const ctx = canvas.getContext('2d');
 const ROBOT_COLOUR = '#ff8c00';
+const SCAN_COLOUR = '#00e640';
+const PATH_COLOUR = '#2ec4b6';
+// Scan points listed in the page summary per robot, at most (for tests and scripts checking where they were drawn).
+const SUMMARY_SCAN_POINTS = 24;
 
 const view = {
   world: null,
@@ -78,6 +82,8 @@ function computeTransform() {
   }
   for (const robot of view.robots) {
     if (robot.world === view.world && robot.pose) grow(robot.pose.x, robot.pose.y);
+    // Where a robot is heading stays in view.
+    if (robot.world === view.world && robot.path) for (const [x, y] of robot.path) grow(x, y);
   }
   if (!isFinite(minX)) { minX = -5; minY = -5; maxX = 5; maxY = 5; }
   const margin = 1.0;
@@ -134,17 +140,37 @@ function draw() {
       ctx.stroke();
     }
   }
+  // Scans and paths first, so every robot's footprint stays on top of them.
+  const showScans = document.getElementById('show-scan').checked;
+  const scanSummaries = new Map();
+  for (const robot of view.robots) {
+    if (robot.world !== view.world || !robot.scan || !showScans) continue;
+    // Each return as a 3 x 3 pixel square centred on its end point.
+    ctx.fillStyle = SCAN_COLOUR;
+    const points = robot.scan.points;
+    const sample = [];
+    const every = Math.max(1, Math.ceil(points.length / SUMMARY_SCAN_POINTS));
+    points.forEach(([x, y], i) => {
+      const px = Math.round(t.x(x)), py = Math.round(t.y(y));
+      ctx.fillRect(px - 1, py - 1, 3, 3);
+      if (i % every === 0) sample.push([x, y, px, py]);
+    });
+    scanSummaries.set(robot.id, {stamp_s: robot.scan.stamp_s, points: points.length, sample});
+  }
+  const pathSummaries = new Map();
+  for (const robot of view.robots) {
+    if (robot.world !== view.world || !robot.path || robot.path.length < 2) continue;
+    ctx.beginPath();
+    robot.path.forEach(([x, y], i) => (i ? ctx.lineTo(t.x(x), t.y(y)) : ctx.moveTo(t.x(x), t.y(y))));
+    ctx.strokeStyle = PATH_COLOUR;
+    ctx.lineWidth = 3;
+    ctx.stroke();
+    pathSummaries.set(robot.id, robot.path.map(([x, y]) => [x, y, t.x(x), t.y(y)]));
+  }
   const drawnRobots = [];
   for (const robot of view.robots) {
     if (robot.world !== view.world || !robot.pose) continue;
     const px = t.x(robot.pose.x), py = t.y(robot.pose.y);
-    if (robot.path && robot.path.length > 1) {
-      ctx.beginPath();
-      robot.path.forEach(([x, y], i) => (i ? ctx.lineTo(t.x(x), t.y(y)) : ctx.moveTo(t.x(x), t.y(y))));
-      ctx.strokeStyle = '#2ec4b6';
-      ctx.lineWidth = 2;
-      ctx.stroke();
-    }
     const corners = footprintCorners(robot);
     ctx.beginPath();
     if (corners) {
@@ -171,7 +197,8 @@ function draw() {
     ctx.fillStyle = '#1565c0';
     ctx.font = 'bold 12px sans-serif';
     ctx.fillText(robot.id, px + 10, py - 10);
-    drawnRobots.push({id: robot.id, x: robot.pose.x, y: robot.pose.y, theta: robot.pose.theta, px, py});
+    drawnRobots.push({id: robot.id, x: robot.pose.x, y: robot.pose.y, theta: robot.pose.theta, px, py,
+                      scan: scanSummaries.get(robot.id) || null, path: pathSummaries.get(robot.id) || []});
   }
   document.getElementById('summary').textContent = JSON.stringify({
     world: view.world,
@@ -285,6 +312,6 @@ function connect() {
 
 document.getElementById('world').onchange = (event) => send({type: 'select', world: event.target.value});
 document.getElementById('slice-z').onchange = (event) => send({type: 'select', slice_z_m: Number(event.target.value)});
-for (const id of ['show-grid', 'show-ptem', 'show-octomap']) document.getElementById(id).onchange = draw;
+for (const id of ['show-grid', 'show-ptem', 'show-octomap', 'show-scan']) document.getElementById(id).onchange = draw;
 draw();
 connect();

@@ -84,6 +84,8 @@ const std::vector<geometry::Pose2>& bench_poses() {
 void report(benchmark::State& state, double per_iteration) {
   state.counters["per_s"] =
       benchmark::Counter(static_cast<double>(state.iterations()) * per_iteration, benchmark::Counter::kIsRate);
+  // items_per_second too, which scripts/benchmarks.sh reads as entries (poses) per second.
+  state.SetItemsProcessed(static_cast<std::int64_t>(static_cast<double>(state.iterations()) * per_iteration));
 }
 
 void BM_CollisionSingle(benchmark::State& state) {

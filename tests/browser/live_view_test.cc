@@ -10,11 +10,13 @@
 #include <boost/property_tree/ptree.hpp>
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <regex>
 #include <sstream>
 #include <thread>
 
 #include "../integration/test_clients.h"
+#include "../support/http_get.h"
 #include "../support/process.h"
 
 namespace occgeo::testing {
@@ -23,17 +25,6 @@ namespace {
 using boost::property_tree::ptree;
 
 constexpr const char* kChromium = "/usr/bin/chromium";
-
-std::uint16_t http_port(const ServerProcess& server) {
-  const std::regex pattern(R"re("event":"http_listening".*"port":([0-9]+))re");
-  for (int attempt = 0; attempt < 200; ++attempt) {
-    std::smatch match;
-    const std::string log = server.log();
-    if (std::regex_search(log, match, pattern)) return static_cast<std::uint16_t>(std::stoi(match[1]));
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  throw std::runtime_error("occgeod did not log http_listening: " + server.log());
-}
 
 // An 8-bit RGB or RGBA PNG (what Chromium writes), decoded to RGB.
 struct Image {
@@ -136,6 +127,24 @@ std::vector<std::string> chromium_args(const std::filesystem::path& profile) {
           "--virtual-time-budget=4000"};
 }
 
+// The page's #summary after Chromium has run it for a few (virtual) seconds.
+ptree page_summary(const std::filesystem::path& profile, const std::string& url) {
+  auto args = chromium_args(profile);
+  args.push_back("--dump-dom");
+  args.push_back(url);
+  const auto dom = run_process(args, std::chrono::seconds(40));
+  if (dom.exit_code != 0) throw std::runtime_error("chromium --dump-dom failed: " + dom.err);
+  std::smatch match;
+  if (!std::regex_search(dom.out, match, std::regex(R"(<pre id="summary"[^>]*>([^<]*)</pre>)"))) {
+    throw std::runtime_error("no #summary in the page: " + dom.out);
+  }
+  ptree summary;
+  std::istringstream summary_text(match[1].str());
+  boost::property_tree::read_json(summary_text, summary);
+  std::cout << "page summary: " << match[1].str() << "\n";
+  return summary;
+}
+
 TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   if (!std::filesystem::exists(kChromium)) GTEST_SKIP() << kChromium << " is not installed (Debian package chromium)";
   TempDir dir;
@@ -156,17 +165,7 @@ TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   ASSERT_GT(status.worlds(0).occupied_cells(), 0u);
 
   const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
-  auto args = chromium_args(dir.path() / "profile-dom");
-  args.push_back("--dump-dom");
-  args.push_back(url);
-  const auto dom = run_process(args, std::chrono::seconds(40));
-  ASSERT_EQ(dom.exit_code, 0) << dom.err;
-  std::smatch match;
-  ASSERT_TRUE(std::regex_search(dom.out, match, std::regex(R"(<pre id="summary"[^>]*>([^<]*)</pre>)"))) << dom.out;
-  ptree summary;
-  std::istringstream summary_text(match[1].str());
-  boost::property_tree::read_json(summary_text, summary);
-  std::cout << "page summary: " << match[1].str() << "\n";
+  const ptree summary = page_summary(dir.path() / "profile-dom", url);
 
   EXPECT_TRUE(summary.get<bool>("map_complete"));
   EXPECT_EQ(summary.get<std::uint64_t>("map_version"), status.worlds(0).version());
@@ -180,12 +179,47 @@ TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   const double px = robot.get<double>("px") + summary.get<double>("canvas.left");
   const double py = robot.get<double>("py") + summary.get<double>("canvas.top");
 
+  // The latest scan is drawn where its returns hit something: every point the page lists lies within the laser's
+  // 8 m of the robot and on (or next to) a cell the server's grid holds occupied, since that scan marked it last.
+  request.Clear();
+  request.mutable_grid()->set_request_id(2);
+  request.mutable_grid()->set_world(status.worlds(0).name());
+  const v1::GridReply grid = query.call(request, 2).grid();
+  const auto occupied_near = [&](double x, double y) {
+    const auto ix = static_cast<std::int64_t>(std::floor(x / grid.cell_size_m()));
+    const auto iy = static_cast<std::int64_t>(std::floor(y / grid.cell_size_m()));
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const std::int64_t col = ix + dx - grid.min_cell().ix(), row = iy + dy - grid.min_cell().iy();
+        if (col < 0 || row < 0 || col >= grid.width() || row >= grid.height()) continue;
+        const auto c = static_cast<std::uint8_t>(grid.cells()[static_cast<std::size_t>(row * grid.width() + col)]);
+        if (c != 255 && c >= grid.occupied_threshold()) return true;
+      }
+    }
+    return false;
+  };
+  const auto scan = robot.get_child_optional("scan");
+  ASSERT_TRUE(scan && !scan->empty()) << "the page drew no scan";
+  const auto scan_points = scan->get<std::size_t>("points");
+  ASSERT_GT(scan_points, 10u);
+  std::vector<std::array<double, 2>> scan_pixels;
+  for (const auto& [unused, point] : scan->get_child("sample")) {
+    std::vector<double> v;
+    for (const auto& [unused_key, number] : point) v.push_back(number.get_value<double>());
+    ASSERT_EQ(v.size(), 4u);
+    const double range = std::hypot(v[0] - status.robots(0).pose().x(), v[1] - status.robots(0).pose().y());
+    EXPECT_LE(range, 8.5) << "scan point (" << v[0] << ", " << v[1] << ")";
+    EXPECT_TRUE(occupied_near(v[0], v[1])) << "scan point (" << v[0] << ", " << v[1] << ") is on no occupied cell";
+    scan_pixels.push_back({v[2] + summary.get<double>("canvas.left"), v[3] + summary.get<double>("canvas.top")});
+  }
+  ASSERT_GE(scan_pixels.size(), 5u);
+
   // The screenshot, kept for people: the robot's own pixel has the robot's colour, and walls are drawn black.
   const auto artifact_dir = std::filesystem::path(OCCGEO_BINARY_DIR) / "tests" / "browser";
   std::filesystem::create_directories(artifact_dir);
   const auto png = artifact_dir / "live_view.png";
   std::filesystem::remove(png);
-  args = chromium_args(dir.path() / "profile-shot");
+  auto args = chromium_args(dir.path() / "profile-shot");
   args.push_back("--screenshot=" + png.string());
   args.push_back(url);
   const auto shot = run_process(args, std::chrono::seconds(40));
@@ -206,6 +240,86 @@ TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   }
   std::cout << black << " black (occupied) pixels on the canvas\n";
   EXPECT_GT(black, 0);
+  // The scan's points are drawn in the scan colour at the pixels the page reported (a robot's label may cover a few).
+  std::size_t scan_coloured = 0;
+  for (const auto& [x, y] : scan_pixels) {
+    scan_coloured += image.at(static_cast<int>(x), static_cast<int>(y)) == std::array<int, 3>{0, 230, 64} ? 1 : 0;
+  }
+  std::cout << scan_coloured << " of " << scan_pixels.size() << " sampled scan points drawn in the scan colour\n";
+  EXPECT_GE(scan_coloured * 4, scan_pixels.size() * 3);
+}
+
+TEST(LiveViewInBrowser, DrawsThePathOfAGotoBeingFollowed) {
+  if (!std::filesystem::exists(kChromium)) GTEST_SKIP() << kChromium << " is not installed (Debian package chromium)";
+  TempDir dir;
+  ServerProcess server(dir.path(), {"--http", "127.0.0.1:0"});
+  const std::uint16_t port = http_port(server);
+  // A Bearcat in real time on the open field, and `occgeo goto` driving it 15 m ahead (half a minute at its speed):
+  // the goto is still being followed while the browser looks.
+  BackgroundProcess sim(
+      {binary("clients/sim/occgeo-sim").string(), "--world", source("clients/sim/worlds/open_field.yaml").string(),
+       "--server", server.address(), "--id", "bearcat-1", "--duration", "90"},
+      dir.path() / "sim.out", dir.path() / "sim.err");
+  auto query = open_query_session(server.address());
+  std::uint64_t request_id = 0;
+  const auto robot_status = [&]() -> std::optional<v1::RobotStatus> {
+    v1::ClientMessage request;
+    request.mutable_status()->set_request_id(++request_id);
+    const v1::StatusReply status = query.call(request, request_id).status();
+    if (status.robots_size() == 0) return std::nullopt;
+    return status.robots(0);
+  };
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    const auto robot = robot_status();
+    if (robot && robot->scans_ingested() > 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  BackgroundProcess go({binary("clients/occgeo").string(), "goto", "--robot", "bearcat-1", "15", "0", "--limit", "80",
+                        "--server", server.address()},
+                       dir.path() / "goto.out", dir.path() / "goto.err");
+  bool following = false;
+  for (int attempt = 0; attempt < 200 && !following; ++attempt) {
+    const auto robot = robot_status();
+    following = robot && robot->behaviour() == "goto";
+    if (!following) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(following) << "the robot never took the goto";
+  // The path is planned when the goto answers a scan: let a few scans through before the page looks.
+  const std::uint64_t scans_at_goto = robot_status()->scans_ingested();
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    const auto robot = robot_status();
+    if (robot && robot->scans_ingested() >= scans_at_goto + 3) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+
+  const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
+  const ptree summary = page_summary(dir.path() / "profile-dom", url);
+  ASSERT_EQ(summary.get_child("robots").size(), 1u);
+  const ptree& path = summary.get_child("robots").begin()->second.get_child("path");
+  ASSERT_GE(path.size(), 2u) << "no path drawn while a goto is followed";
+  std::vector<double> goal;
+  for (const auto& [unused, number] : path.rbegin()->second) goal.push_back(number.get_value<double>());
+  ASSERT_EQ(goal.size(), 4u);
+  EXPECT_DOUBLE_EQ(goal[0], 15.0);  // the path ends at the goal
+  EXPECT_DOUBLE_EQ(goal[1], 0.0);
+
+  // The screenshot shows the path's line in its colour (nothing else is drawn in it).
+  const auto png = dir.path() / "goto.png";
+  auto args = chromium_args(dir.path() / "profile-shot");
+  args.push_back("--screenshot=" + png.string());
+  args.push_back(url);
+  const auto shot = run_process(args, std::chrono::seconds(40));
+  ASSERT_EQ(shot.exit_code, 0) << shot.err;
+  const Image image = read_png(png);
+  int path_pixels = 0;
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) path_pixels += image.at(x, y) == std::array<int, 3>{46, 196, 182} ? 1 : 0;
+  }
+  std::cout << path_pixels << " pixels of the path's colour\n";
+  EXPECT_GT(path_pixels, 100);
+  const auto robot = robot_status();
+  ASSERT_TRUE(robot);
+  EXPECT_EQ(robot->behaviour(), "goto") << "the goto ended before the screenshot";
 }
 
 }  // namespace

@@ -1,12 +1,16 @@
 // Map pictures end to end, against the real server: occgeo-sim --lockstep for 20 s on the open field with --trace-out
-// and --png-out, then `occgeo map export --format png --ptem --trajectory`. Both PNGs are decoded: their size follows
-// the world image (sim) and the server's grid times --scale (export), obstacles are black and the trajectory is drawn.
+// and --png-out, then `occgeo map export --format png --ptem --trajectory`; and `occgeo replay --out` of a synthetic
+// CARMEN log. The PNGs are decoded: their size follows the world image (sim) and the server's grid times --scale
+// (export, replay), obstacles are black and the trajectory is drawn.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "../mapping/png_reader.h"
 #include "../support/json_fields.h"
@@ -79,6 +83,51 @@ TEST(MapPictureCli, SimulatorAndExportPicturesShowObstaclesAndTheTrajectory) {
   EXPECT_GT(count_colour(picture, {0, 0, 0}), 0U) << "no fully certain occupied cell";
   EXPECT_GT(count_colour(picture, {255, 255, 255}), 0U) << "no fully certain free cell";
   EXPECT_GT(count_colour(picture, mapfile::kTrajectoryColour), 10U);
+}
+
+// A CARMEN log of a robot driving 4 m along +x down a corridor whose walls are at y = +-1.5 m (181 beams, 1 deg apart
+// from -90 deg, as FLASER has them).
+std::string corridor_log() {
+  std::ostringstream log;
+  constexpr int kScans = 41;
+  for (int k = 0; k < kScans; ++k) {
+    const double x = 0.1 * k;
+    log << "FLASER 181";
+    for (int i = 0; i < 181; ++i) {
+      const double angle = (-90.0 + i) * M_PI / 180.0;
+      const double s = std::sin(angle);
+      const double range = std::abs(s) < 1e-9 ? 50.0 : std::min(50.0, 1.5 / std::abs(s));
+      log << ' ' << range;
+    }
+    log << ' ' << x << " 0 0 " << x << " 0 0 " << 1.0 + 0.1 * k << " host " << 1.0 + 0.1 * k << "\n";
+  }
+  return log.str();
+}
+
+TEST(MapPictureCli, ReplayPictureShowsTheMapAndTheReplayedTrajectory) {
+  TempDir dir;
+  ServerProcess server(dir.path());
+  const auto log_file = dir.path() / "corridor.log";
+  std::ofstream(log_file) << corridor_log();
+  const auto prefix = dir.path() / "corridor";
+  const ProcessResult replay =
+      run_process({binary("clients/occgeo").string(), "replay", "--format", "carmen", log_file.string(), "--max",
+                   "--server", server.address(), "--world", "corridor", "--out", prefix.string(), "--json"},
+                  std::chrono::seconds(60));
+  ASSERT_EQ(replay.exit_code, 0) << replay.err;
+  EXPECT_EQ(json_number(replay.out, "scans"), 41);
+  // The PNG pictures the map written beside it: one pixel per cell, as `map export --format png` draws it.
+  const mapfile::OccupancyImage grid = mapfile::read_map_yaml(prefix.string() + ".yaml");
+  const PngImage picture = decode_png(read_file_bytes(prefix.string() + ".png"));
+  EXPECT_EQ(picture.width, grid.width);
+  EXPECT_EQ(picture.height, grid.height);
+  EXPECT_EQ(picture.channels, 3U);
+  // The walls (two rows of cells at least 4 m long) are black, the 4 m drive a red line ending in a blue marker.
+  EXPECT_GT(count_colour(picture, {0, 0, 0}), 60U);
+  const std::size_t red = count_colour(picture, mapfile::kTrajectoryColour);
+  std::cout << "replay picture " << picture.width << " x " << picture.height << ": " << red << " trajectory pixels\n";
+  EXPECT_GE(red, 30U);
+  EXPECT_GT(count_colour(picture, mapfile::kMarkerColour), 0U);
 }
 
 TEST(MapPictureCli, PictureOptionsNameTheFlagAtFault) {

@@ -320,7 +320,7 @@ TEST(SimWorldLoad, EveryShippedWorldLoadsAndTheStartIsClear) {
     }
     ++loaded;
   }
-  EXPECT_EQ(loaded, 9);
+  EXPECT_EQ(loaded, 11);
   EXPECT_TRUE(dynamic_cast<const PixelWorld*>(load_sim_world(kWorlds / "corridor.yaml").get()));
   EXPECT_TRUE(dynamic_cast<const ShapeWorld*>(load_sim_world(kWorlds / "ptem_thin.yaml").get()));
 }

@@ -57,18 +57,7 @@ class FaultServer {
       argv.push_back(arg);
     }
     process_ = std::make_unique<BackgroundProcess>(argv, data_dir / (log_name + ".out"), log_file_);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      std::ifstream in(port_file);
-      unsigned port = 0;
-      if (in >> port && port > 0) {
-        port_ = static_cast<std::uint16_t>(port);
-        return;
-      }
-      if (!process_->running()) throw std::runtime_error("occgeod exited at start: " + log());
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    throw std::runtime_error("occgeod did not start listening within 30 s: " + log());
+    port_ = wait_for_port_file(*process_, port_file, log_file_, std::chrono::seconds(30));
   }
 
   [[nodiscard]] std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
@@ -120,6 +109,24 @@ inline std::optional<v1::ServerMessage> await_reply(client::Connection& connecti
       if (!message) return std::nullopt;
       if (message->has_scan_ack() && message->scan_ack().seq() == seq) return message;
       if (message->has_error() && message->error().seq() == seq) return message;
+    }
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+// The next ack or error answering a sensor message, skipping everything else (motion commands); nullopt when the
+// connection died or nothing came in time.
+inline std::optional<v1::ServerMessage> next_sensor_reply(client::Connection& connection,
+                                                          std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  try {
+    while (std::chrono::steady_clock::now() < deadline) {
+      auto message = connection.receive(
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+      if (!message) return std::nullopt;
+      if (message->has_scan_ack() || (message->has_error() && message->error().seq() != 0)) return message;
     }
   } catch (const std::exception&) {
     return std::nullopt;

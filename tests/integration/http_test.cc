@@ -4,16 +4,20 @@
 #define BOOST_BIND_GLOBAL_PLACEHOLDERS
 #include <gtest/gtest.h>
 
+#include <array>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/websocket.hpp>
 #include <boost/property_tree/json_parser.hpp>
 #include <boost/property_tree/ptree.hpp>
+#include <cmath>
+#include <cstring>
 #include <map>
 #include <regex>
 #include <sstream>
 #include <thread>
 
+#include "../support/http_get.h"
 #include "../support/process.h"
 #include "occgeo/mapfile/map_file.h"
 #include "test_clients.h"
@@ -23,17 +27,6 @@ namespace {
 
 namespace beast = boost::beast;
 using boost::property_tree::ptree;
-
-std::uint16_t http_port(const ServerProcess& server) {
-  const std::regex pattern(R"re("event":"http_listening".*"port":([0-9]+))re");
-  for (int attempt = 0; attempt < 200; ++attempt) {
-    std::smatch match;
-    const std::string log = server.log();
-    if (std::regex_search(log, match, pattern)) return static_cast<std::uint16_t>(std::stoi(match[1]));
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  throw std::runtime_error("occgeod did not log http_listening: " + server.log());
-}
 
 std::vector<std::uint8_t> decode_base64(const std::string& text) {
   std::vector<std::uint8_t> out;
@@ -236,6 +229,183 @@ TEST_F(LiveView, ShowsTheRobotWhereTheStatusSaysAndEngagesItsEStop) {
     if (later.get_child("robots").begin()->second.get<bool>("estop")) return;
   }
   FAIL() << "the page never showed the e-stop";
+}
+
+TEST_F(LiveView, SendsTheLatestScanInTheWorldFrame) {
+  LiveViewClient page(port_);
+  EXPECT_TRUE(page.next("frame").get_child("robots").begin()->second.get_child("scan").empty()) << "no scan yet";
+
+  // One LMS200 scan: beam k at (-90 + k) deg in the laser's frame, which the Bearcat carries 0.45 m ahead of
+  // base_link. Every fifth beam returns at 1 + k/100 m, the others read the laser's maximum (no return).
+  const v1::RobotSpec spec = bearcat_spec();
+  const v1::LaserSpec& laser = spec.sensors(0).laser();
+  const double mount_x = spec.sensors(0).mount().position().x();
+  v1::ClientMessage scan;
+  scan.mutable_laser_scan()->set_sensor(spec.sensors(0).name());
+  scan.mutable_laser_scan()->set_seq(2);
+  scan.mutable_laser_scan()->set_stamp_s(1.25);
+  std::vector<std::array<double, 2>> expected;
+  const v1::Pose2D pose = status().robots(0).pose();
+  for (int beam = 0; beam < static_cast<int>(laser.beam_count()); ++beam) {
+    const bool returns = beam % 5 == 0;
+    const float range = returns ? 1.0F + static_cast<float>(beam) / 100.0F : static_cast<float>(laser.range_max_m());
+    scan.mutable_laser_scan()->add_ranges(range);
+    if (!returns) continue;
+    const double sensor_x = pose.x() + mount_x * std::cos(pose.theta());
+    const double sensor_y = pose.y() + mount_x * std::sin(pose.theta());
+    const double bearing = pose.theta() + laser.angle_min_rad() + beam * laser.angle_increment_rad();
+    const auto reading = static_cast<double>(range);
+    expected.push_back({sensor_x + reading * std::cos(bearing), sensor_y + reading * std::sin(bearing)});
+  }
+  driver_->send(scan);
+  for (int i = 0; i < 50; ++i) {
+    const ptree frame = page.next("frame");
+    const ptree& robot = frame.get_child("robots").begin()->second;
+    if (robot.get_child("scan").empty()) continue;
+    EXPECT_EQ(robot.get<double>("scan.stamp_s"), 1.25);
+    std::vector<std::array<double, 2>> points;
+    for (const auto& [unused, point] : robot.get_child("scan.points")) {
+      std::vector<double> xy;
+      for (const auto& [unused_key, number] : point) xy.push_back(number.get_value<double>());
+      ASSERT_EQ(xy.size(), 2u);
+      points.push_back({xy[0], xy[1]});
+    }
+    ASSERT_EQ(points.size(), expected.size());
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      EXPECT_NEAR(points[k][0], expected[k][0], 0.001) << "point " << k;
+      EXPECT_NEAR(points[k][1], expected[k][1], 0.001) << "point " << k;
+    }
+    EXPECT_TRUE(robot.get_child("path").empty()) << "the Bearcat behaviour follows no path";
+    return;
+  }
+  FAIL() << "no frame carried the scan";
+}
+
+// A client of the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1, JSON encoding).
+class FoxgloveClient {
+ public:
+  explicit FoxgloveClient(std::uint16_t port) : ws_(io_) {
+    beast::get_lowest_layer(ws_).connect(
+        boost::asio::ip::tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+    beast::get_lowest_layer(ws_).expires_after(std::chrono::seconds(10));
+    ws_.set_option(beast::websocket::stream_base::decorator([](beast::websocket::request_type& request) {
+      request.set(beast::http::field::sec_websocket_protocol, "foxglove.websocket.v1");
+    }));
+    beast::websocket::response_type response;
+    ws_.handshake(response, "127.0.0.1", "/");
+    const auto subprotocol = response[beast::http::field::sec_websocket_protocol];
+    subprotocol_ = std::string(subprotocol.data(), subprotocol.size());
+  }
+
+  // The next text message, as JSON.
+  ptree next_text() {
+    for (int i = 0; i < 100; ++i) {
+      const auto [binary, bytes] = read();
+      if (binary) continue;
+      std::istringstream in(bytes);
+      ptree message;
+      boost::property_tree::read_json(in, message);
+      return message;
+    }
+    throw std::runtime_error("no text message in 100");
+  }
+
+  // The next Message Data frame of this subscription: its JSON payload.
+  ptree next_data(std::uint32_t subscription) {
+    for (int i = 0; i < 200; ++i) {
+      const auto [binary, bytes] = read();
+      if (!binary || bytes.size() < 13 || bytes[0] != '\x01') continue;
+      std::uint32_t id = 0;
+      for (int k = 0; k < 4; ++k) id |= std::uint32_t{static_cast<std::uint8_t>(bytes[1 + k])} << (8 * k);
+      if (id != subscription) continue;
+      std::istringstream in(bytes.substr(13));
+      ptree message;
+      boost::property_tree::read_json(in, message);
+      return message;
+    }
+    throw std::runtime_error("no data for subscription " + std::to_string(subscription));
+  }
+
+  void send(const std::string& text) {
+    beast::get_lowest_layer(ws_).expires_after(std::chrono::seconds(10));
+    ws_.text(true);
+    ws_.write(boost::asio::buffer(text));
+  }
+
+  [[nodiscard]] const std::string& subprotocol() const { return subprotocol_; }
+
+ private:
+  std::pair<bool, std::string> read() {
+    beast::get_lowest_layer(ws_).expires_after(std::chrono::seconds(10));
+    beast::flat_buffer buffer;
+    ws_.read(buffer);
+    return {ws_.got_binary(), beast::buffers_to_string(buffer.data())};
+  }
+
+  boost::asio::io_context io_;
+  beast::websocket::stream<beast::tcp_stream> ws_;
+  std::string subprotocol_;
+};
+
+TEST_F(LiveView, PublishesTheGridAndScansOverTheFoxgloveProtocol) {
+  FoxgloveClient client(port_);
+  EXPECT_EQ(client.subprotocol(), "foxglove.websocket.v1");
+  EXPECT_EQ(client.next_text().get<std::string>("op"), "serverInfo");
+  const ptree advertise = client.next_text();
+  ASSERT_EQ(advertise.get<std::string>("op"), "advertise");
+  std::map<std::string, std::pair<int, std::string>> channels;  // topic -> id, schema name
+  for (const auto& [unused, channel] : advertise.get_child("channels")) {
+    EXPECT_EQ(channel.get<std::string>("encoding"), "json");
+    channels[channel.get<std::string>("topic")] = {channel.get<int>("id"), channel.get<std::string>("schemaName")};
+  }
+  ASSERT_EQ(channels.count("/map"), 1u);
+  ASSERT_EQ(channels.count("/scans"), 1u);
+  EXPECT_EQ(channels["/map"].second, "foxglove.Grid");
+  EXPECT_EQ(channels["/scans"].second, "foxglove.PointCloud");
+  client.send(R"({"op":"subscribe","subscriptions":[{"id":7,"channelId":)" + std::to_string(channels["/map"].first) +
+              R"(},{"channelId":)" + std::to_string(channels["/scans"].first) + R"(,"id":8}]})");
+
+  // The grid: the restored open field, every occupied cell of the server's count.
+  const ptree grid = client.next_data(7);
+  EXPECT_EQ(grid.get<std::string>("frame_id"), "world");
+  const auto columns = grid.get<std::size_t>("column_count");
+  const auto cells = decode_base64(grid.get<std::string>("data"));
+  ASSERT_GT(columns, 0u);
+  ASSERT_EQ(cells.size() % columns, 0u);
+  EXPECT_EQ(grid.get<std::size_t>("row_stride"), columns);
+  EXPECT_DOUBLE_EQ(grid.get<double>("cell_size.x"), 0.1);
+  const v1::StatusReply truth = status();
+  std::size_t occupied = 0;
+  for (const std::uint8_t c : cells) occupied += c != 255 && c >= 3 ? 1 : 0;
+  EXPECT_EQ(occupied, truth.worlds(0).occupied_cells());
+
+  // A scan: four returns at 2 m, the others no return; the cloud holds their world-frame end points.
+  const v1::RobotSpec spec = bearcat_spec();
+  const v1::LaserSpec& laser = spec.sensors(0).laser();
+  v1::ClientMessage scan;
+  scan.mutable_laser_scan()->set_sensor(spec.sensors(0).name());
+  scan.mutable_laser_scan()->set_seq(2);
+  scan.mutable_laser_scan()->set_stamp_s(1.5);
+  for (int beam = 0; beam < static_cast<int>(laser.beam_count()); ++beam) {
+    scan.mutable_laser_scan()->add_ranges(beam % 45 == 0 ? 2.0F : static_cast<float>(laser.range_max_m()));
+  }
+  driver_->send(scan);
+  const ptree cloud = client.next_data(8);
+  EXPECT_EQ(cloud.get<int>("point_stride"), 8);
+  const auto data = decode_base64(cloud.get<std::string>("data"));
+  ASSERT_EQ(data.size(), 5u * 8u);  // beams 0, 45, 90, 135, 180
+  const v1::Pose2D pose = truth.robots(0).pose();
+  const double mount_x = spec.sensors(0).mount().position().x();
+  for (std::size_t k = 0; k < 5; ++k) {
+    float xy[2];
+    std::memcpy(xy, data.data() + 8 * k, sizeof xy);
+    const double bearing =
+        pose.theta() + laser.angle_min_rad() + static_cast<double>(45 * k) * laser.angle_increment_rad();
+    EXPECT_NEAR(static_cast<double>(xy[0]), pose.x() + mount_x * std::cos(pose.theta()) + 2.0 * std::cos(bearing), 1e-4)
+        << k;
+    EXPECT_NEAR(static_cast<double>(xy[1]), pose.y() + mount_x * std::sin(pose.theta()) + 2.0 * std::sin(bearing), 1e-4)
+        << k;
+  }
 }
 
 }  // namespace

@@ -2,55 +2,18 @@
 // by a parser written here), and the counters must move by exactly what the simulator and a query client did.
 #include <gtest/gtest.h>
 
-#include <boost/asio/connect.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
 #include <cmath>
 #include <map>
 #include <regex>
 #include <set>
 #include <thread>
 
+#include "../support/http_get.h"
 #include "../support/process.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
 namespace {
-
-// The HTTP port the server logged (tests ask for port 0, so the kernel picks a free one).
-std::uint16_t http_port(const ServerProcess& server) {
-  const std::regex pattern(R"re("event":"http_listening".*"port":([0-9]+))re");
-  for (int attempt = 0; attempt < 200; ++attempt) {
-    std::smatch match;
-    const std::string log = server.log();
-    if (std::regex_search(log, match, pattern)) return static_cast<std::uint16_t>(std::stoi(match[1]));
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  throw std::runtime_error("occgeod did not log http_listening: " + server.log());
-}
-
-struct HttpResult {
-  unsigned status = 0;
-  std::string content_type;
-  std::string body;
-};
-
-HttpResult http_get(std::uint16_t port, const std::string& target) {
-  namespace beast = boost::beast;
-  boost::asio::io_context io;
-  beast::tcp_stream stream(io);
-  stream.expires_after(std::chrono::seconds(10));
-  stream.connect(boost::asio::ip::tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
-  beast::http::request<beast::http::empty_body> request{beast::http::verb::get, target, 11};
-  request.set(beast::http::field::host, "127.0.0.1");
-  beast::http::write(stream, request);
-  beast::flat_buffer buffer;
-  beast::http::response<beast::http::string_body> response;
-  beast::http::read(stream, buffer, response);
-  const auto content_type = response[beast::http::field::content_type];
-  return {response.result_int(), std::string(content_type.data(), content_type.size()), response.body()};
-}
 
 // One sample line: name{labels} value.
 struct Sample {

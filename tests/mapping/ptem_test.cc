@@ -696,5 +696,82 @@ TEST(PtemTest, MovingObstacleCumulativeGrowsSingleScanDoesNot) {
   EXPECT_GT(previous_cumulative_area, 10.0 * obstacle_area);
 }
 
+// The clusters of two snapshots, compared bit for bit (a restored model must continue exactly where the saved one
+// stopped, not nearly).
+void expect_same_clusters(const PtemSnapshot& expected, const PtemSnapshot& actual) {
+  ASSERT_EQ(expected.clusters().size(), actual.clusters().size());
+  EXPECT_EQ(expected.scan_count(), actual.scan_count());
+  EXPECT_EQ(expected.restricted_threshold(), actual.restricted_threshold());
+  EXPECT_EQ(expected.latest_stamp_s(), actual.latest_stamp_s());
+  for (std::size_t i = 0; i < expected.clusters().size(); ++i) {
+    const PtemCluster& a = expected.clusters()[i];
+    const PtemCluster& b = actual.clusters()[i];
+    EXPECT_EQ(a.centre_W, b.centre_W) << "cluster " << i;
+    EXPECT_EQ(a.radius_m, b.radius_m) << "cluster " << i;
+    EXPECT_EQ(a.sigma_m, b.sigma_m) << "cluster " << i;
+    EXPECT_EQ(a.threshold_reachable, b.threshold_reachable) << "cluster " << i;
+    EXPECT_EQ(a.first_seen_scan, b.first_seen_scan) << "cluster " << i;
+    EXPECT_EQ(a.first_seen_stamp_s, b.first_seen_stamp_s) << "cluster " << i;
+    EXPECT_EQ(a.age_scans, b.age_scans) << "cluster " << i;
+  }
+}
+
+// A model saved half way along a drive and restored into a new one goes on to build the same clusters as the model
+// that never stopped, in both constructions and with f_r fixed from the first cluster.
+TEST(PtemTest, RestoredStateContinuesExactlyAsTheUninterruptedModel) {
+  const std::vector<Disc> discs = {{{2.0, 0.5}, 0.15}, {{3.0, -1.0}, 0.3}, {{5.0, 0.8}, 0.05}, {{6.5, -0.4}, 0.4}};
+  for (const auto construction : {PtemConstruction::kSingleScan, PtemConstruction::kCumulative}) {
+    for (const bool sigma_first : {false, true}) {
+      PtemParams params = params_for(construction);
+      if (sigma_first) params.first_cluster_sigma_m = 0.2;
+      PtemModel uninterrupted(params);
+      std::optional<PtemModel> restored;
+      for (int step = 0; step < 40; ++step) {
+        const Eigen::Vector2d p_WS(0.15 * step, 0.05 * std::sin(0.3 * step));
+        const double yaw = 0.02 * step;
+        const auto points = urg_points(p_WS, yaw, discs);
+        const PtemScan scan = urg_scan(0.1 * step, p_WS, yaw, points);
+        uninterrupted.insert_scan(scan);
+        if (restored) restored->insert_scan(scan);
+        if (step == 19) {
+          restored.emplace(params);
+          ASSERT_TRUE(restored->restore(uninterrupted.serialize()));
+          expect_same_clusters(*uninterrupted.snapshot(), *restored->snapshot());
+        }
+      }
+      ASSERT_GT(uninterrupted.cluster_count(), 0u);
+      expect_same_clusters(*uninterrupted.snapshot(), *restored->snapshot());
+      EXPECT_EQ(uninterrupted.serialize(), restored->serialize());
+    }
+  }
+}
+
+// State written under other parameters is refused (its clusters are not what these parameters build), and damaged
+// state throws; either way the model keeps what it had.
+TEST(PtemTest, RestoreRefusesOtherParametersAndDamagedStateChangingNothing) {
+  PtemModel saved(params_for(PtemConstruction::kSingleScan));
+  saved.insert_scan(omniscient_scan(1.0, {{1.0, 1.0}, {5.0, 5.0}}));
+  const std::string bytes = saved.serialize();
+
+  PtemParams other = params_for(PtemConstruction::kSingleScan);
+  other.cluster_distance_m = 0.5;
+  PtemModel model(other);
+  model.insert_scan(omniscient_scan(0.5, {{-3.0, 0.0}}));
+  const std::string before = model.serialize();
+  EXPECT_FALSE(model.restore(bytes));
+  EXPECT_EQ(model.serialize(), before);
+
+  PtemModel same(params_for(PtemConstruction::kSingleScan));
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] = static_cast<char>(flipped[flipped.size() / 2] ^ 0x10);
+  EXPECT_THROW(same.restore(flipped), std::invalid_argument);
+  EXPECT_THROW(same.restore(std::string_view(bytes).substr(0, bytes.size() - 3)), std::invalid_argument);
+  EXPECT_THROW(same.restore("not a PTEM state"), std::invalid_argument);
+  EXPECT_EQ(same.scan_count(), 0u);
+  EXPECT_EQ(same.cluster_count(), 0u);
+  ASSERT_TRUE(same.restore(bytes));
+  EXPECT_EQ(same.cluster_count(), 2u);
+}
+
 }  // namespace
 }  // namespace occgeo::mapping

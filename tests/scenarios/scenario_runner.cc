@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <memory>
 #include <queue>
 #include <sstream>
 #include <thread>
@@ -15,6 +16,7 @@
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
 #include "occgeo/sim/presets.h"
+#include "occgeo/sim/shape_world.h"
 #include "occgeo/sim/sim_world.h"
 
 namespace occgeo::testing {
@@ -95,9 +97,15 @@ std::string last_state_of(const std::string& json) {
 
 }  // namespace
 
-std::optional<double> optimal_path_length(const std::string& world_file, const std::string& preset_name,
-                                          const Eigen::Vector2d& start, const Eigen::Vector2d& goal) {
-  const auto world = sim::load_sim_world(source("clients/sim/worlds/" + world_file));
+std::optional<OptimalPath> optimal_path_length(const std::string& world_file, const std::string& preset_name,
+                                               const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
+                                               double goal_tolerance_m) {
+  std::unique_ptr<sim::SimWorld> world = sim::load_sim_world(source("clients/sim/worlds/" + world_file));
+  // Moving obstacles stand somewhere else by the time the robot gets there: the reference is the static layout.
+  if (const auto* shapes = dynamic_cast<const sim::ShapeWorld*>(world.get());
+      shapes && shapes->has_moving_obstacles()) {
+    world = std::make_unique<sim::ShapeWorld>(shapes->shapes(), std::vector<sim::MovingObstacle>{}, shapes->bounds());
+  }
   const sim::RobotPreset* preset = sim::find_robot_preset(preset_name);
   if (preset == nullptr) return std::nullopt;
   constexpr double kCell = 0.05;
@@ -107,60 +115,146 @@ std::optional<double> optimal_path_length(const std::string& world_file, const s
   const int nx = static_cast<int>(std::ceil((hi.x() - lo.x()) / kCell));
   const int ny = static_cast<int>(std::ceil((hi.y() - lo.y()) / kCell));
   const auto index = [&](int ix, int iy) { return static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx) + ix; };
+  const auto centre = [&](int ix, int iy) {
+    return Eigen::Vector2d(lo.x() + (ix + 0.5) * kCell, lo.y() + (iy + 0.5) * kCell);
+  };
   // Obstacle cells: a cell-sized prism as tall as the robot overlaps an obstacle.
   const geometry::BoxFootprint probe{
       .length = kCell, .width = kCell, .height = preset->footprint.height, .center_x = 0};
+  // A lower bound for any path of the robot: the disc of its inscribed radius (the narrower half side) must pass. A
+  // centre is blocked only when the nearest point of an obstacle cell's square is closer than that, so the blocked
+  // set never exceeds the true one (an obstacle need not fill its cell).
+  const double radius = std::max(0.0, std::min(preset->footprint.width / 2.0,
+                                               preset->footprint.length / 2.0 - std::abs(preset->footprint.center_x)));
+  const int reach = static_cast<int>(std::ceil(radius / kCell)) + 1;
   std::vector<char> blocked(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny), 0);
-  const double radius = preset->footprint.width / 2.0;
-  const int reach = static_cast<int>(std::ceil(radius / kCell));
+  std::vector<char> lattice_blocked(blocked.size(), 0);  // the former reference: the disc of half the width
+  const double half_width = preset->footprint.width / 2.0;
+  const int lattice_reach = static_cast<int>(std::ceil(half_width / kCell));
   for (int iy = 0; iy < ny; ++iy) {
     for (int ix = 0; ix < nx; ++ix) {
-      const geometry::Pose2 centre{lo.x() + (ix + 0.5) * kCell, lo.y() + (iy + 0.5) * kCell, 0.0};
-      if (!world->find_collision(probe, centre, 0.0)) continue;
-      // A disc of the robot's half width about any free cell must not hold this obstacle cell.
-      for (int dy = -reach; dy <= reach; ++dy) {
-        for (int dx = -reach; dx <= reach; ++dx) {
+      const Eigen::Vector2d c = centre(ix, iy);
+      if (!world->find_collision(probe, {c.x(), c.y(), 0.0}, 0.0)) continue;
+      for (int dy = -std::max(reach, lattice_reach); dy <= std::max(reach, lattice_reach); ++dy) {
+        for (int dx = -std::max(reach, lattice_reach); dx <= std::max(reach, lattice_reach); ++dx) {
           const int x = ix + dx;
           const int y = iy + dy;
           if (x < 0 || y < 0 || x >= nx || y >= ny) continue;
-          if (std::hypot(dx, dy) * kCell > radius + kCell / 2.0) continue;
-          blocked[index(x, y)] = 1;
+          const double gap = std::hypot(std::max(0.0, std::abs(dx) - 0.5), std::max(0.0, std::abs(dy) - 0.5)) * kCell;
+          if (gap < radius) blocked[index(x, y)] = 1;
+          if (std::hypot(dx, dy) * kCell <= half_width + kCell / 2.0) lattice_blocked[index(x, y)] = 1;
         }
       }
     }
   }
   const auto cell_of = [&](const Eigen::Vector2d& p) {
-    return std::pair{static_cast<int>((p.x() - lo.x()) / kCell), static_cast<int>((p.y() - lo.y()) / kCell)};
+    return std::pair{std::clamp(static_cast<int>((p.x() - lo.x()) / kCell), 0, nx - 1),
+                     std::clamp(static_cast<int>((p.y() - lo.y()) / kCell), 0, ny - 1)};
   };
   const auto [sx, sy] = cell_of(start);
   const auto [gx, gy] = cell_of(goal);
+  OptimalPath out;
+
+  // The former reference: 8-connected lattice to the goal's cell.
+  {
+    std::vector<double> cost(blocked.size(), std::numeric_limits<double>::infinity());
+    using Entry = std::pair<double, std::size_t>;
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
+    cost[index(sx, sy)] = 0.0;
+    open.push({0.0, index(sx, sy)});
+    while (!open.empty()) {
+      const auto [c, at] = open.top();
+      open.pop();
+      if (c > cost[at]) continue;
+      const int x = static_cast<int>(at % static_cast<std::size_t>(nx));
+      const int y = static_cast<int>(at / static_cast<std::size_t>(nx));
+      if (x == gx && y == gy) {
+        out.lattice_m = c;
+        break;
+      }
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0) continue;
+          const int u = x + dx;
+          const int v = y + dy;
+          if (u < 0 || v < 0 || u >= nx || v >= ny || lattice_blocked[index(u, v)]) continue;
+          const double next = c + std::hypot(dx, dy) * kCell;
+          if (next < cost[index(u, v)]) {
+            cost[index(u, v)] = next;
+            open.push({next, index(u, v)});
+          }
+        }
+      }
+    }
+  }
+
+  // Any-angle (Theta*): a node's parent is any earlier node in line of sight, so paths are not bent to the lattice.
+  // Line of sight samples the segment every quarter cell; the start node sits at the true start. The search ends on
+  // the tolerance circle: from a node that sees the goal, the straight way there is cut short by the tolerance.
+  const auto position = [&](std::size_t at) {
+    if (at == index(sx, sy)) return start;
+    return centre(static_cast<int>(at % static_cast<std::size_t>(nx)),
+                  static_cast<int>(at / static_cast<std::size_t>(nx)));
+  };
+  const auto sees = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    const double length = (b - a).norm();
+    const int steps = std::max(1, static_cast<int>(std::ceil(length / (kCell / 4.0))));
+    for (int k = 0; k <= steps; ++k) {
+      const Eigen::Vector2d p = a + (b - a) * (static_cast<double>(k) / steps);
+      const int x = static_cast<int>(std::floor((p.x() - lo.x()) / kCell));
+      const int y = static_cast<int>(std::floor((p.y() - lo.y()) / kCell));
+      if (x < 0 || y < 0 || x >= nx || y >= ny || blocked[index(x, y)]) return false;
+    }
+    return true;
+  };
+  const auto to_circle = [&](const Eigen::Vector2d& p) { return std::max(0.0, (p - goal).norm() - goal_tolerance_m); };
   std::vector<double> cost(blocked.size(), std::numeric_limits<double>::infinity());
+  std::vector<std::size_t> parent(blocked.size());
+  std::vector<char> closed(blocked.size(), 0);
   using Entry = std::pair<double, std::size_t>;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
-  cost[index(sx, sy)] = 0.0;
-  open.push({0.0, index(sx, sy)});
+  const std::size_t start_index = index(sx, sy);
+  cost[start_index] = 0.0;
+  parent[start_index] = start_index;
+  open.push({to_circle(start), start_index});
+  double best = std::numeric_limits<double>::infinity();
   while (!open.empty()) {
-    const auto [c, at] = open.top();
+    const auto [estimate, at] = open.top();
     open.pop();
-    if (c > cost[at]) continue;
+    if (estimate >= best) break;
+    if (closed[at]) continue;
+    closed[at] = 1;
+    const Eigen::Vector2d here = position(at);
+    if (sees(here, goal)) best = std::min(best, cost[at] + to_circle(here));
     const int x = static_cast<int>(at % static_cast<std::size_t>(nx));
     const int y = static_cast<int>(at / static_cast<std::size_t>(nx));
-    if (x == gx && y == gy) return c;
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
         if (dx == 0 && dy == 0) continue;
         const int u = x + dx;
         const int v = y + dy;
-        if (u < 0 || v < 0 || u >= nx || v >= ny || blocked[index(u, v)]) continue;
-        const double next = c + std::hypot(dx, dy) * kCell;
-        if (next < cost[index(u, v)]) {
-          cost[index(u, v)] = next;
-          open.push({next, index(u, v)});
+        if (u < 0 || v < 0 || u >= nx || v >= ny) continue;
+        const std::size_t next = index(u, v);
+        if (blocked[next] || closed[next]) continue;
+        const Eigen::Vector2d there = centre(u, v);
+        const std::size_t from = parent[at];
+        double via = cost[at] + (there - here).norm();
+        std::size_t via_parent = at;
+        if (sees(position(from), there)) {
+          via = cost[from] + (there - position(from)).norm();
+          via_parent = from;
+        }
+        if (via < cost[next]) {
+          cost[next] = via;
+          parent[next] = via_parent;
+          open.push({via + to_circle(there), next});
         }
       }
     }
   }
-  return std::nullopt;
+  if (std::isfinite(best)) out.any_angle_m = best;
+  if (!out.any_angle_m && !out.lattice_m) return std::nullopt;
+  return out;
 }
 
 ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir) {
@@ -169,7 +263,9 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   const Clock::time_point started = Clock::now();
   TempDir dir;
   const auto config = dir.path() / "occgeod.yaml";
-  std::ofstream(config) << "log_level: warn\ncontrol:\n  initial_behaviour: stop\n" << scenario.extra_config;
+  std::ofstream(config) << "log_level: warn\ncontrol:\n  initial_behaviour: stop\noctomap:\n  publish_every_messages: "
+                        << scenario.octomap_publish_every_messages << "\n"
+                        << scenario.extra_config;
   ServerProcess server(dir.path(), {"--config", config.string()});
   const std::string robot = "scenario-robot";
   std::vector<std::string> argv = {binary("clients/sim/occgeo-sim").string(),
@@ -281,7 +377,12 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
         break;
       }
     }
-    result.optimal_m = optimal_path_length(scenario.world, scenario.preset, {trace[0].x, trace[0].y}, *scenario.goal);
+    const std::optional<OptimalPath> optimal = optimal_path_length(
+        scenario.world, scenario.preset, {trace[0].x, trace[0].y}, *scenario.goal, scenario.goal_tolerance_m);
+    if (optimal) {
+      result.optimal_m = optimal->any_angle_m;
+      result.lattice_m = optimal->lattice_m;
+    }
   }
   for (std::size_t i = first + 1; i <= last; ++i) {
     result.path_m += std::hypot(trace[i].x - trace[i - 1].x, trace[i].y - trace[i - 1].y);
@@ -295,13 +396,13 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
 std::string results_table(const std::vector<Scenario>& scenarios, const std::vector<ScenarioResult>& results) {
   std::ostringstream out;
   out << std::fixed << std::setprecision(2);
-  out << std::left << std::setw(34) << "scenario" << std::setw(9) << "reached" << std::setw(11) << "collisions"
-      << std::setw(9) << "path_m" << std::setw(11) << "optimal_m" << std::setw(7) << "ratio" << std::setw(9) << "sim_s"
-      << std::setw(8) << "wall_s"
+  out << std::left << std::setw(44) << "scenario" << std::setw(9) << "reached" << std::setw(11) << "collisions"
+      << std::setw(9) << "path_m" << std::setw(11) << "optimal_m" << std::setw(11) << "lattice_m" << std::setw(7)
+      << "ratio" << std::setw(9) << "sim_s" << std::setw(8) << "wall_s"
       << "last state / note\n";
   for (std::size_t i = 0; i < results.size(); ++i) {
     const ScenarioResult& r = results[i];
-    out << std::left << std::setw(34) << r.name;
+    out << std::left << std::setw(44) << r.name;
     if (!r.ran) {
       out << "did not run: " << r.failure << '\n';
       continue;
@@ -310,6 +411,12 @@ std::string results_table(const std::vector<Scenario>& scenarios, const std::vec
         << std::setw(9) << r.path_m << std::setw(11);
     if (r.optimal_m) {
       out << *r.optimal_m;
+    } else {
+      out << "-";
+    }
+    out << std::setw(11);
+    if (r.lattice_m) {
+      out << *r.lattice_m;
     } else {
       out << "-";
     }

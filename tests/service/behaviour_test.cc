@@ -128,5 +128,59 @@ TEST(EscapeBehaviour, PassesAGoalBehavioursCommandsThroughWhileItProgresses) {
   }
 }
 
+TEST(PlannedPath, GotoPlansFromWhereItIsToTheGoalUntilItArrives) {
+  auto go = make_goto(pointbug_params_for(bearcat_shape()), 3.0, 0.0, 0.1, 0.5);
+  EXPECT_TRUE(go->planned_path().empty()) << "no pose seen yet";
+  const OpenScan scan;
+  geometry::Pose2 pose;
+  bool reached = false;
+  for (int i = 0; i < 300 && !reached; ++i) {
+    const BehaviourCommand command = go->decide({scan.view(), pose, 0.1 * i});
+    reached = command.state == "reached";
+    const std::vector<Eigen::Vector2d> path = go->planned_path();
+    if (reached) {
+      EXPECT_TRUE(path.empty());
+    } else {
+      ASSERT_EQ(path.size(), 2U) << i;
+      EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(pose.x, pose.y))) << i;
+      EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 0.0))) << i;
+    }
+    pose = step(pose, command, 0.1);
+  }
+  EXPECT_TRUE(reached);
+}
+
+TEST(PlannedPath, WaypointsPlanTheWaypointsStillAhead) {
+  auto follow = make_waypoints(bearcat_shape(), {{1.0, 0.0}, {2.0, 1.0}, {3.0, 1.0}});
+  const OpenScan scan;
+  geometry::Pose2 pose;
+  std::size_t fewest = 4;
+  for (int i = 0; i < 600; ++i) {
+    const BehaviourCommand command = follow->decide({scan.view(), pose, 0.1 * i});
+    const std::vector<Eigen::Vector2d> path = follow->planned_path();
+    if (command.state == "reached") {
+      EXPECT_TRUE(path.empty());
+      break;
+    }
+    ASSERT_FALSE(path.empty()) << i;
+    EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(pose.x, pose.y))) << i;
+    EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0))) << i;
+    EXPECT_LE(path.size(), fewest) << "waypoints passed do not come back";
+    fewest = std::min(fewest, path.size());
+    pose = step(pose, command, 0.1);
+  }
+  EXPECT_EQ(fewest, 2U) << "the path shrank to the robot and the last waypoint";
+}
+
+TEST(PlannedPath, EscapeReportsTheInnerBehavioursPathUntilItEscapes) {
+  const auto rebuild = [] { return make_goto(pointbug_params_for(bearcat_shape()), 3.0, 0.0, 0.1, 0.5); };
+  auto escape = make_escape(rebuild, bearcat_shape());
+  const OpenScan scan;
+  static_cast<void>(escape->decide({scan.view(), geometry::Pose2{}, 0.0}));
+  const std::vector<Eigen::Vector2d> path = escape->planned_path();
+  ASSERT_EQ(path.size(), 2U);
+  EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 0.0)));
+}
+
 }  // namespace
 }  // namespace occgeo::service::control

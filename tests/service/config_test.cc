@@ -85,6 +85,12 @@ TEST(Config, UnknownKeysAreErrorsNamingTheKey) {
   EXPECT_NE(load_error("lisen: 1.2.3.4:5\n").find("'lisen'"), std::string::npos);
 }
 
+// YAML allows a mapping or a sequence as a key; a configuration key must be a name, and the refusal says where.
+TEST(Config, KeysThatAreNotNamesAreRefusedNamingTheSection) {
+  EXPECT_NE(load_error("ptem:\n ? constrtctio:\nsingl_esc").find("in 'ptem' is not a plain name"), std::string::npos);
+  EXPECT_NE(load_error("? [a, b]\n: 1\n").find("at the top level is not a plain name"), std::string::npos);
+}
+
 TEST(Config, BadValuesNameTheField) {
   EXPECT_NE(load_error("himm:\n  cell_size_m: fast\n").find("himm.cell_size_m"), std::string::npos);
   EXPECT_NE(load_error("control:\n  command_expiry_s: -1\n").find("control.command_expiry_s"), std::string::npos);

@@ -273,6 +273,35 @@ TEST_F(Control, EStopLatchesAcrossBehaviourChangesAndOnlyTheHolderReleasesIt) {
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
 }
 
+TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
+  auto d = keep(driver());
+  auto holder = session(v1::ROLE_CONTROLLER, "alice");
+  ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE, 10.0).lease().granted());
+  v1::ClientMessage go;
+  go.mutable_drive()->set_request_id(8);
+  go.mutable_drive()->set_robot_id("r1");
+  go.mutable_drive()->set_behaviour("goto");
+  go.mutable_drive()->mutable_goal()->set_x_m(3.0);
+  go.mutable_drive()->mutable_goal()->set_y_m(1.0);
+  ASSERT_TRUE(send(holder, go).has_drive());
+  static_cast<void>(scan(d));
+  std::vector<Eigen::Vector2d> path = core_.find_robot("r1")->state().path_W;
+  ASSERT_EQ(path.size(), 2U) << "from the robot straight to the goal";
+  EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(0.0, 0.0)));
+  EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0)));
+  // Teleop plans nothing; stopping clears the path.
+  ASSERT_TRUE(drive(holder, "teleop", 0.2).has_drive());
+  static_cast<void>(scan(d));
+  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  ASSERT_TRUE(send(holder, go).has_drive());
+  static_cast<void>(scan(d));
+  EXPECT_FALSE(core_.find_robot("r1")->state().path_W.empty());
+  ASSERT_TRUE(drive(holder, "stop").has_drive());
+  static_cast<void>(scan(d));
+  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
+}
+
 TEST_F(Control, TeleopVelocitiesAreClampedToTheRobotsLimits) {
   auto d = keep(driver());
   auto holder = session(v1::ROLE_CONTROLLER, "alice");

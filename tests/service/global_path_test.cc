@@ -197,6 +197,63 @@ TEST(GlobalPath, InflationKeepsTheFootprintRadiusAndClosesNarrowGaps) {
   }
 }
 
+// The largest distance from a wall any point of the path keeps, sampled every centimetre.
+double farthest_from_wall(const std::vector<Eigen::Vector2d>& path, double wall_top_y) {
+  double best = 0.0;
+  for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+    for (int k = 0; k <= 100; ++k) {
+      const Eigen::Vector2d p = path[i] + (path[i + 1] - path[i]) * (k / 100.0);
+      best = std::max(best, p.y() - wall_top_y);
+    }
+  }
+  return best;
+}
+
+TEST(GlobalPath, CostGradientKeepsOffWallsWhereThereIsRoomAndStillPassesNarrowGaps) {
+  // A wall along y = 1.0..1.1 m; start and goal 0.55 m above it, 5 m apart, open space above.
+  World world(60, 40, '.');
+  world.fill(0, 10, 59, 10, '#');
+  const Eigen::Vector2d start(0.55, 1.65);
+  const Eigen::Vector2d goal(5.45, 1.65);
+  GlobalPathParams params;
+  params.footprint_radius_m = 0.3;
+  const GlobalPathResult hugging = plan_global_path(world.window(), start, goal, params);
+  ASSERT_EQ(hugging.status, GlobalPathStatus::kFound) << to_string(hugging.status);
+  EXPECT_LT(farthest_from_wall(hugging.waypoints_W, 1.1), 0.6);  // straight along the wall
+  params.cost_radius_m = 1.0;
+  params.near_obstacle_extra_cost = 2.0;
+  const GlobalPathResult clear = plan_global_path(world.window(), start, goal, params);
+  ASSERT_EQ(clear.status, GlobalPathStatus::kFound) << to_string(clear.status);
+  EXPECT_GT(farthest_from_wall(clear.waypoints_W, 1.1), 0.9);  // out into the room, away from the wall
+  EXPECT_GE(wall_clearance(clear.waypoints_W, world), params.footprint_radius_m - 1e-9);
+
+  // The 0.7 m gap that a 0.25 m hard radius passes stays open with a gradient out to 0.64 m (a Bearcat's
+  // circumscribed radius): the only way through is taken, just at a higher cost.
+  World wall(40, 30, '.');
+  wall.fill(20, 0, 20, 29, '#');
+  wall.fill(20, 12, 20, 18, '.');
+  GlobalPathParams bearcat;
+  bearcat.footprint_radius_m = 0.25;
+  const GlobalPathResult plain = plan_global_path(wall.window(), {0.55, 0.55}, {3.55, 2.55}, bearcat);
+  bearcat.cost_radius_m = 0.64;
+  const GlobalPathResult graded = plan_global_path(wall.window(), {0.55, 0.55}, {3.55, 2.55}, bearcat);
+  ASSERT_EQ(plain.status, GlobalPathStatus::kFound) << to_string(plain.status);
+  ASSERT_EQ(graded.status, GlobalPathStatus::kFound) << to_string(graded.status);
+  EXPECT_GE(wall_clearance(graded.waypoints_W, wall), bearcat.footprint_radius_m - 1e-9);
+  EXPECT_LT(wall_clearance(graded.waypoints_W, wall), 0.36);
+  EXPECT_GT(graded.cost_m, plain.cost_m);
+
+  // The extra cost itself: full at the hard limit, none beyond the cost radius, never negative.
+  const std::vector<float> extra = obstacle_cost(wall.window(), bearcat);
+  const auto at = [&](int x, int y) { return extra[static_cast<std::size_t>(y) * 40 + x]; };
+  EXPECT_FLOAT_EQ(at(17, 5), 2.0F);  // centre 0.25 m from the wall's square: within the hard radius
+  EXPECT_GT(at(14, 5), 0.0F);        // 0.55 m: on the slope
+  EXPECT_LT(at(14, 5), 2.0F);
+  EXPECT_FLOAT_EQ(at(5, 5), 0.0F);  // 1.45 m: beyond it
+  bearcat.cost_radius_m = -0.1;
+  EXPECT_THROW(static_cast<void>(obstacle_cost(wall.window(), bearcat)), std::invalid_argument);
+}
+
 TEST(GlobalPath, ReportsWhyThereIsNoPath) {
   // The goal inside a closed ring of wall.
   World world(30, 30, '.');

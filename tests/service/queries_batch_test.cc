@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <random>
+#include <set>
+#include <string>
 #include <vector>
 
 #include "fake_session.h"
@@ -350,6 +352,60 @@ TEST_F(QueriesBatch, OctreeWindowListsTheOccupiedVoxelsInTheBox) {
   for (const auto& voxel : reply.octree_window().voxels()) {
     EXPECT_TRUE(octomap->occupied({voxel.center().x(), voxel.center().y(), voxel.center().z()}));
     EXPECT_LE(std::abs(voxel.center().x()), 5.0 + voxel.size_m());
+  }
+}
+
+// Every kind a session counts against limits.max_pending_requests is answered by exactly one message that the session
+// counts as an answer, so a session can never stall with requests it believes unanswered; and every query kind,
+// batch and window forms included, is counted (the ClientMessage and ServerMessage bodies share field numbers and
+// names for a request and its reply). Leases, drive, e-stop and watch are control messages answered on the robot's
+// strand and are not counted.
+TEST_F(QueriesBatch, EveryQueryKindIsARequestAnsweredByExactlyOneAnswer) {
+  map_world();
+  const auto* client_body = v1::ClientMessage::descriptor()->FindOneofByName("body");
+  const auto* server = v1::ServerMessage::descriptor();
+  const std::set<std::string> control = {"lease", "drive", "estop", "watch"};
+  int requests = 0;
+  for (int i = 0; i < client_body->field_count(); ++i) {
+    const auto* field = client_body->field(i);
+    const auto kind = static_cast<v1::ClientMessage::BodyCase>(field->number());
+    const auto* reply_field = server->FindFieldByNumber(field->number());
+    const bool query =
+        reply_field != nullptr && reply_field->name() == field->name() && !control.contains(field->name());
+    EXPECT_EQ(is_request(kind), query) << field->name();
+    if (!query) continue;
+    ++requests;
+    EXPECT_TRUE(is_answer(static_cast<v1::ServerMessage::BodyCase>(reply_field->number()))) << reply_field->name();
+
+    // An empty request of this kind (refused or answered) gets exactly one answer, carrying its request_id.
+    v1::ClientMessage message;
+    auto* body = message.GetReflection()->MutableMessage(&message, field);
+    const auto* request_id = body->GetDescriptor()->FindFieldByName("request_id");
+    ASSERT_NE(request_id, nullptr) << field->name();
+    body->GetReflection()->SetUInt64(body, request_id, 40 + static_cast<std::uint64_t>(i));
+    dispatch(querier_, std::move(message));
+    const auto answer = querier_->next();
+    ASSERT_TRUE(answer) << field->name() << " got no answer";
+    EXPECT_TRUE(is_answer(answer->body_case())) << answer->ShortDebugString();
+    // A second answer to an earlier kind would arrive here first, with that kind's request_id.
+    const auto* answer_field = server->FindFieldByNumber(answer->body_case());
+    const auto& answer_body = answer->GetReflection()->GetMessage(*answer, answer_field);
+    const auto* answer_id = answer_body.GetDescriptor()->FindFieldByName("request_id");
+    ASSERT_NE(answer_id, nullptr) << answer->ShortDebugString();
+    EXPECT_EQ(answer_body.GetReflection()->GetUInt64(answer_body, answer_id), 40 + static_cast<std::uint64_t>(i))
+        << field->name() << ": " << answer->ShortDebugString();
+  }
+  core_.drain();
+  EXPECT_TRUE(querier_->take_all().empty()) << "the last kind got more than one answer";
+  EXPECT_EQ(requests, 13);
+  EXPECT_TRUE(is_answer(v1::ServerMessage::kError));
+  for (const auto kind : {v1::ClientMessage::kHello, v1::ClientMessage::kLaserScan, v1::ClientMessage::kOdometry,
+                          v1::ClientMessage::kPointCloud, v1::ClientMessage::kLease, v1::ClientMessage::kWatch}) {
+    EXPECT_FALSE(is_request(kind)) << kind;
+  }
+  for (const auto kind : {v1::ServerMessage::kWelcome, v1::ServerMessage::kScanAck, v1::ServerMessage::kMotionCommand,
+                          v1::ServerMessage::kWatchEvent}) {
+    EXPECT_FALSE(is_answer(kind)) << kind;
   }
 }
 

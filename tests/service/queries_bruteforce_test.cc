@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "handlers/model_geometry.h"
 #include "handlers/query_kernels.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/mapping/distance_field.h"
@@ -470,6 +471,38 @@ TEST(QueriesBruteForce, ChangesSinceAVersionPatchAWindowIntoTheFreshOne) {
   }
   EXPECT_GE(cases, 1000);
   EXPECT_GT(unchanged_tiles_skipped, 0);
+}
+
+// The PTEM collision check skips sampling the footprint against the sum of every PDF for poses where a bound on that
+// sum stays below f_r; the answers stay those of the full check: a hit names a restricted point, and a miss leaves no
+// restricted point anywhere on the footprint (sampled densely here).
+TEST(QueriesBruteForce, PtemCollisionSkipsOnlyPosesThatCannotHit) {
+  std::mt19937 rng(5);
+  const RandomWorld world = make_world(rng, 60, 50, 0, 0);
+  const mapping::PtemSnapshot& ptem = *world.snapshot.ptem;
+  ASSERT_TRUE(ptem.restricted_threshold());
+  int hits = 0;
+  constexpr int kCases = 2000;
+  for (int i = 0; i < kCases; ++i) {
+    const geometry::Footprint footprint = random_footprint(rng);
+    const geometry::Pose2 pose = random_pose(rng, world);
+    const PtemContact contact = collide_ptem(ptem, footprint, pose);
+    if (contact.hit) {
+      ++hits;
+      EXPECT_TRUE(ptem.restricted(contact.point_W)) << "case " << i;
+      continue;
+    }
+    // Every footprint is within 0.75 m of its outline's centre; points beyond project onto its boundary.
+    const Outline o = outline_of(footprint, pose);
+    for (double u = -0.8; u <= 0.8; u += 0.025) {
+      for (double v = -0.8; v <= 0.8; v += 0.025) {
+        const Eigen::Vector2d p_W = nearest_footprint_point(footprint, pose, o.center + Eigen::Vector2d(u, v));
+        ASSERT_FALSE(ptem.restricted(p_W)) << "case " << i << ": a restricted point of the footprint was missed";
+      }
+    }
+  }
+  std::printf("%d cases, %d PTEM hits\n", kCases, hits);
+  EXPECT_GT(hits, kCases / 50);
 }
 
 }  // namespace

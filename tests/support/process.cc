@@ -127,18 +127,21 @@ ServerProcess::ServerProcess(const std::filesystem::path& data_dir, const std::v
     argv.insert(argv.end(), {"--http", "off"});
   }
   process_ = std::make_unique<BackgroundProcess>(argv, data_dir / "occgeod.out", log_file_);
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  port_ = wait_for_port_file(*process_, port_file, log_file_, std::chrono::seconds(20));
+}
+
+std::uint16_t wait_for_port_file(BackgroundProcess& process, const std::filesystem::path& port_file,
+                                 const std::filesystem::path& log_file, std::chrono::seconds limit) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
   while (std::chrono::steady_clock::now() < deadline) {
     std::ifstream in(port_file);
     unsigned port = 0;
-    if (in >> port && port > 0) {
-      port_ = static_cast<std::uint16_t>(port);
-      return;
-    }
-    if (!process_->running()) throw std::runtime_error("occgeod exited at start: " + log());
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (in >> port && port > 0 && port <= 65535) return static_cast<std::uint16_t>(port);
+    if (!process.running()) throw std::runtime_error("occgeod exited at start: " + read_file(log_file));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  throw std::runtime_error("occgeod did not start listening within 20 s: " + log());
+  throw std::runtime_error("occgeod did not start listening within " + std::to_string(limit.count()) +
+                           " s: " + read_file(log_file));
 }
 
 std::string ServerProcess::log() const { return read_file(log_file_); }

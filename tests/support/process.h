@@ -48,6 +48,11 @@ class BackgroundProcess {
   std::optional<int> exit_code_;
 };
 
+// Waits (up to `limit`) until the server `process` writes the port it listens on to `port_file` (its --port-file) and
+// returns that port. Throws, quoting the server's log file, when the server exits first or the time runs out.
+std::uint16_t wait_for_port_file(BackgroundProcess& process, const std::filesystem::path& port_file,
+                                 const std::filesystem::path& log_file, std::chrono::seconds limit);
+
 // occgeod on 127.0.0.1 with a port chosen by the kernel and its own data directory.
 class ServerProcess {
  public:

@@ -23,9 +23,13 @@ except ImportError as _error:  # pragma: no cover - a setup problem, explained t
     ) from _error
 
 from occgeo.client import (  # noqa: E402
+    BEHAVIOURS,
     CertaintyWindow,
     Client,
     ClientError,
+    GridFollower,
+    Lease,
+    LeaseRefused,
     ServerError,
     Timeout,
 )
@@ -37,10 +41,14 @@ from occgeo.mapfile import (  # noqa: E402
 from occgeo.specs import laser_robot_spec  # noqa: E402
 
 __all__ = [
+    "BEHAVIOURS",
     "CertaintyGreyLevels",
     "CertaintyWindow",
     "Client",
     "ClientError",
+    "GridFollower",
+    "Lease",
+    "LeaseRefused",
     "Timeout",
     "ServerError",
     "image_from_certainty",

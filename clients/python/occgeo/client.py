@@ -13,7 +13,7 @@ import collections
 import socket
 import time
 
-from occgeo.v1 import common_pb2, query_pb2, robot_pb2, sensors_pb2, session_pb2
+from occgeo.v1 import common_pb2, control_pb2, query_pb2, robot_pb2, sensors_pb2, session_pb2
 
 #: The protocol version this client speaks.
 PROTOCOL_VERSION = 1
@@ -29,7 +29,15 @@ _ROLES = {
 _MODELS = {"grid": query_pb2.MODEL_GRID, "octomap": query_pb2.MODEL_OCTOMAP, "ptem": query_pb2.MODEL_PTEM}
 # ServerMessage bodies that answer a query (they carry request_id).
 _REPLY_BODIES = ("collision", "clearance", "status", "grid", "ptem", "octree", "collision_batch", "clearance_batch",
-                 "raycast", "occupancy", "swept", "grid_window", "octree_window")
+                 "raycast", "occupancy", "swept", "grid_window", "octree_window", "lease", "drive", "estop", "watch")
+_LEASE_ACTIONS = {
+    "acquire": control_pb2.LeaseRequest.ACQUIRE,
+    "retain": control_pb2.LeaseRequest.RETAIN,
+    "return": control_pb2.LeaseRequest.RETURN,
+    "take": control_pb2.LeaseRequest.TAKE,
+}
+#: Behaviour names a ``DriveRequest`` accepts (see docs/PROTOCOL.md, "Drive").
+BEHAVIOURS = ("bearcat", "stop", "teleop", "wander", "goto", "waypoints")
 
 
 class ClientError(Exception):
@@ -73,6 +81,19 @@ class ServerError(Exception):
         if self.field:
             text += " " + self.field
         return text + ": " + self.message
+
+
+class LeaseRefused(Exception):
+    """A ``LeaseRequest`` answered with ``granted: false``: someone else holds the lease.
+
+    Attributes: ``reply`` (the ``LeaseReply``; ``reply.holder`` names the holder's session and client).
+    """
+
+    def __init__(self, reply, action):
+        self.reply = reply
+        holder = reply.holder
+        who = ("session %d (%s)" % (holder.session_id, holder.client_name)) if reply.HasField("holder") else "nobody"
+        super().__init__("lease %s of robot %s refused: held by %s" % (action, reply.robot_id, who))
 
 
 class CertaintyWindow:
@@ -193,6 +214,7 @@ class Client:
         self.scan_acks = collections.deque(maxlen=10000)  #: ``ScanAck``s not yet consumed
         self.motion_commands = collections.deque(maxlen=10000)  #: ``MotionCommand``s, oldest first
         self.errors = collections.deque(maxlen=10000)  #: ``Error``s naming no request (as ServerError)
+        self.watch_events = collections.deque(maxlen=100000)  #: ``WatchEvent``s not yet consumed, oldest first
 
     # ----------------------------------------------------------------------------- connection
 
@@ -201,8 +223,10 @@ class Client:
                 client_name="occgeo-python", auth_token=""):
         """Connects to occgeod at ``host:port`` and does the hello/welcome exchange.
 
-        ``role``: ``"query"`` (queries only) or ``"driver"`` (a robot: ``robot_id`` required, 1-64
-        characters of ``A-Z a-z 0-9 _ . -``; ``world`` the world it maps into, None for "default").
+        ``role``: ``"query"`` (queries only), ``"driver"`` (a robot: ``robot_id`` required, 1-64
+        characters of ``A-Z a-z 0-9 _ . -``; ``world`` the world it maps into, None for "default"),
+        ``"controller"`` (leases, drive, e-stop, watch and queries) or ``"observer"`` (e-stop, watch and
+        queries). ``auth_token``: the role's token, or the operator token (which allows lease ``take``).
         ``timeout_s`` (seconds) bounds the connect, the hello and, by default, every later call.
         Raises :class:`ServerError` when the server refuses the hello, :class:`Timeout` or
         :class:`ClientError` on transport problems.
@@ -325,6 +349,8 @@ class Client:
             self.scan_acks.append(message.scan_ack)
         elif kind == "motion_command":
             self.motion_commands.append(message.motion_command)
+        elif kind == "watch_event":
+            self.watch_events.append(message.watch_event)
         elif kind == "error" and message.error.request_id == 0:
             self.errors.append(ServerError.from_proto(message.error))
         elif kind == "error" or kind in _REPLY_BODIES:
@@ -550,6 +576,106 @@ class Client:
             out.write(reply.bt)
         return reply
 
+    def octree_window(self, min_corner, max_corner, world="", timeout_s=60.0):
+        """The OctoMap's occupied leaves overlapping the box [``min_corner``, ``max_corner``] ((x, y, z), world
+        frame, metres): ``OctreeWindowReply`` with ``voxels`` (``center``, ``size_m``, ``probability``),
+        ``resolution_m`` and ``version``."""
+        def fill(q):
+            q.world = world or ""
+            q.min_corner.x, q.min_corner.y, q.min_corner.z = (float(v) for v in min_corner)
+            q.max_corner.x, q.max_corner.y, q.max_corner.z = (float(v) for v in max_corner)
+        return self._call("octree_window", fill, timeout_s)
+
+    # ----------------------------------------------------------------------------- watch
+
+    def watch(self, world="", robot_id="", timeout_s=None):
+        """Subscribes this session (observer or controller) to one ``WatchEvent`` per sensor message the
+        server acknowledges for robot ``robot_id`` of world ``world`` (empty: every robot, every world);
+        a new call replaces the filter. Events arrive in :attr:`watch_events`; read them with
+        :meth:`next_watch_event`. Returns the ``WatchReply``."""
+        def fill(q):
+            q.world = world or ""
+            q.robot_id = robot_id or ""
+        return self._call("watch", fill, timeout_s)
+
+    def next_watch_event(self, timeout_s=None):
+        """The oldest ``WatchEvent`` not yet consumed (``world``, ``robot_id``, ``seq``, ``world_version``,
+        ``dropped_since_last``: events the server dropped just before this one because this client read
+        too slowly), waiting up to ``timeout_s``; raises :class:`Timeout` when none arrives."""
+        if self.watch_events:
+            return self.watch_events.popleft()
+        return self._wait(lambda m: m.WhichOneof("body") == "watch_event", timeout_s, "a watch event").watch_event
+
+    def poll(self, duration_s):
+        """Reads (and files) whatever the server sends for ``duration_s`` seconds: watch events, motion
+        commands, errors. Returns the number of messages received."""
+        deadline = time.monotonic() + duration_s
+        received = 0
+        while True:
+            message = self._receive(deadline)
+            if message is None:
+                return received
+            self._file(message)
+            received += 1
+
+    # ----------------------------------------------------------------------------- control
+
+    def lease(self, robot, action, timeout_s=0.0, call_timeout_s=None):
+        """One ``LeaseRequest`` for robot ``robot`` (controller sessions): ``action`` ``"acquire"``,
+        ``"retain"``, ``"return"`` or ``"take"`` (operator sessions only); ``timeout_s`` the lease's timeout
+        in seconds (0: the server's ``control.lease_timeout_s``). Returns the ``LeaseReply`` (``granted``,
+        ``holder``, ``expires_in_s``), whether granted or not; see :meth:`hold_lease`."""
+        action_value = _LEASE_ACTIONS[action] if isinstance(action, str) else int(action)
+
+        def fill(q):
+            q.robot_id = robot
+            q.action = action_value
+            q.timeout_s = float(timeout_s)
+        return self._call("lease", fill, call_timeout_s)
+
+    def hold_lease(self, robot, timeout_s=2.0, take=False):
+        """Acquires (``take``: takes) robot ``robot``'s lease and returns a :class:`Lease`, which keeps it
+        with :meth:`Lease.keep_alive` and returns it on :meth:`Lease.release` or leaving a ``with`` block.
+        Raises :class:`LeaseRefused` when someone else holds it."""
+        action = "take" if take else "acquire"
+        reply = self.lease(robot, action, timeout_s)
+        if not reply.granted:
+            raise LeaseRefused(reply, action)
+        return Lease(self, robot, timeout_s, reply)
+
+    def drive(self, robot, behaviour, linear_mps=0.0, angular_radps=0.0, goal=None, waypoints=None, escape=False,
+              timeout_s=None):
+        """Sets robot ``robot``'s behaviour (the session must hold its lease): one of :data:`BEHAVIOURS`.
+        ``teleop`` drives at ``linear_mps`` (m/s, forward along ``base_link`` x) and ``angular_radps``
+        (rad/s, counter-clockwise); ``goto`` needs ``goal`` (x, y), world frame, metres; ``waypoints`` a
+        list of (x, y); ``escape`` follows a global path when the behaviour stalls. Returns the
+        ``DriveReply`` (teleop velocities after clamping to the robot's limits, ``estop``). Raises
+        :class:`ServerError` (``ERROR_NOT_ALLOWED`` naming ``drive.robot_id`` without the lease)."""
+        def fill(q):
+            q.robot_id = robot
+            q.behaviour = behaviour
+            q.linear_mps = float(linear_mps)
+            q.angular_radps = float(angular_radps)
+            if goal is not None:
+                q.goal.x_m, q.goal.y_m = float(goal[0]), float(goal[1])
+            for x, y in waypoints or ():
+                q.waypoints.add(x_m=float(x), y_m=float(y))
+            q.escape = bool(escape)
+        return self._call("drive", fill, timeout_s)
+
+    def teleop(self, robot, linear_mps, angular_radps, timeout_s=None):
+        """:meth:`drive` with behaviour ``teleop``: drive robot ``robot`` at (``linear_mps``, ``angular_radps``)."""
+        return self.drive(robot, "teleop", linear_mps, angular_radps, timeout_s=timeout_s)
+
+    def estop(self, robot, engage=True, timeout_s=None):
+        """Engages robot ``robot``'s e-stop (any driver, controller or observer session; it latches), or
+        with ``engage=False`` releases it (only the lease holder). Returns the ``EStopReply`` (``engaged``,
+        ``holder``)."""
+        def fill(q):
+            q.robot_id = robot
+            q.engage = bool(engage)
+        return self._call("estop", fill, timeout_s)
+
     # ----------------------------------------------------------------------------- driver
 
     def sync(self, timeout_s=None):
@@ -645,6 +771,64 @@ class Client:
         if reply.WhichOneof("body") == "error":
             raise ServerError.from_proto(reply.error)
         return reply.scan_ack
+
+
+class Lease:
+    """A control lease this client holds (from :meth:`Client.hold_lease`). The server lets it lapse — and
+    stops the robot — unless it is retained within its timeout: call :meth:`keep_alive` often (it
+    retains once a third of the timeout has passed), e.g. from the loop that watches the robot. Used as
+    a context manager, the lease is returned when the block ends."""
+
+    def __init__(self, client, robot, timeout_s, reply):
+        self.client = client
+        self.robot = robot
+        self.timeout_s = timeout_s  #: seconds; 0 means the server's control.lease_timeout_s
+        self.reply = reply  #: the latest ``LeaseReply``
+        self.held = True
+        self._retained_at = time.monotonic()
+
+    def retain(self):
+        """Renews the lease now; raises :class:`LeaseRefused` if it was lost (lapsed or taken)."""
+        reply = self.client.lease(self.robot, "retain", self.timeout_s)
+        self._retained_at = time.monotonic()
+        self.reply = reply
+        if not reply.granted:
+            self.held = False
+            raise LeaseRefused(reply, "retain")
+        return reply
+
+    def keep_alive(self):
+        """Retains the lease if a third of its timeout (or of the server's, when the reply says how long)
+        has passed since the last renewal; cheap to call often."""
+        period = self.timeout_s or self.reply.expires_in_s or 2.0
+        if time.monotonic() - self._retained_at >= period / 3.0:
+            self.retain()
+
+    def sleep(self, duration_s):
+        """Waits ``duration_s`` seconds, filing what the server sends and keeping the lease alive."""
+        deadline = time.monotonic() + duration_s
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return
+            self.keep_alive()
+            period = self.timeout_s or self.reply.expires_in_s or 2.0
+            self.client.poll(min(remaining, period / 6.0))
+
+    def release(self):
+        """Returns the lease (a ``teleop`` behaviour becomes ``stop``); returns the ``LeaseReply``."""
+        if not self.held:
+            return self.reply
+        self.held = False
+        self.reply = self.client.lease(self.robot, "return")
+        return self.reply
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.client._sock is not None:
+            self.release()
 
 
 class GridFollower:

@@ -89,11 +89,13 @@ def clearance_json(reply):
     return out
 
 
-class ClientTest(unittest.TestCase):
-    """Each test gets its own occgeod (random port, temporary data dir) holding a world mapped by
-    SCANS laser scans of a wall, streamed by this client as a driver."""
+class ServerTestCase(unittest.TestCase):
+    """Each test gets its own occgeod (random port, temporary data dir), stopped when it ends."""
 
     def setUp(self):
+        self.start_server()
+
+    def start_server(self, extra_args=()):
         self.occgeod = _executable("OCCGEOD", os.path.join("service", "occgeod"))
         self.cli = _executable("OCCGEO_CLI", os.path.join("clients", "occgeo"))
         self.tmp = tempfile.mkdtemp(prefix="occgeo-python-test-")
@@ -103,19 +105,15 @@ class ClientTest(unittest.TestCase):
         self.addCleanup(self.log.close)
         self.server = subprocess.Popen(
             [self.occgeod, "--listen", "127.0.0.1:0", "--port-file", port_file,
-             "--data-dir", os.path.join(self.tmp, "data"), "--log-level", "warn"],
+             "--data-dir", os.path.join(self.tmp, "data"), "--log-level", "warn"] + list(extra_args),
             stdout=self.log, stderr=subprocess.STDOUT)
         self.addCleanup(self._stop_server)  # runs even when setUp fails below
         self.port = self._wait_for_port(port_file)
         self.addCleanup(self._close_clients)
         self.clients = []
-        self.spec = laser_robot_spec(model="python-test")
-        self.acks = self._stream_wall()
-        self._wait_for_octree()
-        self.query = self.connect()
 
     def tearDown(self):
-        pass  # the cleanups registered in setUp close the clients and stop the server (SIGINT)
+        pass  # the cleanups registered in start_server close the clients and stop the server (SIGINT)
 
     # -------------------------------------------------------------------------------- helpers
 
@@ -158,6 +156,26 @@ class ClientTest(unittest.TestCase):
         self.clients.append(client)
         return client
 
+    def run_cli(self, *args, check=True):
+        result = subprocess.run([self.cli] + list(args) + ["--server", "127.0.0.1:%d" % self.port],
+                                capture_output=True, timeout=CLI_TIMEOUT_S)
+        if check:
+            self.assertEqual(result.returncode, 0,
+                             "occgeo %s failed: %s" % (" ".join(args), result.stderr.decode()))
+        return result.stdout.decode() if check else result
+
+
+class ClientTest(ServerTestCase):
+    """Each test gets its own occgeod holding a world mapped by SCANS laser scans of a wall, streamed by
+    this client as a driver."""
+
+    def setUp(self):
+        self.start_server()
+        self.spec = laser_robot_spec(model="python-test")
+        self.acks = self._stream_wall()
+        self._wait_for_octree()
+        self.query = self.connect()
+
     def _stream_wall(self):
         driver = self.connect(role="driver", robot_id=ROBOT, world=WORLD)
         driver.send_robot_spec(self.spec)
@@ -178,12 +196,6 @@ class ClientTest(unittest.TestCase):
                 return
             time.sleep(0.1)
         self.fail("the octree snapshot did not catch up with %d scans" % SCANS)
-
-    def run_cli(self, *args):
-        result = subprocess.run([self.cli] + list(args) + ["--server", "127.0.0.1:%d" % self.port],
-                                capture_output=True, timeout=CLI_TIMEOUT_S)
-        self.assertEqual(result.returncode, 0, "occgeo %s failed: %s" % (" ".join(args), result.stderr.decode()))
-        return result.stdout.decode()
 
     # -------------------------------------------------------------------------------- tests
 

@@ -14,7 +14,7 @@
 #include "occgeo/client/grid.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_file.h"
-#include "occgeo/mapfile/png.h"
+#include "occgeo/mapfile/map_picture.h"
 #include "occgeo/replay/line_source.h"
 
 namespace occgeo::replay {
@@ -157,6 +157,7 @@ struct PassResult {
   double duration_s = 0.0;
   ConsistencyCounter consistency;
   std::optional<v1::GridReply> grid;
+  std::vector<mapfile::PicturePose> trajectory;  // base_link of every scan sent, world frame
 };
 
 class Pass {
@@ -204,6 +205,7 @@ class Pass {
         std::this_thread::sleep_until(due);
       }
       send_scan(*connection, this_index + 1, stamp, *scan);
+      result_.trajectory.push_back({scan->X_WB.x, scan->X_WB.y, scan->X_WB.theta});
       ++result_.scans;
       progress.update(source.progress(), result_.scans, seconds_since(start));
     }
@@ -316,7 +318,7 @@ void ConsistencyCounter::add_scan(const mapfile::CertaintyWindow& grid, const Sc
                                   double range_max_m) {
   const LogPose X_WS = scan.X_WB.compose(scan.X_BS);
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
-    const double r = scan.ranges_m[i];
+    const double r = static_cast<double>(scan.ranges_m[i]);
     if (!(r >= range_min_m && r < range_max_m)) continue;
     const double angle = X_WS.theta + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
     ++endpoints_;
@@ -360,7 +362,13 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
     } else {
       const mapfile::OccupancyImage image = mapfile::image_from_certainty(client::certainty_window(grid));
       mapfile::write_map(options.out_prefix, image);
-      mapfile::write_png_gray8(options.out_prefix + ".png", image.width, image.height, image.pixels);
+      // The picture `occgeo map export --format png` draws, with the replayed trajectory and its final pose on it.
+      mapfile::MapPicture picture = mapfile::render_certainty(client::certainty_window(grid), 1);
+      mapfile::PictureOverlays overlays;
+      for (const auto& pose : full.trajectory) overlays.trajectory.push_back({pose.x, pose.y});
+      if (!full.trajectory.empty()) overlays.markers.push_back(full.trajectory.back());
+      mapfile::draw_overlays(picture, overlays);
+      picture.write_png(options.out_prefix + ".png");
       summary.files_written = {options.out_prefix + ".pgm", options.out_prefix + ".yaml", options.out_prefix + ".png"};
     }
   }

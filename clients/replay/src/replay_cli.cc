@@ -35,6 +35,7 @@ then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanA
   --consistency        first map the even scans into world W-even (robot ROBOT-even), then report the fraction of
                        the odd scans' beam endpoints within one cell of an occupied cell of that map
   --out PREFIX         write the final map of W as PREFIX.pgm + PREFIX.yaml (ROS map_server) and PREFIX.png
+                       (the map as `map export --format png` draws it, with the replayed trajectory in red)
   --json               print one JSON summary object on stdout
 Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are
 synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams).

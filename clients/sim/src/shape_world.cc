@@ -206,7 +206,9 @@ std::optional<RayHit> ShapeWorld::cast(const Eigen::Vector2d& p_W, const Eigen::
 std::optional<std::string> ShapeWorld::find_collision(const geometry::BoxFootprint& footprint,
                                                       const geometry::Pose2& X_WB, double time_s) const {
   for (const Shape& shape : shapes_) {
-    if (shape.overlaps_heights(0.0, footprint.height) && footprint_overlaps(shape, footprint, X_WB)) return shape.name;
+    if (shape.solid && shape.overlaps_heights(0.0, footprint.height) && footprint_overlaps(shape, footprint, X_WB)) {
+      return shape.name;
+    }
   }
   for (const MovingObstacle& obstacle : moving_) {
     const Shape shape = obstacle.shape_at(time_s);
@@ -279,13 +281,13 @@ class Parser {
     Shape result;
     try {
       if (kind == "circle") {
-        check_keys(params, at, {"center", "radius", "base_height", "top_height"});
+        check_keys(params, at, {"center", "radius", "base_height", "top_height", "solid"});
         const Eigen::Vector2d center = moving && !params["center"]
                                            ? Eigen::Vector2d::Zero()
                                            : point(required(params, "center", at), at + ".center");
         result = Shape::circle(center, number(required(params, "radius", at), at + ".radius"));
       } else if (kind == "box") {
-        check_keys(params, at, {"center", "size", "yaw", "base_height", "top_height"});
+        check_keys(params, at, {"center", "size", "yaw", "base_height", "top_height", "solid"});
         const Eigen::Vector2d center = moving && !params["center"]
                                            ? Eigen::Vector2d::Zero()
                                            : point(required(params, "center", at), at + ".center");
@@ -293,7 +295,7 @@ class Parser {
         const double yaw = params["yaw"] ? number(params["yaw"], at + ".yaw") : 0.0;
         result = Shape::box(center, size.x(), size.y(), yaw);
       } else if (kind == "polygon" && !moving) {
-        check_keys(params, at, {"points", "base_height", "top_height"});
+        check_keys(params, at, {"points", "base_height", "top_height", "solid"});
         result = Shape::polygon(points(required(params, "points", at), at + ".points"));
       } else {
         fail(path + "." + kind,
@@ -311,6 +313,14 @@ class Parser {
     if (!(result.base_height_m >= 0.0 && result.top_height_m > result.base_height_m)) {
       fail(at, "need 0 <= base_height < top_height, got " + std::to_string(result.base_height_m) + " and " +
                    std::to_string(result.top_height_m));
+    }
+    if (params["solid"]) {
+      if (moving) fail(at + ".solid", "only static shapes may be non-solid");
+      try {
+        result.solid = params["solid"].as<bool>();
+      } catch (const YAML::Exception&) {
+        fail(at + ".solid", "expected true or false");
+      }
     }
     result.name = path + " (" + kind + ")";
     return result;

@@ -20,6 +20,14 @@ double footprint_width(const geometry::Footprint& footprint) {
   return 2.0 * std::get<geometry::CylinderFootprint>(footprint).radius;
 }
 
+// The largest disc about base_link inside the footprint.
+double inscribed_radius(const geometry::Footprint& footprint) {
+  if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
+    return std::max(0.0, std::min(box->width / 2.0, box->length / 2.0 - std::abs(box->center_x)));
+  }
+  return std::get<geometry::CylinderFootprint>(footprint).radius;
+}
+
 double footprint_front(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->center_x + box->length / 2.0;
   return std::get<geometry::CylinderFootprint>(footprint).radius;
@@ -82,6 +90,10 @@ class GotoAdapter final : public Behaviour {
         corridor_half_width_m_(corridor_half_width_m) {}
   [[nodiscard]] std::string_view name() const override { return "goto"; }
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return goal_W_; }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
+    if (!position_W_ || done_) return {};
+    return {*position_W_, goal_W_};
+  }
   BehaviourCommand decide(const BehaviourInput& input) override {
     BehaviourCommand command;
     if (!input.X_WB) {
@@ -89,6 +101,7 @@ class GotoAdapter final : public Behaviour {
       command.state = "no_pose";
       return command;
     }
+    position_W_ = Eigen::Vector2d(input.X_WB->x, input.X_WB->y);
     std::vector<SweepReading> readings = sweep_from_scan(input.scan);
     // Beyond the seed: the ActivityBot's one forward beam stands for its whole 0.13 m width, a wider robot's does
     // not; straight ahead reads the nearest return inside the corridor the body sweeps driving forward.
@@ -101,6 +114,7 @@ class GotoAdapter final : public Behaviour {
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
     const PointBugDecision decision = behaviour_.decide(pose, sweep);
     command.state = std::string(decision.state);
+    done_ = command.state == "reached" || command.state == "no_path";
     command.stop = decision.stop;
     // The seed's drive_goto ends each turn and leg exactly; a velocity held for one control cycle must not
     // overshoot them, or the heading tolerance would make the robot oscillate.
@@ -134,6 +148,8 @@ class GotoAdapter final : public Behaviour {
 
   PointBugBehaviour behaviour_;
   Eigen::Vector2d goal_W_;
+  std::optional<Eigen::Vector2d> position_W_;  // at the latest decision
+  bool done_ = false;                          // reached, or no path: nothing planned any more
   double period_s_;
   double corridor_half_width_m_;
 };
@@ -153,6 +169,14 @@ class WaypointsAdapter final : public Behaviour {
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override {
     return guidance_.waypoints_W()[std::min(guidance_.waypoint_index(), guidance_.waypoints_W().size() - 1)];
   }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
+    const std::vector<Eigen::Vector2d>& waypoints_W = guidance_.waypoints_W();
+    if (!position_W_ || reached_ || guidance_.waypoint_index() >= waypoints_W.size()) return {};
+    std::vector<Eigen::Vector2d> path{*position_W_};
+    path.insert(path.end(), waypoints_W.begin() + static_cast<std::ptrdiff_t>(guidance_.waypoint_index()),
+                waypoints_W.end());
+    return path;
+  }
   BehaviourCommand decide(const BehaviourInput& input) override {
     BehaviourCommand command;
     if (!input.X_WB) {
@@ -160,6 +184,7 @@ class WaypointsAdapter final : public Behaviour {
       command.state = "no_pose";
       return command;
     }
+    position_W_ = Eigen::Vector2d(input.X_WB->x, input.X_WB->y);
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
     const PtemGuidanceDecision decision = input.ptem != nullptr ? guidance_.decide(pose, input.stamp_s, *input.ptem)
                                                                 : guidance_.decide(pose, input.stamp_s, NoThreat{});
@@ -167,18 +192,25 @@ class WaypointsAdapter final : public Behaviour {
     command.angular_radps = decision.angular_radps;
     command.stop = decision.stop;
     command.state = decision.reached ? "reached" : std::string(decision.state);
+    reached_ = decision.reached;
     return command;
   }
 
  private:
   PtemGuidance guidance_;
+  std::optional<Eigen::Vector2d> position_W_;  // at the latest decision
+  bool reached_ = false;
 };
 
 class EscapeWrapper final : public Behaviour {
  public:
   EscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
       : rebuild_(std::move(rebuild)), inner_(rebuild_()), detector_(detector_params()) {
-    planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint) * 0.75;
+    // Hard limit at the inscribed radius, so a gap the body fits through aligned stays open; a cost gradient out to
+    // the circumscribed radius keeps the path off walls where there is room (the guard checks the real footprint).
+    planner_.footprint_radius_m = inscribed_radius(robot.footprint);
+    planner_.cost_radius_m = geometry::bounding_radius(robot.footprint);
+    planner_.near_obstacle_extra_cost = 2.0;
     planner_.window_margin_m = 6.0;
     follower_.linear_speed_mps = std::min(0.4, robot.max_linear_mps);
     follower_.lookahead_m = 0.6;
@@ -187,12 +219,31 @@ class EscapeWrapper final : public Behaviour {
   }
   [[nodiscard]] std::string_view name() const override { return inner_->name(); }
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
+    if (path_.empty() || !position_W_) return inner_->planned_path();
+    // From the robot along what is left of the escape path.
+    std::vector<Eigen::Vector2d> path{*position_W_};
+    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
+                path_.end());
+    return path;
+  }
 
   BehaviourCommand decide(const BehaviourInput& input) override {
     const std::optional<Eigen::Vector2d> goal = inner_->current_goal();
     if (!goal || !input.X_WB) return inner_->decide(input);
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
     if (!path_.empty()) return follow(input, pose, *goal);
+    // PointBug only sees what its sweep shows now; the map remembers more. When the straight way to the goal runs
+    // into something remembered (the U of seed 000 Fig 5.3 seen from outside, the cup of seed 003 Fig 2.10), follow
+    // the global path round it instead of driving in and finding out.
+    if (inner_->name() == "goto" && input.grid != nullptr && input.stamp_s >= next_look_ahead_s_) {
+      next_look_ahead_s_ = input.stamp_s + 0.5;
+      if (!segment_clear(*input.grid, {pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m)) {
+        trigger_ = "blocked";
+        if (plan(input, pose, *goal)) return follow(input, pose, *goal);
+      }
+    }
     BehaviourCommand command = inner_->decide(input);
     if (command.state == "reached") return command;
     const LoopStatus status =
@@ -259,8 +310,10 @@ class EscapeWrapper final : public Behaviour {
   PurePursuitParams follower_;
   std::vector<Eigen::Vector2d> path_;
   std::size_t segment_ = 0;
+  std::optional<Eigen::Vector2d> position_W_;  // at the latest decision
   double planned_at_s_ = 0.0;
   double next_plan_s_ = -std::numeric_limits<double>::infinity();
+  double next_look_ahead_s_ = -std::numeric_limits<double>::infinity();
   std::string trigger_;
 };
 

@@ -40,6 +40,7 @@ class SearchGrid {
   SearchGrid(const PlanningWindow& window, const GlobalPathParams& params)
       : window_(window),
         blocked_(inflate(window, params.footprint_radius_m)),
+        extra_(obstacle_cost(window, params)),
         unknown_factor_(1.0 + params.unknown_extra_cost) {}
 
   [[nodiscard]] int width() const { return window_.width; }
@@ -57,7 +58,8 @@ class SearchGrid {
   [[nodiscard]] bool blocked(std::size_t index) const { return blocked_[index]; }
   // Cost per metre of travel inside the cell.
   [[nodiscard]] double weight(std::size_t index) const {
-    return window_.cells[index] == PlanningCell::kUnknown ? unknown_factor_ : 1.0;
+    return (window_.cells[index] == PlanningCell::kUnknown ? unknown_factor_ : 1.0) +
+           static_cast<double>(extra_[index]);
   }
   [[nodiscard]] double cell_size() const { return window_.cell_size_m; }
   [[nodiscard]] Eigen::Vector2d centre_W(Local c) const {
@@ -112,6 +114,7 @@ class SearchGrid {
  private:
   const PlanningWindow& window_;
   std::vector<bool> blocked_;
+  std::vector<float> extra_;
   double unknown_factor_;
 };
 
@@ -144,6 +147,9 @@ void GlobalPathParams::validate() const {
   require(std::isfinite(footprint_radius_m) && footprint_radius_m >= 0.0 && footprint_radius_m <= 5.0,
           "footprint_radius_m", "must be in [0, 5] metres", footprint_radius_m);
   require_non_negative("unknown_extra_cost", unknown_extra_cost);
+  require(std::isfinite(cost_radius_m) && cost_radius_m >= 0.0 && cost_radius_m <= 5.0, "cost_radius_m",
+          "must be in [0, 5] metres", cost_radius_m);
+  require_non_negative("near_obstacle_extra_cost", near_obstacle_extra_cost);
   require(occupied_threshold >= 0 && occupied_threshold <= 255, "occupied_threshold", "must be in [0, 255]",
           occupied_threshold);
   require_non_negative("window_margin_m", window_margin_m);
@@ -249,6 +255,53 @@ std::vector<bool> inflate(const PlanningWindow& window, double footprint_radius_
     }
   }
   return blocked;
+}
+
+std::vector<float> obstacle_cost(const PlanningWindow& window, const GlobalPathParams& params) {
+  check_window(window);
+  params.validate();
+  std::vector<float> extra(window.cells.size(), 0.0F);
+  if (params.cost_radius_m <= params.footprint_radius_m || params.near_obstacle_extra_cost <= 0.0) return extra;
+  // In cells, from a centre to an occupied cell's square: full extra cost at `hard`, none from `soft` on.
+  const double hard = params.footprint_radius_m / window.cell_size_m + kSqrt2 / 2.0;
+  const double soft = params.cost_radius_m / window.cell_size_m + kSqrt2 / 2.0;
+  const int span = static_cast<int>(std::ceil(soft)) + 1;
+  struct Offset {
+    int dx, dy;
+    float extra;
+  };
+  std::vector<Offset> offsets;
+  for (int dy = -span; dy <= span; ++dy) {
+    for (int dx = -span; dx <= span; ++dx) {
+      const double gap = std::hypot(std::max(0.0, std::abs(dx) - 0.5), std::max(0.0, std::abs(dy) - 0.5));
+      if (gap >= soft) continue;
+      const double fraction = std::clamp((soft - gap) / (soft - hard), 0.0, 1.0);
+      offsets.push_back({dx, dy, static_cast<float>(params.near_obstacle_extra_cost * fraction)});
+    }
+  }
+  const auto occupied = [&](int col, int row) {
+    return col >= 0 && row >= 0 && col < window.width && row < window.height &&
+           window.cells[static_cast<std::size_t>(row) * static_cast<std::size_t>(window.width) +
+                        static_cast<std::size_t>(col)] == PlanningCell::kOccupied;
+  };
+  for (int row = 0; row < window.height; ++row) {
+    for (int col = 0; col < window.width; ++col) {
+      // As in inflate: only edge cells of an occupied blob can be the nearest one to a cell outside it.
+      if (!occupied(col, row) ||
+          (occupied(col - 1, row) && occupied(col + 1, row) && occupied(col, row - 1) && occupied(col, row + 1))) {
+        continue;
+      }
+      for (const Offset& offset : offsets) {
+        const int c = col + offset.dx;
+        const int r = row + offset.dy;
+        if (c < 0 || r < 0 || c >= window.width || r >= window.height) continue;
+        float& cell =
+            extra[static_cast<std::size_t>(r) * static_cast<std::size_t>(window.width) + static_cast<std::size_t>(c)];
+        cell = std::max(cell, offset.extra);
+      }
+    }
+  }
+  return extra;
 }
 
 GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vector2d& start_W,
@@ -405,6 +458,36 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen
       planning_window(grid, {static_cast<std::int32_t>(min_x), static_cast<std::int32_t>(min_y)},
                       {static_cast<std::int32_t>(max_x), static_cast<std::int32_t>(max_y)}, params.occupied_threshold);
   return plan_global_path(window, start_W, goal_W, params);
+}
+
+bool segment_clear(const mapping::GridSnapshot& grid, const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W,
+                   double radius_m) {
+  require(a_W.allFinite(), "a_W", "must be finite", a_W.x());
+  require(b_W.allFinite(), "b_W", "must be finite", b_W.x());
+  require(std::isfinite(radius_m) && radius_m >= 0.0 && radius_m <= 5.0, "radius_m", "must be in [0, 5] metres",
+          radius_m);
+  const double cell_m = grid.cell_size();
+  const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - cell_m;
+  const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + cell_m;
+  for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
+    require(std::abs(value / cell_m) < kMaxCellIndex, "a_W", "must lie within 2^30 cells of the origin", value);
+  }
+  const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(lo.x() / cell_m)),
+                                static_cast<std::int32_t>(std::floor(lo.y() / cell_m))};
+  const geometry::CellIndex max{static_cast<std::int32_t>(std::floor(hi.x() / cell_m)),
+                                static_cast<std::int32_t>(std::floor(hi.y() / cell_m))};
+  const Eigen::Vector2d along = b_W - a_W;
+  const double length_sq = along.squaredNorm();
+  // A cell's square reaches half a diagonal beyond its centre.
+  const double reach_m = radius_m + cell_m * kSqrt2 / 2.0;
+  bool clear = true;
+  grid.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+    const Eigen::Vector2d centre((c.ix + 0.5) * cell_m, (c.iy + 0.5) * cell_m);
+    const double t = length_sq > 0.0 ? std::clamp((centre - a_W).dot(along) / length_sq, 0.0, 1.0) : 0.0;
+    if ((a_W + t * along - centre).norm() < reach_m) clear = false;
+    return clear;
+  });
+  return clear;
 }
 
 PurePursuitCommand pure_pursuit(const Pose2& pose, std::span<const Eigen::Vector2d> path_W,

@@ -13,6 +13,8 @@
 #include <fstream>
 #include <iterator>
 
+#include "../metrics.h"
+
 namespace occgeo::service::durability {
 
 namespace {
@@ -56,6 +58,8 @@ std::string frame_of(const std::string& payload) {
 
 std::string errno_text(const std::string& what, int error) { return what + ": " + std::strerror(error); }
 
+metrics::Labels world_label(const std::filesystem::path& file) { return {{"world", file.stem().string()}}; }
+
 // Decodes one payload whose CRC matched; false when its structure is wrong (which a CRC match makes a bug or
 // deliberate damage, treated as corruption).
 bool decode_payload(std::string_view in, JournalRecord& record) {
@@ -83,6 +87,20 @@ bool decode_payload(std::string_view in, JournalRecord& record) {
 }
 
 }  // namespace
+
+std::uint64_t message_fingerprint(std::string_view kind, std::string_view serialized) {
+  std::uint64_t hash = 14695981039346656037ULL;
+  const auto mix = [&](std::string_view bytes) {
+    for (const char c : bytes) {
+      hash ^= static_cast<unsigned char>(c);
+      hash *= 1099511628211ULL;
+    }
+  };
+  mix(kind);
+  mix(std::string_view("\0", 1));
+  mix(serialized);
+  return hash;
+}
 
 std::optional<SyncPolicy> parse_sync_policy(const std::string& name) {
   if (name == "every") return SyncPolicy::kEvery;
@@ -166,7 +184,16 @@ WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::c
       next_lsn_(next_lsn),
       written_lsn_(next_lsn - 1),
       durable_lsn_(next_lsn - 1),
-      snapshot_lsn_(snapshot_lsn) {
+      synced_lsn_(next_lsn - 1),
+      snapshot_lsn_(snapshot_lsn),
+      unsynced_records_(metrics::gauge("occgeo_journal_unsynced_records", world_label(file_),
+                                       "Journal records written to the file that no fsync has covered yet")),
+      unsynced_bytes_(metrics::gauge("occgeo_journal_unsynced_bytes", world_label(file_),
+                                     "Journal bytes written to the file that no fsync has covered yet")),
+      journal_bytes_(metrics::gauge("occgeo_journal_bytes", world_label(file_),
+                                    "Size of the world's journal file (emptied by each snapshot)")),
+      sync_seconds_(metrics::histogram("occgeo_journal_sync_seconds", world_label(file_),
+                                       "Time one fdatasync of the world's journal took")) {
   if (policy_ == SyncPolicy::kBatch) batch_thread_ = std::thread([this] { batch_loop(); });
 }
 
@@ -194,6 +221,7 @@ std::string WorldJournal::open_locked() {
   }
   fd_ = fd;
   end_ = static_cast<std::uint64_t>(size);
+  synced_end_ = end_;  // what a previous run left is as durable as it will get
   if (end_ < kMagic.size()) {
     end_ = 0;
     if (::ftruncate(fd_, 0) != 0) return errno_text("cannot reset the journal " + file_.string(), errno);
@@ -227,8 +255,24 @@ std::string WorldJournal::write_locked(const std::string& frame) {
 }
 
 std::string WorldJournal::sync_locked_fd(int fd) const {
-  if (::fdatasync(fd) != 0) return errno_text("cannot sync the journal " + file_.string(), errno);
+  const auto started = std::chrono::steady_clock::now();
+  const int result = ::fdatasync(fd);
+  const int saved = errno;
+  sync_seconds_.observe(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count());
+  if (result != 0) return errno_text("cannot sync the journal " + file_.string(), saved);
   return {};
+}
+
+void WorldJournal::note_synced_locked(std::uint64_t lsn, std::uint64_t end) {
+  synced_lsn_ = std::max(synced_lsn_, lsn);
+  synced_end_ = std::max(synced_end_, end);
+  update_lag_metrics_locked();
+}
+
+void WorldJournal::update_lag_metrics_locked() {
+  unsynced_records_.set(static_cast<std::int64_t>(written_lsn_ - std::min(synced_lsn_, written_lsn_)));
+  unsynced_bytes_.set(static_cast<std::int64_t>(end_ - std::min(synced_end_, end_)));
+  journal_bytes_.set(static_cast<std::int64_t>(end_));
 }
 
 WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_id,
@@ -264,7 +308,9 @@ WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_
   put(payload, X_WB.theta);
   put(payload, static_cast<std::uint8_t>(kind.size()));
   payload += kind;
+  const std::size_t message_offset = payload.size();
   payload += message.SerializeAsString();
+  const std::uint64_t fingerprint = message_fingerprint(kind, std::string_view(payload).substr(message_offset));
   frames += frame_of(payload);
 
   const std::uint64_t end_before = end_;
@@ -283,10 +329,18 @@ WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_
   next_lsn_ = lsn + 1;
   written_lsn_ = lsn;
   if (policy_ == SyncPolicy::kNone) durable_lsn_ = lsn;
-  return {lsn, {}};
+  if (policy_ == SyncPolicy::kEvery) {
+    note_synced_locked(lsn, end_);
+  } else {
+    update_lag_metrics_locked();
+  }
+  return {lsn, {}, fingerprint};
 }
 
 void WorldJournal::when_durable(std::uint64_t lsn, std::function<void(const std::string* error)> done) {
+  // Before anything else: when this record is already durable, the batch thread may still be calling back for
+  // earlier ones (it found them durable in the same fsync); this callback waits its turn.
+  const std::lock_guard in_order(completion_mutex_);
   {
     const std::lock_guard lock(mutex_);
     if (lsn > durable_lsn_) {
@@ -299,6 +353,7 @@ void WorldJournal::when_durable(std::uint64_t lsn, std::function<void(const std:
 }
 
 void WorldJournal::complete(std::uint64_t up_to_lsn, const std::string* error) {
+  const std::lock_guard in_order(completion_mutex_);
   std::vector<std::function<void(const std::string*)>> ready;
   {
     const std::lock_guard lock(mutex_);
@@ -319,6 +374,7 @@ void WorldJournal::batch_loop() {
     // Group commit: let the batch window gather more records, then one fsync makes them all durable.
     if (!stopping_) wake_.wait_for(lock, batch_interval_, [&] { return stopping_; });
     const std::uint64_t target = written_lsn_;
+    const std::uint64_t target_end = end_;
     const int fd = fd_;
     std::string failure = failed_;
     lock.unlock();
@@ -332,6 +388,7 @@ void WorldJournal::batch_loop() {
       complete(target, nullptr);
     }
     lock.lock();
+    if (failure.empty()) note_synced_locked(target, target_end);
   }
 }
 
@@ -348,8 +405,48 @@ void WorldJournal::compact() {
         ::fdatasync(fd_);
       }
     }
+    // The snapshot holds every record written so far, durably.
+    synced_lsn_ = written_lsn_;
+    synced_end_ = end_;
+    update_lag_metrics_locked();
   }
   complete(up_to, nullptr);
+}
+
+static void add_delivered(WorldJournal::Delivered& delivered, const std::string& robot_id, std::uint64_t seq,
+                          std::uint64_t fingerprint) {
+  auto& seqs = delivered[robot_id];
+  seqs[seq] = fingerprint;
+  while (seqs.size() > WorldJournal::kDeliveredWindow) seqs.erase(seqs.begin());
+}
+
+void WorldJournal::note_delivered(const std::string& robot_id, std::uint64_t seq, std::uint64_t fingerprint) {
+  const std::lock_guard lock(mutex_);
+  add_delivered(delivered_, robot_id, seq, fingerprint);
+}
+
+bool WorldJournal::already_delivered(const std::string& robot_id, std::uint64_t seq, std::string_view kind,
+                                     const google::protobuf::MessageLite& message) const {
+  std::uint64_t remembered = 0;
+  {
+    const std::lock_guard lock(mutex_);
+    const auto robot = delivered_.find(robot_id);
+    if (robot == delivered_.end()) return false;
+    const auto it = robot->second.find(seq);
+    if (it == robot->second.end()) return false;
+    remembered = it->second;
+  }
+  return remembered == message_fingerprint(kind, message.SerializeAsString());
+}
+
+WorldJournal::Delivered WorldJournal::delivered() const {
+  const std::lock_guard lock(mutex_);
+  return delivered_;
+}
+
+void WorldJournal::restore_delivered(Delivered delivered) {
+  const std::lock_guard lock(mutex_);
+  delivered_ = std::move(delivered);
 }
 
 std::uint64_t WorldJournal::last_lsn() const {

@@ -27,6 +27,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -36,6 +37,11 @@ namespace google::protobuf {
 class MessageLite;
 }
 
+namespace occgeo::service::metrics {
+class Gauge;
+class Histogram;
+}  // namespace occgeo::service::metrics
+
 namespace occgeo::service::durability {
 
 // When an accepted message counts as durable, hence may be acknowledged.
@@ -44,6 +50,10 @@ enum class SyncPolicy {
   kBatch,  // group commit: acks wait for the fsync that ends the batch window
   kNone,   // acknowledged once written to the OS; a power loss may lose what the OS had not written
 };
+
+// A stable 64-bit FNV-1a hash of a sensor message's kind and serialized bytes: equal for a resent copy of the same
+// message, across restarts and builds.
+[[nodiscard]] std::uint64_t message_fingerprint(std::string_view kind, std::string_view serialized);
 
 // "every" / "batch" / "none"; nullopt for anything else.
 [[nodiscard]] std::optional<SyncPolicy> parse_sync_policy(const std::string& name);
@@ -96,19 +106,37 @@ class WorldJournal {
   // applied.
   struct AppendResult {
     std::uint64_t lsn = 0;
-    std::string error;  // empty on success
+    std::string error;              // empty on success
+    std::uint64_t fingerprint = 0;  // message_fingerprint of the message, for note_delivered
   };
   AppendResult append_sensor(const std::string& robot_id, const std::shared_ptr<const void>& robot_spec_identity,
                              const google::protobuf::MessageLite& robot_spec, const geometry::Pose2& X_WB,
                              const std::string& kind, const google::protobuf::MessageLite& message);
 
   // Calls done(nullptr) once record `lsn` is durable under the policy (at once for `every` and `none`), or
-  // done(&reason) if syncing it failed. From the batch thread for `batch`.
+  // done(&reason) if syncing it failed. From the batch thread for `batch`. Callbacks run one at a time and in the
+  // order of their lsns, whichever thread runs them: a driver's acks leave in the order of its messages, so a driver
+  // that pipelines and waits for each ack in turn never misses one that overtook another.
   void when_durable(std::uint64_t lsn, std::function<void(const std::string* error)> done);
 
   // After a snapshot holding every record up to last_lsn() is safely on disk: empties the file (keeping the
   // numbering) and completes waiting acks, which the snapshot made durable. Call from the world's strand.
   void compact();
+
+  // What each robot's last sensor messages were (seq and a fingerprint of the message), kept for the last
+  // kDeliveredWindow messages per robot so that a driver resending one whose ack it lost (a dropped connection, a
+  // server crash) is told it is already durable instead of having it applied twice. Restored from the snapshot and the
+  // journal at start.
+  static constexpr std::size_t kDeliveredWindow = 512;
+  using Delivered = std::map<std::string, std::map<std::uint64_t, std::uint64_t>>;  // robot -> seq -> fingerprint
+  // Records one accepted (journalled) sensor message.
+  void note_delivered(const std::string& robot_id, std::uint64_t seq, std::uint64_t fingerprint);
+  // True when the robot's message with this seq and exactly this content (`kind`, `message`) is already in the journal
+  // or the snapshot. Serializes the message only when the seq is one of the remembered ones.
+  [[nodiscard]] bool already_delivered(const std::string& robot_id, std::uint64_t seq, std::string_view kind,
+                                       const google::protobuf::MessageLite& message) const;
+  [[nodiscard]] Delivered delivered() const;
+  void restore_delivered(Delivered delivered);
 
   // The lsn of the last record appended (0 when none ever was).
   [[nodiscard]] std::uint64_t last_lsn() const;
@@ -122,6 +150,9 @@ class WorldJournal {
   std::string open_locked();
   std::string write_locked(const std::string& frame);
   std::string sync_locked_fd(int fd) const;
+  // After an fsync that covered the file up to `end` and record `lsn`: the journal lag metrics.
+  void note_synced_locked(std::uint64_t lsn, std::uint64_t end);
+  void update_lag_metrics_locked();
   void batch_loop();
   void complete(std::uint64_t up_to_lsn, const std::string* error);
 
@@ -129,18 +160,29 @@ class WorldJournal {
   SyncPolicy policy_;
   std::chrono::microseconds batch_interval_;
   mutable std::mutex mutex_;
+  // Held while callbacks of when_durable run (taken before mutex_, never after it): a record found durable at
+  // registration must not call back while the batch thread is still calling back for earlier records.
+  std::mutex completion_mutex_;
   std::condition_variable wake_;
   int fd_ = -1;
-  std::uint64_t end_ = 0;       // bytes written to the file
-  std::uint64_t next_lsn_;      // of the next record
-  std::uint64_t written_lsn_;   // last record written
-  std::uint64_t durable_lsn_;   // last record known durable
-  std::uint64_t snapshot_lsn_;  // last record the world's snapshot holds
-  std::string failed_;          // set after an fsync failure: nothing more is acknowledged until a restart
+  std::uint64_t end_ = 0;         // bytes written to the file
+  std::uint64_t next_lsn_;        // of the next record
+  std::uint64_t written_lsn_;     // last record written
+  std::uint64_t durable_lsn_;     // last record known durable
+  std::uint64_t synced_lsn_;      // last record an fsync covered (durable_lsn_ runs ahead of it under `none`)
+  std::uint64_t synced_end_ = 0;  // bytes of the file an fsync covered
+  std::uint64_t snapshot_lsn_;    // last record the world's snapshot holds
+  std::string failed_;            // set after an fsync failure: nothing more is acknowledged until a restart
   // The spec each robot's records in this file refer to (held, so that its address is not reused for another).
   std::map<std::string, std::shared_ptr<const void>> robots_in_file_;
+  Delivered delivered_;
   std::vector<std::pair<std::uint64_t, std::function<void(const std::string*)>>> waiting_;
   bool stopping_ = false;
+  // /metrics, labelled with the world: how far the file runs ahead of what an fsync made durable, and fsync times.
+  metrics::Gauge& unsynced_records_;
+  metrics::Gauge& unsynced_bytes_;
+  metrics::Gauge& journal_bytes_;
+  metrics::Histogram& sync_seconds_;
   std::thread batch_thread_;
 };
 

@@ -4,11 +4,15 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <boost/asio/post.hpp>
+#include <charconv>
 #include <chrono>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
+#include <stdexcept>
 
 #include "../core.h"
 #include "../handlers/sensor_ingest.h"
@@ -21,6 +25,28 @@ namespace occgeo::service::durability {
 namespace {
 
 constexpr const char* kSnapshotInfo = "snapshot.yaml";
+constexpr const char* kPtemState = "ptem.bin";
+
+std::string read_whole_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + file.string());
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Brings back the world's PTEM from its snapshot. State written under other PTEM parameters is set aside with a
+// warning (the journal tail alone then rebuilds it); a damaged file throws, as a damaged grid does.
+void restore_ptem(World& world, const std::filesystem::path& file) {
+  try {
+    if (!world.restore_ptem_on_strand(read_whole_file(file))) {
+      log::warn("ptem_snapshot_skipped",
+                {{"world", world.name()},
+                 {"file", file.string()},
+                 {"reason", "written under other ptem parameters; the PTEM restarts from the journal"}});
+    }
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error("snapshot " + file.string() + " is damaged: " + e.what());
+  }
+}
 
 // Flushes a file or folder to disk; a snapshot is only renamed into place once all of it is durable.
 void sync_path(const std::filesystem::path& path, bool directory) {
@@ -63,9 +89,32 @@ void finish_interrupted_swaps(const std::filesystem::path& worlds_dir) {
   }
 }
 
+// The robots' last delivered messages a snapshot folder holds (see WorldJournal::delivered).
+WorldJournal::Delivered snapshot_delivered(const std::filesystem::path& dir) {
+  WorldJournal::Delivered delivered;
+  const auto info = dir / kSnapshotInfo;
+  if (!std::filesystem::exists(info)) return delivered;
+  try {
+    const YAML::Node robots = YAML::LoadFile(info.string())["delivered"];
+    if (!robots) return delivered;
+    for (const auto& robot : robots) {
+      auto& seqs = delivered[robot.first.as<std::string>()];
+      for (const auto& pair : robot.second) seqs[pair[0].as<std::uint64_t>()] = pair[1].as<std::uint64_t>();
+    }
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error("snapshot " + info.string() + " is damaged: " + e.what());
+  }
+  return delivered;
+}
+
+// The seq every sensor message carries.
+struct SensorOrder {
+  std::uint64_t seq = 0;
+};
+
 // Applies one journalled sensor message as ingest did: at the pose it recorded, through the same insertion code.
-void replay_sensor(World& world, const RobotModel& model, const JournalRecord& record,
-                   const std::filesystem::path& file) {
+SensorOrder replay_sensor(World& world, const RobotModel& model, const JournalRecord& record,
+                          const std::filesystem::path& file) {
   const auto damaged = [&](const std::string& what) {
     return std::runtime_error("journal " + file.string() + " record " + std::to_string(record.lsn) + ": " + what);
   };
@@ -76,27 +125,33 @@ void replay_sensor(World& world, const RobotModel& model, const JournalRecord& r
     const LaserModel* laser = model.find_laser(message.sensor());
     if (!laser) throw damaged("robot '" + model.id + "' has no laser '" + message.sensor() + "'");
     insert_laser_scan(world, target, record.X_WB, *laser, message);
-  } else if (record.kind == "range_array") {
+    return {message.seq()};
+  }
+  if (record.kind == "range_array") {
     v1::RangeArray message;
     if (!message.ParseFromString(record.body)) throw damaged("undecodable range_array");
     const RangeArrayModel* array = model.find_range_array(message.sensor());
     if (!array) throw damaged("robot '" + model.id + "' has no range array '" + message.sensor() + "'");
     insert_range_array(target, record.X_WB, *array, message);
-  } else if (record.kind == "servo_range") {
+    return {message.seq()};
+  }
+  if (record.kind == "servo_range") {
     v1::ServoRange message;
     if (!message.ParseFromString(record.body)) throw damaged("undecodable servo_range");
     const ServoRangeModel* servo = model.find_servo_range(message.sensor());
     if (!servo) throw damaged("robot '" + model.id + "' has no servo range '" + message.sensor() + "'");
     insert_servo_range(target, record.X_WB, *servo, message);
-  } else if (record.kind == "point_cloud") {
+    return {message.seq()};
+  }
+  if (record.kind == "point_cloud") {
     v1::PointCloud message;
     if (!message.ParseFromString(record.body)) throw damaged("undecodable point_cloud");
     const PointCloudModel* cloud = model.find_point_cloud(message.sensor());
     if (!cloud) throw damaged("robot '" + model.id + "' has no point cloud '" + message.sensor() + "'");
     insert_point_cloud(target, record.X_WB, model, *cloud, message);
-  } else {
-    throw damaged("unknown sensor kind '" + record.kind + "'");
+    return {message.seq()};
   }
+  throw damaged("unknown sensor kind '" + record.kind + "'");
 }
 
 struct ReplayResult {
@@ -104,8 +159,8 @@ struct ReplayResult {
   std::uint64_t replayed = 0;
 };
 
-ReplayResult replay_journal(ServerCore& core, World& world, const std::filesystem::path& file,
-                            std::uint64_t after_lsn) {
+ReplayResult replay_journal(ServerCore& core, World& world, const std::filesystem::path& file, std::uint64_t after_lsn,
+                            WorldJournal::Delivered& delivered) {
   ReplayResult result{after_lsn, 0};
   const JournalContents contents = read_journal(file);
   if (contents.torn_tail) {
@@ -140,7 +195,10 @@ ReplayResult replay_journal(ServerCore& core, World& world, const std::filesyste
       throw std::runtime_error("journal " + file.string() + " record " + std::to_string(record.lsn) +
                                ": no robot_spec precedes the data of robot '" + record.robot_id + "'");
     }
-    replay_sensor(world, *robot->second, record, file);
+    const SensorOrder order = replay_sensor(world, *robot->second, record, file);
+    auto& seqs = delivered[record.robot_id];
+    seqs[order.seq] = message_fingerprint(record.kind, record.body);
+    while (seqs.size() > WorldJournal::kDeliveredWindow) seqs.erase(seqs.begin());
     ++result.replayed;
   }
   return result;
@@ -200,11 +258,15 @@ void restore_worlds(ServerCore& core) {
     auto world = core.add_world(name, std::move(grid));
     // No strand work exists yet, so this thread is the worlds' only writer.
     if (const auto bt = dir / "octomap.bt"; std::filesystem::exists(bt)) world->octomap_on_strand().load_bt(bt);
+    if (const auto ptem = dir / kPtemState; std::filesystem::exists(ptem)) restore_ptem(*world, ptem);
     ReplayResult replay{base_lsn, 0};
+    WorldJournal::Delivered delivered = snapshot_delivered(dir);
     if (const auto journal = world_journal_file(config.data_dir, name); std::filesystem::exists(journal)) {
-      replay = replay_journal(core, *world, journal, base_lsn);
+      replay = replay_journal(core, *world, journal, base_lsn, delivered);
     }
-    world->attach_journal(make_world_journal(config, name, replay.last_lsn + 1, base_lsn));
+    auto journal = make_world_journal(config, name, replay.last_lsn + 1, base_lsn);
+    journal->restore_delivered(std::move(delivered));
+    world->attach_journal(std::move(journal));
     world->publish_on_strand();
     world->publish_octomap_on_strand();
     log::info(
@@ -214,6 +276,7 @@ void restore_worlds(ServerCore& core) {
          {"journal_records_replayed", replay.replayed},
          {"occupied_cells", world->grid_on_strand().occupied_cell_count()},
          {"octomap_leaves", static_cast<std::uint64_t>(world->octomap_on_strand().leaf_count())},
+         {"ptem_clusters", static_cast<std::uint64_t>(world->snapshots().ptem->clusters().size())},
          {"restore_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}});
   }
 }
@@ -223,7 +286,8 @@ bool snapshot_world(ServerCore& core, World& world) {
   const std::uint64_t lsn = journal ? journal->last_lsn() : 0;
   const bool has_grid = world.grid_on_strand().tile_count() > 0;
   const bool has_octomap = world.octomap_on_strand().leaf_count() > 0;
-  if (!has_grid && !has_octomap && lsn == 0) return true;  // nothing observed, nothing to keep
+  const bool has_ptem = world.ptem_scan_count_on_strand() > 0;
+  if (!has_grid && !has_octomap && !has_ptem && lsn == 0) return true;  // nothing observed, nothing to keep
   const auto final_dir = world_snapshot_dir(core.config().data_dir, world.name());
   const auto temp_dir = std::filesystem::path(final_dir.string() + ".saving");
   const auto old_dir = std::filesystem::path(final_dir.string() + ".old");
@@ -239,10 +303,26 @@ bool snapshot_world(ServerCore& core, World& world) {
       world.octomap_on_strand().save_bt(temp_dir / "octomap.bt");
       sync_path(temp_dir / "octomap.bt", false);
     }
+    if (has_ptem) {
+      const std::string state = world.serialize_ptem_on_strand();
+      std::ofstream out(temp_dir / kPtemState, std::ios::binary);
+      out.write(state.data(), static_cast<std::streamsize>(state.size()));
+      if (!out.flush()) throw std::runtime_error("cannot write " + (temp_dir / kPtemState).string());
+      out.close();
+      sync_path(temp_dir / kPtemState, false);
+    }
     {
       std::ofstream info(temp_dir / kSnapshotInfo);
       info << "# the last journal record this snapshot holds; later records are replayed over it\n"
            << "journal_lsn: " << lsn << "\n";
+      if (journal) {
+        // Each robot's last sensor messages, [seq, fingerprint], so that one resent after a restart is known.
+        info << "delivered:\n";
+        for (const auto& [robot_id, seqs] : journal->delivered()) {
+          info << "  \"" << robot_id << "\":\n";
+          for (const auto& [seq, fingerprint] : seqs) info << "    - [" << seq << ", " << fingerprint << "]\n";
+        }
+      }
       if (!info.flush()) throw std::runtime_error("cannot write " + (temp_dir / kSnapshotInfo).string());
     }
     sync_path(temp_dir / kSnapshotInfo, false);

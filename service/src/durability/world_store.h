@@ -1,6 +1,7 @@
 #pragma once
 // Where a world's maps live on disk, and how they come back: a snapshot folder per world
-// (<data_dir>/worlds/<name>/: grid.pgm + grid.yaml, octomap.bt, snapshot.yaml naming the last journal record it
+// (<data_dir>/worlds/<name>/: grid.pgm + grid.yaml, octomap.bt, ptem.bin (the PTEM clusters, bit for bit),
+// snapshot.yaml naming the last journal record it
 // holds) and a journal per world (<data_dir>/journal/<name>.journal) of what was accepted since.
 
 #include <cstdint>

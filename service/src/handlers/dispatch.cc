@@ -1,5 +1,9 @@
-#include "handlers.h"
+#include <map>
+#include <utility>
+#include <vector>
+
 #include "../metrics.h"
+#include "handlers.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
@@ -21,14 +25,100 @@ void SessionContext::watch(const v1::WatchRequest& request) {
   send_error(v1::ERROR_NOT_ALLOWED, "watch", "this session cannot receive watch events", request.request_id());
 }
 
+bool is_request(v1::ClientMessage::BodyCase body) {
+  switch (body) {
+    case v1::ClientMessage::kCollision:
+    case v1::ClientMessage::kClearance:
+    case v1::ClientMessage::kStatus:
+    case v1::ClientMessage::kGrid:
+    case v1::ClientMessage::kPtem:
+    case v1::ClientMessage::kOctree:
+    case v1::ClientMessage::kCollisionBatch:
+    case v1::ClientMessage::kClearanceBatch:
+    case v1::ClientMessage::kRaycast:
+    case v1::ClientMessage::kOccupancy:
+    case v1::ClientMessage::kSwept:
+    case v1::ClientMessage::kGridWindow:
+    case v1::ClientMessage::kOctreeWindow:
+      return true;
+    default:
+      return false;
+  }
+}
+
+bool is_answer(v1::ServerMessage::BodyCase body) {
+  switch (body) {
+    case v1::ServerMessage::kCollision:
+    case v1::ServerMessage::kClearance:
+    case v1::ServerMessage::kStatus:
+    case v1::ServerMessage::kGrid:
+    case v1::ServerMessage::kPtem:
+    case v1::ServerMessage::kOctree:
+    case v1::ServerMessage::kCollisionBatch:
+    case v1::ServerMessage::kClearanceBatch:
+    case v1::ServerMessage::kRaycast:
+    case v1::ServerMessage::kOccupancy:
+    case v1::ServerMessage::kSwept:
+    case v1::ServerMessage::kGridWindow:
+    case v1::ServerMessage::kOctreeWindow:
+    case v1::ServerMessage::kError:
+      return true;
+    default:
+      return false;
+  }
+}
+
+namespace {
+
+// Everything run here that is not a sensor or odometry message is a query.
+bool is_sensor_work(std::string_view what) {
+  return what == "laser_scan" || what == "range_array" || what == "servo_range" || what == "point_cloud" ||
+         what == "odometry" || what == "wheel_encoders";
+}
+
+// occgeo_query_duration_seconds of one kind. Looking a metric up takes the registry's mutex, so the query kinds'
+// histograms are looked up once (every query would otherwise contend for it).
+metrics::Histogram& query_histogram(std::string_view what) {
+  static const auto known = [] {
+    std::vector<std::pair<std::string, metrics::Histogram*>> histograms;
+    const auto* body = v1::ClientMessage::descriptor()->FindOneofByName("body");
+    for (int i = 0; i < body->field_count(); ++i) {
+      const auto body_case = static_cast<v1::ClientMessage::BodyCase>(body->field(i)->number());
+      if (!is_request(body_case)) continue;
+      const std::string& name = body->field(i)->name();
+      histograms.emplace_back(name, &metrics::histogram("occgeo_query_duration_seconds", {{"kind", name}}));
+    }
+    return histograms;
+  }();
+  for (const auto& [name, histogram] : known) {
+    if (name == what) return *histogram;
+  }
+  return metrics::histogram("occgeo_query_duration_seconds", {{"kind", std::string(what)}});
+}
+
+// occgeo_queries_total of one request kind, looked up once per kind.
+metrics::Counter& query_counter(v1::ClientMessage::BodyCase body_case) {
+  static const auto counters = [] {
+    std::map<int, metrics::Counter*> out;
+    const auto* body = v1::ClientMessage::descriptor()->FindOneofByName("body");
+    for (int i = 0; i < body->field_count(); ++i) {
+      const auto kind = static_cast<v1::ClientMessage::BodyCase>(body->field(i)->number());
+      if (is_request(kind)) {
+        out[kind] = &metrics::counter("occgeo_queries_total", {{"kind", body->field(i)->name()}});
+      }
+    }
+    return out;
+  }();
+  return *counters.at(body_case);
+}
+
+}  // namespace
+
 void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t request_id,
                  const std::function<void()>& work) {
   try {
-    // Everything run here that is not a sensor or odometry message is a query.
-    const bool is_query = what != "laser_scan" && what != "range_array" && what != "servo_range" &&
-                          what != "point_cloud" && what != "odometry" && what != "wheel_encoders";
     std::optional<metrics::ScopedTimer> timer;
-    if (is_query) timer.emplace(metrics::histogram("occgeo_query_duration_seconds", {{"kind", std::string(what)}}));
+    if (!is_sensor_work(what)) timer.emplace(query_histogram(what));
     work();
   } catch (const std::exception& e) {
     log::error("handler_failed", {{"handler", what}, {"error", e.what()}});
@@ -77,27 +167,7 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
     session->send_error(v1::ERROR_OUT_OF_ORDER, "hello", "the first message of a session must be a hello");
     return;
   }
-  switch (message.body_case()) {
-    case v1::ClientMessage::kCollision:
-    case v1::ClientMessage::kClearance:
-    case v1::ClientMessage::kStatus:
-    case v1::ClientMessage::kGrid:
-    case v1::ClientMessage::kPtem:
-    case v1::ClientMessage::kOctree:
-    case v1::ClientMessage::kCollisionBatch:
-    case v1::ClientMessage::kClearanceBatch:
-    case v1::ClientMessage::kGridWindow:
-    case v1::ClientMessage::kOctreeWindow:
-    case v1::ClientMessage::kOccupancy:
-    case v1::ClientMessage::kRaycast:
-    case v1::ClientMessage::kSwept:
-      metrics::counter("occgeo_queries_total",
-                       {{"kind", v1::ClientMessage::descriptor()->FindFieldByNumber(message.body_case())->name()}})
-          .inc();
-      break;
-    default:
-      break;
-  }
+  if (is_request(message.body_case())) query_counter(message.body_case()).inc();
   switch (message.body_case()) {
     case v1::ClientMessage::kRobotSpec:
       if (session->info().role != v1::ROLE_DRIVER) {
@@ -172,10 +242,12 @@ void dispatch(const SessionPtr& session, v1::ClientMessage message) {
       handle_octree_request(session, message.octree());
       return;
     case v1::ClientMessage::kLease:
-      if (require_controller(session, "lease", message.lease().request_id())) handle_lease_request(session, message.lease());
+      if (require_controller(session, "lease", message.lease().request_id()))
+        handle_lease_request(session, message.lease());
       return;
     case v1::ClientMessage::kDrive:
-      if (require_controller(session, "drive", message.drive().request_id())) handle_drive_request(session, message.drive());
+      if (require_controller(session, "drive", message.drive().request_id()))
+        handle_drive_request(session, message.drive());
       return;
     case v1::ClientMessage::kEstop:
       if (session->info().role == v1::ROLE_QUERY) {

@@ -73,6 +73,13 @@ void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t
 // role allowed to send it).
 void dispatch(const SessionPtr& session, v1::ClientMessage message);
 
+// Client messages answered by exactly one reply or error: the queries, single and batch, map windows and whole-map
+// requests. They are counted in occgeo_queries_total and against limits.max_pending_requests.
+bool is_request(v1::ClientMessage::BodyCase body);
+// Server messages that answer a request (an Error counts too: an error for something else only lets a few more
+// requests through early; it never stalls a session).
+bool is_answer(v1::ServerMessage::BodyCase body);
+
 void handle_hello(const SessionPtr& session, const v1::Hello& hello);
 void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec);
 void handle_odometry(const SessionPtr& session, const v1::Odometry& odometry);

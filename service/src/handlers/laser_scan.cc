@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <boost/asio/post.hpp>
 #include <cmath>
+#include <optional>
 #include <variant>
 #include <vector>
 
@@ -95,14 +96,40 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   world.insert_ptem_on_strand(ptem_scan);
 }
 
+// Viewers draw at most this many returns of a scan (a Hokuyo UTM-30LX's 1081 beams); denser scans are thinned.
+constexpr std::size_t kMaxViewedScanPoints = 1081;
+
+// The end points of the scan's returns in [range_min_m, range_max_m), world frame, placed as the grid places them;
+// for viewers (the live view), so floats and at most kMaxViewedScanPoints of them.
+std::vector<Eigen::Vector2f> scan_returns_W(const geometry::Pose2& X_WB, const LaserModel& laser,
+                                            const v1::LaserScan& scan) {
+  const PlanarSensorPose sensor = planar_sensor_pose(X_WB, laser);
+  const double sign = sensor.mirrored ? -1.0 : 1.0;
+  const Eigen::Vector2d origin = sensor.X_WS.position();
+  const auto beams = static_cast<std::size_t>(scan.ranges_size());
+  const std::size_t stride = (beams + kMaxViewedScanPoints - 1) / kMaxViewedScanPoints;
+  std::vector<Eigen::Vector2f> points_W;
+  points_W.reserve(std::min(beams, kMaxViewedScanPoints));
+  for (std::size_t i = 0; i < beams; i += std::max<std::size_t>(stride, 1)) {
+    const double reading = static_cast<double>(scan.ranges(static_cast<int>(i)));
+    if (reading < laser.range_min_m || reading >= laser.range_max_m) continue;
+    const double bearing =
+        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+    points_W.push_back((origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing))).cast<float>());
+  }
+  return points_W;
+}
+
 // Orders, maps and answers one validated scan; runs on the robot's world strand.
 void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& robot, const v1::LaserScan& scan,
                       double expiry_s) {
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
+  std::optional<geometry::Pose2> placed_at_W;
   const bool accepted =
       ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s(), &scan},
                                       [&](const geometry::Pose2& X_WB, IngestTarget& target) {
+                                        placed_at_W = X_WB;
                                         insert_laser_scan(robot->world(), target, X_WB, laser, scan);
                                       });
   if (!accepted) return;
@@ -115,11 +142,18 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   const control::ScanView view{
       laser.angle_min_rad, laser.angle_increment_rad,
       std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
-  v1::MotionCommand command = command_for_scan_on_strand(*robot, view, scan.stamp_s(), expiry_s, session->core().config());
+  v1::MotionCommand command =
+      command_for_scan_on_strand(*robot, view, scan.stamp_s(), expiry_s, session->core().config());
   command.set_answers_scan_seq(scan.seq());
 
+  std::vector<Eigen::Vector2f> scan_W;
+  if (placed_at_W) scan_W = scan_returns_W(*placed_at_W, laser, scan);
   std::string previous_state;
   robot->update_state([&](RobotState& state) {
+    if (placed_at_W) {
+      state.scan_W = std::make_shared<const std::vector<Eigen::Vector2f>>(std::move(scan_W));
+      state.scan_stamp_s = scan.stamp_s();
+    }
     command.set_seq(++state.commands_sent);
     previous_state = state.behaviour_state;
     state.behaviour = command.behaviour();

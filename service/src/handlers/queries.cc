@@ -95,128 +95,129 @@ std::optional<double> resolve_max_distance(const SessionPtr& session, double max
 
 }  // namespace
 
-void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
-  auto target = resolve_robot_footprint(session, "collision", query.request_id(), query.robot_id(),
-                                        query.has_footprint(), query.footprint());
-  if (!target) return;
-  const auto pose = resolve_pose(session, query.pose(), "collision.pose", query.request_id());
-  if (!pose) return;
-  auto models = resolve_models(session, "collision", query.request_id(), query.models());
-  if (!models) return;
-  asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
-                                            request_id = query.request_id(), pose = *pose] {
-    run_guarded(session, "collision", request_id, [&] {
-      const WorldSnapshot snapshot = target.robot->world().snapshots();
-      v1::ServerMessage reply;
-      auto* out = reply.mutable_collision();
-      out->set_request_id(request_id);
-      answer_collision(snapshot, target.footprint, geometry::bounding_radius(target.footprint), pose, models, *out);
-      session->send(std::move(reply));
-    });
+namespace {
+
+// A collision or clearance request, single or batch, once validated.
+struct PoseQuery {
+  QueryTarget target;
+  std::vector<geometry::Pose2> poses;
+  double max_distance_m = 0.0;  // clearance only
+  std::vector<v1::Model> models;
+};
+
+// Validates the fields the four pose queries share, in this order: robot and footprint, the poses (one, or a list of
+// 1..kMaxBatchEntries), max_distance_m (clearance only), models. `kind` names the request in error fields.
+template <typename Query>
+std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std::string& kind, const Query& query) {
+  constexpr bool kBatch = requires(const Query& q) { q.poses(); };
+  constexpr bool kClearance = requires(const Query& q) { q.max_distance_m(); };
+  const std::uint64_t request_id = query.request_id();
+  auto target =
+      resolve_robot_footprint(session, kind, request_id, query.robot_id(), query.has_footprint(), query.footprint());
+  if (!target) return std::nullopt;
+  PoseQuery out{std::move(*target), {}, 0.0, {}};
+  if constexpr (kBatch) {
+    if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, kind + ".poses",
+                     request_id)) {
+      return std::nullopt;
+    }
+    out.poses.reserve(static_cast<std::size_t>(query.poses_size()));
+    for (int i = 0; i < query.poses_size(); ++i) {
+      const auto pose = resolve_pose(session, query.poses(i), kind + ".poses[" + std::to_string(i) + "]", request_id);
+      if (!pose) return std::nullopt;
+      out.poses.push_back(*pose);
+    }
+  } else {
+    const auto pose = resolve_pose(session, query.pose(), kind + ".pose", request_id);
+    if (!pose) return std::nullopt;
+    out.poses.push_back(*pose);
+  }
+  if constexpr (kClearance) {
+    const auto max_distance =
+        resolve_max_distance(session, query.max_distance_m(), kind + ".max_distance_m", request_id);
+    if (!max_distance) return std::nullopt;
+    out.max_distance_m = *max_distance;
+  }
+  auto models = resolve_models(session, kind, request_id, query.models());
+  if (!models) return std::nullopt;
+  out.models = std::move(*models);
+  return out;
+}
+
+// Answers a validated pose query on one snapshot of the robot's world: `fill(snapshot, query, reply)` builds the
+// reply from the shared kernels.
+template <typename Fill>
+void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, PoseQuery query,
+                       Fill fill) {
+  const bool answer_inline = query.poses.size() <= kMaxInlineEntries;
+  run_query(session, kind, request_id, answer_inline, [session, request_id, query = std::move(query), fill] {
+    const WorldSnapshot snapshot = query.target.robot->world().snapshots();
+    v1::ServerMessage reply;
+    fill(snapshot, query, reply);
+    session->send(std::move(reply));
   });
+}
+
+}  // namespace
+
+void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
+  auto resolved = resolve_pose_query(session, "collision", query);
+  if (!resolved) return;
+  answer_pose_query(
+      session, "collision", query.request_id(), std::move(*resolved),
+      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+        auto* out = reply.mutable_collision();
+        out->set_request_id(request_id);
+        answer_collision(snapshot, q.target.footprint, geometry::bounding_radius(q.target.footprint), q.poses.front(),
+                         q.models, *out);
+      });
 }
 
 void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query) {
-  auto target = resolve_robot_footprint(session, "clearance", query.request_id(), query.robot_id(),
-                                        query.has_footprint(), query.footprint());
-  if (!target) return;
-  const auto pose = resolve_pose(session, query.pose(), "clearance.pose", query.request_id());
-  if (!pose) return;
-  const auto max_distance =
-      resolve_max_distance(session, query.max_distance_m(), "clearance.max_distance_m", query.request_id());
-  if (!max_distance) return;
-  auto models = resolve_models(session, "clearance", query.request_id(), query.models());
-  if (!models) return;
-  asio::post(session->core().query_pool(),
-             [session, target = std::move(*target), models = std::move(*models), request_id = query.request_id(),
-              pose = *pose, max_distance = *max_distance] {
-               run_guarded(session, "clearance", request_id, [&] {
-                 const WorldSnapshot snapshot = target.robot->world().snapshots();
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_clearance();
-                 out->set_request_id(request_id);
-                 answer_clearance(snapshot, target.footprint, pose, max_distance, models, *out);
-                 session->send(std::move(reply));
-               });
-             });
+  auto resolved = resolve_pose_query(session, "clearance", query);
+  if (!resolved) return;
+  answer_pose_query(
+      session, "clearance", query.request_id(), std::move(*resolved),
+      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+        auto* out = reply.mutable_clearance();
+        out->set_request_id(request_id);
+        answer_clearance(snapshot, q.target.footprint, q.poses.front(), q.max_distance_m, q.models, *out);
+      });
 }
 
 void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQuery& query) {
-  const std::uint64_t request_id = query.request_id();
-  auto target = resolve_robot_footprint(session, "collision_batch", request_id, query.robot_id(), query.has_footprint(),
-                                        query.footprint());
-  if (!target) return;
-  if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, "collision_batch.poses",
-                   request_id)) {
-    return;
-  }
-  std::vector<geometry::Pose2> poses;
-  poses.reserve(static_cast<std::size_t>(query.poses_size()));
-  for (int i = 0; i < query.poses_size(); ++i) {
-    const auto pose =
-        resolve_pose(session, query.poses(i), "collision_batch.poses[" + std::to_string(i) + "]", request_id);
-    if (!pose) return;
-    poses.push_back(*pose);
-  }
-  auto models = resolve_models(session, "collision_batch", request_id, query.models());
-  if (!models) return;
-  asio::post(session->core().query_pool(),
-             [session, target = std::move(*target), models = std::move(*models), request_id, poses = std::move(poses)] {
-               run_guarded(session, "collision_batch", request_id, [&] {
-                 const WorldSnapshot snapshot = target.robot->world().snapshots();
-                 const double radius = geometry::bounding_radius(target.footprint);
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_collision_batch();
-                 out->set_request_id(request_id);
-                 out->mutable_results()->Reserve(static_cast<int>(poses.size()));
-                 std::uint32_t hits = 0;
-                 for (const geometry::Pose2& pose : poses) {
-                   v1::CollisionReply* result = out->add_results();
-                   answer_collision(snapshot, target.footprint, radius, pose, models, *result);
-                   hits += result->hit() ? 1 : 0;
-                 }
-                 out->set_hits(hits);
-                 session->send(std::move(reply));
-               });
-             });
+  auto resolved = resolve_pose_query(session, "collision_batch", query);
+  if (!resolved) return;
+  answer_pose_query(
+      session, "collision_batch", query.request_id(), std::move(*resolved),
+      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+        auto* out = reply.mutable_collision_batch();
+        out->set_request_id(request_id);
+        const double radius = geometry::bounding_radius(q.target.footprint);
+        out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
+        std::uint32_t hits = 0;
+        for (const geometry::Pose2& pose : q.poses) {
+          v1::CollisionReply* result = out->add_results();
+          answer_collision(snapshot, q.target.footprint, radius, pose, q.models, *result);
+          hits += result->hit() ? 1 : 0;
+        }
+        out->set_hits(hits);
+      });
 }
 
 void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQuery& query) {
-  const std::uint64_t request_id = query.request_id();
-  auto target = resolve_robot_footprint(session, "clearance_batch", request_id, query.robot_id(), query.has_footprint(),
-                                        query.footprint());
-  if (!target) return;
-  if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, "clearance_batch.poses",
-                   request_id)) {
-    return;
-  }
-  std::vector<geometry::Pose2> poses;
-  poses.reserve(static_cast<std::size_t>(query.poses_size()));
-  for (int i = 0; i < query.poses_size(); ++i) {
-    const auto pose =
-        resolve_pose(session, query.poses(i), "clearance_batch.poses[" + std::to_string(i) + "]", request_id);
-    if (!pose) return;
-    poses.push_back(*pose);
-  }
-  const auto max_distance =
-      resolve_max_distance(session, query.max_distance_m(), "clearance_batch.max_distance_m", request_id);
-  if (!max_distance) return;
-  auto models = resolve_models(session, "clearance_batch", request_id, query.models());
-  if (!models) return;
-  asio::post(session->core().query_pool(), [session, target = std::move(*target), models = std::move(*models),
-                                            request_id, poses = std::move(poses), max_distance = *max_distance] {
-    run_guarded(session, "clearance_batch", request_id, [&] {
-      const WorldSnapshot snapshot = target.robot->world().snapshots();
-      v1::ServerMessage reply;
-      auto* out = reply.mutable_clearance_batch();
-      out->set_request_id(request_id);
-      out->mutable_results()->Reserve(static_cast<int>(poses.size()));
-      for (const geometry::Pose2& pose : poses) {
-        answer_clearance(snapshot, target.footprint, pose, max_distance, models, *out->add_results());
-      }
-      session->send(std::move(reply));
-    });
-  });
+  auto resolved = resolve_pose_query(session, "clearance_batch", query);
+  if (!resolved) return;
+  answer_pose_query(
+      session, "clearance_batch", query.request_id(), std::move(*resolved),
+      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+        auto* out = reply.mutable_clearance_batch();
+        out->set_request_id(request_id);
+        out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
+        for (const geometry::Pose2& pose : q.poses) {
+          answer_clearance(snapshot, q.target.footprint, pose, q.max_distance_m, q.models, *out->add_results());
+        }
+      });
 }
 
 namespace {

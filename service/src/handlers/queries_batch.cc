@@ -41,21 +41,20 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
   }
   auto models = resolve_models(session, "raycast", request_id, query.models());
   if (!models) return;
-  asio::post(session->core().query_pool(),
-             [session, world, models = std::move(*models), request_id, rays = std::move(rays), max_range, height] {
-               run_guarded(session, "raycast", request_id, [&] {
-                 const WorldSnapshot snapshot = world->snapshots();
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_raycast();
-                 out->set_request_id(request_id);
-                 out->set_version(snapshot.grid->version());
-                 out->mutable_results()->Reserve(static_cast<int>(rays.size()));
-                 for (const geometry::Pose2& ray : rays) {
-                   answer_raycast(snapshot, ray, max_range, height, models, *out->add_results());
-                 }
-                 session->send(std::move(reply));
-               });
-             });
+  const bool answer_inline = rays.size() <= kMaxInlineEntries;
+  run_query(session, "raycast", request_id, answer_inline,
+            [session, world, models = std::move(*models), request_id, rays = std::move(rays), max_range, height] {
+              const WorldSnapshot snapshot = world->snapshots();
+              v1::ServerMessage reply;
+              auto* out = reply.mutable_raycast();
+              out->set_request_id(request_id);
+              out->set_version(snapshot.grid->version());
+              out->mutable_results()->Reserve(static_cast<int>(rays.size()));
+              for (const geometry::Pose2& ray : rays) {
+                answer_raycast(snapshot, ray, max_range, height, models, *out->add_results());
+              }
+              session->send(std::move(reply));
+            });
 }
 
 void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery& query) {
@@ -81,23 +80,22 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
   }
   auto models = resolve_models(session, "occupancy", request_id, query.models());
   if (!models) return;
-  asio::post(session->core().query_pool(),
-             [session, world, models = std::move(*models), request_id, points = std::move(points)] {
-               run_guarded(session, "occupancy", request_id, [&] {
-                 const WorldSnapshot snapshot = world->snapshots();
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_occupancy();
-                 out->set_request_id(request_id);
-                 out->set_world(world->name());
-                 out->set_version(snapshot.grid->version());
-                 out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot.grid->occupied_threshold()));
-                 out->mutable_samples()->Reserve(static_cast<int>(points.size()));
-                 for (const Eigen::Vector3d& p_W : points) {
-                   answer_occupancy(snapshot, p_W, models, *out->add_samples());
-                 }
-                 session->send(std::move(reply));
-               });
-             });
+  const bool answer_inline = points.size() <= kMaxInlineEntries;
+  run_query(session, "occupancy", request_id, answer_inline,
+            [session, world, models = std::move(*models), request_id, points = std::move(points)] {
+              const WorldSnapshot snapshot = world->snapshots();
+              v1::ServerMessage reply;
+              auto* out = reply.mutable_occupancy();
+              out->set_request_id(request_id);
+              out->set_world(world->name());
+              out->set_version(snapshot.grid->version());
+              out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot.grid->occupied_threshold()));
+              out->mutable_samples()->Reserve(static_cast<int>(points.size()));
+              for (const Eigen::Vector3d& p_W : points) {
+                answer_occupancy(snapshot, p_W, models, *out->add_samples());
+              }
+              session->send(std::move(reply));
+            });
 }
 
 void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) {
@@ -150,19 +148,18 @@ void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) 
   }
   auto models = resolve_models(session, "swept", request_id, query.models());
   if (!models) return;
-  asio::post(session->core().query_pool(),
-             [session, target = std::move(*target), models = std::move(*models), request_id, query] {
-               run_guarded(session, "swept", request_id, [&] {
-                 const WorldSnapshot snapshot = target.robot->world().snapshots();
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_swept();
-                 out->set_request_id(request_id);
-                 for (const v1::SweptMotion& motion : query.motions()) {
-                   answer_swept(snapshot, target.footprint, models, motion, *out->add_results());
-                 }
-                 session->send(std::move(reply));
-               });
-             });
+  // Conservative advancement may take many steps: always on the query pool.
+  run_query(session, "swept", request_id, false,
+            [session, target = std::move(*target), models = std::move(*models), request_id, query] {
+              const WorldSnapshot snapshot = target.robot->world().snapshots();
+              v1::ServerMessage reply;
+              auto* out = reply.mutable_swept();
+              out->set_request_id(request_id);
+              for (const v1::SweptMotion& motion : query.motions()) {
+                answer_swept(snapshot, target.footprint, models, motion, *out->add_results());
+              }
+              session->send(std::move(reply));
+            });
 }
 
 }  // namespace occgeo::service

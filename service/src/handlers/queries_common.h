@@ -1,6 +1,8 @@
 #pragma once
 
+#include <boost/asio/post.hpp>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -37,6 +39,24 @@ std::shared_ptr<World> resolve_world(const SessionPtr& session, const std::strin
 // A checked pose (finite, within limits.max_abs_coordinate_m); field names it, e.g. "collision_batch.poses[3]".
 std::optional<geometry::Pose2> resolve_pose(const SessionPtr& session, const v1::Pose2D& pose, const std::string& field,
                                             std::uint64_t request_id);
+
+// Entries (poses, rays, points) a query may hold and still be answered inline on the session's network strand: a few
+// footprint checks or lookups on an immutable published snapshot take microseconds, less than the two thread
+// hand-offs (to the query pool and back) would add. Larger batches, swept motions and windows go to the query pool.
+inline constexpr std::size_t kMaxInlineEntries = 8;
+
+// Runs a query's work (guarded and timed, see run_guarded): on the caller's thread when answer_inline, else on the
+// query pool.
+template <typename Work>
+void run_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, bool answer_inline, Work work) {
+  if (answer_inline) {
+    run_guarded(session, kind, request_id, std::cref(work));
+    return;
+  }
+  asio::post(session->core().query_pool(), [session, kind, request_id, work = std::move(work)] {
+    run_guarded(session, kind, request_id, std::cref(work));
+  });
+}
 
 // Checks 1 <= count <= limit for a repeated field.
 bool check_count(const SessionPtr& session, std::size_t count, std::size_t limit, const std::string& field,

@@ -184,12 +184,16 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   if (control.estop || control.behaviour == "stop") {
     command.set_state(control.estop ? "estop" : "stop");
     command.set_stop(true);
-    robot.update_state([](RobotState& s) { s.guard.Clear(); });
+    robot.update_state([](RobotState& s) {
+      s.guard.Clear();
+      s.path_W.clear();
+    });
     return command;
   }
   const std::optional<geometry::Pose2> X_WB = robot.state().X_WB;
   const WorldSnapshot snapshot = robot.world().snapshots();
   control::BehaviourCommand wanted;
+  std::vector<Eigen::Vector2d> path_W;  // what the behaviour plans from here, for the status and the web view
   if (control.behaviour == "teleop") {
     wanted.linear_mps = control.teleop_linear_mps;
     wanted.angular_radps = control.teleop_angular_radps;
@@ -204,6 +208,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
       }
       if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
       wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get()});
+      path_W = active->planned_path();
     } catch (const std::invalid_argument& e) {
       log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
       wanted = control::BehaviourCommand{};
@@ -214,7 +219,10 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   command.set_state(wanted.state);
   if (wanted.stop) {
     command.set_stop(true);
-    robot.update_state([](RobotState& s) { s.guard.Clear(); });
+    robot.update_state([&](RobotState& s) {
+      s.guard.Clear();
+      s.path_W = std::move(path_W);
+    });
     return command;
   }
   ClampedVelocity velocity = executable(model, wanted);
@@ -235,7 +243,10 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   command.set_angular_radps(velocity.body.angular_radps);
   command.set_stop(velocity.wheels.left_mps == 0.0 && velocity.wheels.right_mps == 0.0);
   *command.mutable_guard() = guard;
-  robot.update_state([&](RobotState& s) { s.guard = guard; });
+  robot.update_state([&](RobotState& s) {
+    s.guard = guard;
+    s.path_W = std::move(path_W);
+  });
   return command;
 }
 
@@ -248,6 +259,7 @@ v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const
     s.behaviour_state = state;
     s.last_linear_mps = 0.0;
     s.last_angular_radps = 0.0;
+    s.path_W.clear();
   });
   return command;
 }

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <string>
 
-#include "../metrics.h"
 #include "../durability/journal.h"
+#include "../metrics.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
@@ -22,6 +22,33 @@ bool ingest_sensor_message_on_strand(
     const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert) {
   const RobotState before = robot.state();
   const std::string kind(header.kind);
+  World& world_of_robot = robot.world();
+  durability::WorldJournal* const world_journal = header.message ? world_of_robot.journal() : nullptr;
+  if (world_journal && world_journal->already_delivered(robot.model().id, header.seq, kind, *header.message)) {
+    // The same message (robot, seq and content) is already in the journal: a driver resending it after losing its ack
+    // (a dropped connection, a server restart). It is acknowledged as durable again, once the record is, and not
+    // applied twice; the robot's order moves past it.
+    robot.update_state([&](RobotState& state) {
+      state.last_scan_seq = std::max(state.last_scan_seq.value_or(0), header.seq);
+      state.last_scan_stamp_s = std::max(state.last_scan_stamp_s.value_or(header.stamp_s), header.stamp_s);
+    });
+    metrics::counter("occgeo_scans_duplicate_total", {{"robot", robot.model().id}},
+                     "Sensor messages resent after they were journalled: acknowledged again, not applied twice")
+        .inc();
+    v1::ServerMessage ack;
+    ack.mutable_scan_ack()->set_seq(header.seq);
+    ack.mutable_scan_ack()->set_world_version(world_of_robot.grid_on_strand().version());
+    world_journal->when_durable(
+        world_journal->last_lsn(), [session, ack = std::move(ack)](const std::string* error) mutable {
+          if (!error) {
+            session->send(std::move(ack));
+            return;
+          }
+          session->send_error(v1::ERROR_INTERNAL, "durability", *error + "; the resent message is not acknowledged", 0,
+                              ack.scan_ack().seq());
+        });
+    return false;
+  }
   std::string order_error;
   std::string order_field;
   if (!before.X_WB) {
@@ -39,8 +66,17 @@ bool ingest_sensor_message_on_strand(
   if (!order_error.empty()) {
     robot.update_state([](RobotState& state) { ++state.scans_rejected; });
     metrics::counter("occgeo_scans_rejected_total", {{"robot", robot.model().id}}).inc();
-    session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, order_error + "; the message was discarded", 0,
-                        header.seq);
+    auto send_rejection = [session, order_field, message = order_error + "; the message was discarded",
+                           seq = header.seq](const std::string* /*sync_error*/) {
+      session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, message, 0, seq);
+    };
+    // Replies to a driver's sensor messages keep the messages' order: under the batch policy the acks of earlier
+    // messages may still wait for their fsync, and this rejection must not overtake them.
+    if (durability::WorldJournal* journal = robot.world().journal()) {
+      journal->when_durable(journal->last_lsn(), std::move(send_rejection));
+    } else {
+      send_rejection(nullptr);
+    }
     return false;
   }
 
@@ -60,6 +96,7 @@ bool ingest_sensor_message_on_strand(
       return false;
     }
     lsn = appended.lsn;
+    journal->note_delivered(model->id, header.seq, appended.fingerprint);
   }
   IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   insert(*before.X_WB, target);
@@ -71,7 +108,8 @@ bool ingest_sensor_message_on_strand(
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
-  metrics::counter("occgeo_scans_ingested_total", {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
+  metrics::counter("occgeo_scans_ingested_total",
+                   {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
       .inc();
   note_sensor_message_on_strand(robot, session->core().config().control);
 

@@ -1,5 +1,6 @@
 #include "http_server.h"
 
+#include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -14,6 +15,7 @@
 
 #include "../core.h"
 #include "../metrics.h"
+#include "foxglove.h"
 #include "live_view.h"
 #include "occgeo/service/log.h"
 #include "web_assets.h"
@@ -180,7 +182,183 @@ class LiveViewSocket : public std::enable_shared_from_this<LiveViewSocket> {
   bool closed_ = false;
 };
 
-// One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket.
+// One Foxglove WebSocket client (foxglove.websocket.v1, see foxglove.h): serverInfo and advertise on connecting, then
+// the subscribed channels, checked ten times a second. One message is written at a time and at most one per channel
+// waits, replaced by a newer one (counted as dropped), so a slow client costs no queue.
+class FoxgloveSocket : public std::enable_shared_from_this<FoxgloveSocket> {
+ public:
+  FoxgloveSocket(ServerCore& core, tcp::socket socket)
+      : core_(core), ws_(std::move(socket)), timer_(ws_.get_executor()) {}
+
+  ~FoxgloveSocket() {
+    if (accepted_) metrics::gauge("occgeo_web_clients").dec();
+  }
+
+  void run(Request request) {
+    request_ = std::move(request);
+    beast::get_lowest_layer(ws_).expires_never();
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& response) {
+      response.set(bhttp::field::sec_websocket_protocol, foxglove::kSubprotocol);
+    }));
+    ws_.read_message_max(64 * 1024);
+    ws_.async_accept(request_, [self = shared_from_this()](const beast::error_code& error) {
+      if (error) return;
+      self->accepted_ = true;
+      metrics::gauge("occgeo_web_clients").inc();
+      static std::atomic<std::uint64_t> sessions{0};
+      self->queue(foxglove::server_info(++sessions), false);
+      self->queue(foxglove::advertise(), false);
+      self->read();
+      self->tick();
+    });
+  }
+
+ private:
+  struct Outgoing {
+    std::string bytes;
+    bool binary = false;
+    std::optional<std::uint32_t> subscription;  // a subscription's data: replaced by a newer one while waiting
+  };
+
+  void queue(std::string bytes, bool binary, std::optional<std::uint32_t> subscription = std::nullopt) {
+    if (subscription) {
+      for (auto& waiting : outgoing_) {
+        if (waiting.subscription == subscription) {
+          metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "foxglove"}}).inc();
+          waiting.bytes = std::move(bytes);
+          return;
+        }
+      }
+    }
+    outgoing_.push_back({std::move(bytes), binary, subscription});
+    pump();
+  }
+
+  void read() {
+    ws_.async_read(read_buffer_, [self = shared_from_this()](const beast::error_code& error, std::size_t) {
+      if (error) {
+        self->close();
+        return;
+      }
+      const std::string text = beast::buffers_to_string(self->read_buffer_.data());
+      self->read_buffer_.consume(self->read_buffer_.size());
+      if (text.find("\"unsubscribe\"") != std::string::npos) {
+        for (const std::uint32_t id : foxglove::parse_unsubscribe(text)) {
+          std::erase_if(self->subscriptions_, [&](const Subscribed& s) { return s.id == id; });
+        }
+      } else if (text.find("\"subscribe\"") != std::string::npos) {
+        for (const auto& subscription : foxglove::parse_subscribe(text)) {
+          if (subscription.channel != foxglove::kMapChannel && subscription.channel != foxglove::kScansChannel)
+            continue;
+          std::erase_if(self->subscriptions_, [&](const Subscribed& s) { return s.id == subscription.id; });
+          self->subscriptions_.push_back({subscription.id, subscription.channel, {}, {}});
+        }
+        self->publish();
+      }
+      self->read();
+    });
+  }
+
+  void tick() {
+    timer_.expires_after(kFramePeriod);
+    timer_.async_wait([self = shared_from_this()](const beast::error_code& error) {
+      if (error || self->closed_) return;
+      self->publish();
+      self->tick();
+    });
+  }
+
+  // Sends each subscription what changed since it was last sent.
+  void publish() {
+    if (subscriptions_.empty()) return;
+    const auto world = core_.find_world(foxglove::shown_world(core_));
+    if (!world) return;
+    const auto now = std::chrono::steady_clock::now();
+    const auto time_ns = static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count());
+    const double stamp_s = static_cast<double>(time_ns) * 1e-9;
+    for (auto& subscription : subscriptions_) {
+      if (subscription.channel == foxglove::kMapChannel) {
+        const auto grid = world->snapshots().grid;
+        if (subscription.sent_version == grid->version()) continue;
+        if (subscription.sent_at && now - *subscription.sent_at < std::chrono::seconds(1)) continue;
+        const auto message = foxglove::grid_message(*grid, stamp_s);
+        if (!message) continue;
+        subscription.sent_version = grid->version();
+        subscription.sent_at = now;
+        queue(foxglove::message_data(subscription.id, time_ns, *message), true, subscription.id);
+      } else {
+        std::vector<std::vector<Eigen::Vector2f>> scans_W;
+        double newest_s = 0.0;
+        for (const auto& robot : core_.robots()) {
+          if (&robot->world() != world.get()) continue;
+          const RobotState state = robot->state();
+          if (!state.scan_stamp_s || !state.scan_W) continue;
+          newest_s = std::max(newest_s, *state.scan_stamp_s);
+          scans_W.push_back(*state.scan_W);
+        }
+        // The scans' newest stamp stands for their version: robots' stamps never go backwards.
+        const auto version = static_cast<std::uint64_t>(std::llround(newest_s * 1e6)) + scans_W.size();
+        if (scans_W.empty() || subscription.sent_version == version) continue;
+        subscription.sent_version = version;
+        queue(foxglove::message_data(subscription.id, time_ns, foxglove::scans_message(scans_W, stamp_s)), true,
+              subscription.id);
+      }
+    }
+  }
+
+  void pump() {
+    if (writing_ || closed_ || outgoing_.empty()) return;
+    current_ = std::move(outgoing_.front());
+    outgoing_.pop_front();
+    writing_ = true;
+    ws_.binary(current_.binary);
+    ws_.async_write(asio::buffer(current_.bytes),
+                    [self = shared_from_this()](const beast::error_code& error, std::size_t) {
+                      self->writing_ = false;
+                      if (error) {
+                        self->close();
+                        return;
+                      }
+                      self->pump();
+                    });
+  }
+
+  void close() {
+    closed_ = true;
+    timer_.cancel();
+  }
+
+  struct Subscribed {
+    std::uint32_t id = 0;
+    std::uint32_t channel = 0;
+    std::optional<std::uint64_t> sent_version;
+    std::optional<std::chrono::steady_clock::time_point> sent_at;
+  };
+
+  ServerCore& core_;
+  websocket::stream<beast::tcp_stream> ws_;
+  asio::steady_timer timer_;
+  Request request_;
+  beast::flat_buffer read_buffer_;
+  std::deque<Outgoing> outgoing_;
+  Outgoing current_;
+  std::vector<Subscribed> subscriptions_;
+  bool accepted_ = false;
+  bool writing_ = false;
+  bool closed_ = false;
+};
+
+// Whether a WebSocket upgrade asks for the Foxglove protocol.
+bool wants_foxglove(const Request& request) {
+  const auto protocols = request[bhttp::field::sec_websocket_protocol];
+  return std::string_view(protocols.data(), protocols.size()).find(foxglove::kSubprotocol) != std::string_view::npos;
+}
+
+// One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket, and
+// an upgrade asking for the foxglove.websocket.v1 subprotocol (on any path) to a FoxgloveSocket.
 class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
  public:
   HttpConnection(ServerCore& core, tcp::socket socket) : core_(core), stream_(std::move(socket)) {}
@@ -204,6 +382,11 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     }
     Request request = parser_->release();
     const std::string_view target(request.target().data(), request.target().size());
+    if (websocket::is_upgrade(request) && wants_foxglove(request)) {
+      metrics::counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
+      std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())->run(std::move(request));
+      return;
+    }
     if (websocket::is_upgrade(request) && target == "/ws") {
       metrics::counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
       std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request));

@@ -17,6 +17,8 @@ namespace occgeo::service::http {
 //   GET /metrics     Prometheus text exposition format
 //   GET /ws          WebSocket: JSON frames of robots, grid tiles changed since the page's copy, PTEM clusters and
 //                    an OctoMap slice, ~10 per second; the page may send "select" and "estop" messages.
+//   any WebSocket upgrade asking for subprotocol foxglove.websocket.v1: the grid and the robots' scans as Foxglove
+//                    channels (foxglove.h)
 class HttpServer {
  public:
   // Binds HOST:PORT now (port 0 picks a free one); throws std::runtime_error when it cannot.

@@ -26,34 +26,34 @@ void append_number(std::string& out, double value) {
   out.append(buffer, result.ptr);
 }
 
+// A coordinate to the millimetre: finer than any map cell drawn, and it keeps frames small.
+void append_millimetres(std::string& out, double value) {
+  if (!std::isfinite(value)) {
+    out += "null";
+    return;
+  }
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value, std::chars_format::fixed, 3);
+  out.append(buffer, result.ptr);
+}
+
+// [[x, y], ...] of world-frame points, millimetres.
+template <typename Point>
+void append_points(std::string& out, const std::vector<Point>& points) {
+  out += '[';
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i > 0) out += ',';
+    out += '[';
+    append_millimetres(out, static_cast<double>(points[i].x()));
+    out += ',';
+    append_millimetres(out, static_cast<double>(points[i].y()));
+    out += ']';
+  }
+  out += ']';
+}
+
 void append_number(std::string& out, std::uint64_t value) { out += std::to_string(value); }
 void append_number(std::string& out, std::int64_t value) { out += std::to_string(value); }
-
-void append_base64(std::string& out, const std::vector<std::uint8_t>& bytes) {
-  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  out += '"';
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const std::uint32_t n = (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8) | bytes[i + 2];
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += kAlphabet[(n >> 6) & 63];
-    out += kAlphabet[n & 63];
-  }
-  if (i + 1 == bytes.size()) {
-    const std::uint32_t n = std::uint32_t{bytes[i]} << 16;
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += "==";
-  } else if (i + 2 == bytes.size()) {
-    const std::uint32_t n = (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8);
-    out += kAlphabet[(n >> 18) & 63];
-    out += kAlphabet[(n >> 12) & 63];
-    out += kAlphabet[(n >> 6) & 63];
-    out += '=';
-  }
-  out += '"';
-}
 
 std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes) {
   std::uint64_t hash = 14695981039346656037ULL;
@@ -86,7 +86,8 @@ void append_footprint(std::string& out, const geometry::Footprint& footprint) {
   }
 }
 
-void append_robots(std::string& out, ServerCore& core) {
+// Every robot's state; the scan and the path only for robots of the shown world (the page draws no others).
+void append_robots(std::string& out, ServerCore& core, const std::string& shown_world) {
   out += R"("robots":[)";
   bool first = true;
   for (const auto& robot : core.robots()) {
@@ -145,6 +146,23 @@ void append_robots(std::string& out, ServerCore& core) {
     } else {
       out += "null";
     }
+    const bool shown = robot->world().name() == shown_world;
+    out += R"(,"scan":)";
+    if (shown && state.scan_stamp_s && state.scan_W) {
+      out += R"({"stamp_s":)";
+      append_number(out, *state.scan_stamp_s);
+      out += R"(,"points":)";
+      append_points(out, *state.scan_W);
+      out += '}';
+    } else {
+      out += "null";
+    }
+    out += R"(,"path":)";
+    if (shown) {
+      append_points(out, state.path_W);
+    } else {
+      out += "[]";
+    }
     out += '}';
   }
   out += ']';
@@ -184,6 +202,32 @@ std::string error_reply(std::string_view field, std::string_view message) {
 
 }  // namespace
 
+void append_base64(std::string& out, const std::vector<std::uint8_t>& bytes) {
+  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  out += '"';
+  std::size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const std::uint32_t n = (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8) | bytes[i + 2];
+    out += kAlphabet[(n >> 18) & 63];
+    out += kAlphabet[(n >> 12) & 63];
+    out += kAlphabet[(n >> 6) & 63];
+    out += kAlphabet[n & 63];
+  }
+  if (i + 1 == bytes.size()) {
+    const std::uint32_t n = std::uint32_t{bytes[i]} << 16;
+    out += kAlphabet[(n >> 18) & 63];
+    out += kAlphabet[(n >> 12) & 63];
+    out += "==";
+  } else if (i + 2 == bytes.size()) {
+    const std::uint32_t n = (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8);
+    out += kAlphabet[(n >> 18) & 63];
+    out += kAlphabet[(n >> 12) & 63];
+    out += kAlphabet[(n >> 6) & 63];
+    out += '=';
+  }
+  out += '"';
+}
+
 LiveViewState::LiveViewState(ServerCore& core) : core_(core), world_(core.config().default_world) {
   // Show where the robots are when the default world has none of them.
   const auto robots = core_.robots();
@@ -214,7 +258,7 @@ std::string LiveViewState::next_frame() {
     append_string(out, world->name());
   }
   out += "],";
-  append_robots(out, core_);
+  append_robots(out, core_, world_);
 
   out += R"(,"world":)";
   append_string(out, world_);

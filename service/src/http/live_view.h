@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <vector>
 
 #include "../core.h"
 
@@ -50,6 +51,9 @@ class LiveViewState {
   std::chrono::steady_clock::time_point last_slice_at_{};
   std::uint64_t frame_seq_ = 0;
 };
+
+// Appends the bytes as a quoted base64 JSON string (RFC 4648, padded).
+void append_base64(std::string& out, const std::vector<std::uint8_t>& bytes);
 
 // Engages a robot's e-stop from the web view, under the protocol's rule: anyone may engage, only the lease holder
 // releases (so the page can only engage). Returns false when no robot has this id.

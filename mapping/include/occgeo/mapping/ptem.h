@@ -10,6 +10,8 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace occgeo::mapping {
@@ -180,6 +182,16 @@ class PtemModel {
   // An immutable view of the map as it is now. Built once per insert_scan (one copy of the cluster list), so a server
   // publishing after every sensor message does not copy the clusters for messages that did not change them.
   [[nodiscard]] std::shared_ptr<const PtemSnapshot> snapshot() const { return snapshot_; }
+
+  // The model's whole state (parameters, clusters, f_r, scan count, latest stamp) as bytes, doubles bit for bit, for a
+  // server's snapshot: restore() of them followed by the same later scans gives exactly the clusters this model would
+  // have had. Layout: "OCCGEOP1", then the fields in the host's byte order, then a 64-bit FNV-1a checksum of them.
+  [[nodiscard]] std::string serialize() const;
+
+  // Replaces the state by one serialize() wrote. Returns false, changing nothing, when the bytes were written under
+  // other parameters (their clusters would not be the ones these parameters build). Throws std::invalid_argument,
+  // changing nothing, when the bytes are damaged (truncated, failing the checksum, or holding impossible values).
+  bool restore(std::string_view bytes);
 
   // Number of insert_scan calls applied so far.
   [[nodiscard]] std::uint64_t scan_count() const { return scan_count_; }

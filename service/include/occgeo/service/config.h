@@ -38,10 +38,10 @@ struct LimitsConfig {
   std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
   std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
                                                                // max_send_queue_bytes / 2) is refused
-  std::size_t max_batch_queries = 1024;        // queries in one batch request
+  std::size_t max_batch_queries = 1024;                        // queries in one batch request
   std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
   std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
-  double write_timeout_s = 60.0;               // a client that accepts no bytes for this long while some wait is dropped
+  double write_timeout_s = 60.0;  // a client that accepts no bytes for this long while some wait is dropped
 };
 
 // Server-side control of the robots.
@@ -89,6 +89,8 @@ struct DurabilityConfig {
 // Geometry query defaults.
 struct QueryConfig {
   double clearance_max_distance_m = 5.0;  // search radius when the query leaves it 0
+  // Threads reading and writing the sockets; they also answer cheap single queries inline.
+  std::size_t network_threads = 2;
 };
 
 // The HTTP listener: the live web view (/), its WebSocket (/ws) and Prometheus metrics (/metrics).
@@ -155,6 +157,9 @@ struct ServerConfig {
   // Every world's OctoMap (section `octomap:`, keys as the fields of mapping::OctoMapParams, e.g. resolution_m,
   // prob_hit, voxel_filter_enabled, outlier_mean_k, min_publish_interval_s).
   mapping::OctoMapParams octomap;
+  // octomap.publish_every_messages: > 0 publishes each world's octree after every N-th sensor message instead of at
+  // most every min_publish_interval_s of wall time, so a lockstep simulation sees the same models on every run.
+  std::uint32_t octomap_publish_every_messages = 0;
   // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m, max_extent_m,
   // growth_margin_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
   // clearance queries are answered from the field.

@@ -26,6 +26,9 @@ struct Shape {
   std::vector<Eigen::Vector2d> points;  // convex polygon, counter-clockwise, metres
   double base_height_m = kDefaultShapeBaseHeight_m;
   double top_height_m = kDefaultShapeTopHeight_m;
+  // False for a surface the robot drives over although the laser sees it: a ramp's slope where it crosses the scan
+  // plane (seed 000 Fig 5.1). Ground-truth collision ignores it.
+  bool solid = true;
 
   static Shape circle(const Eigen::Vector2d& center, double radius_m);
   // A box of the given length (along its yaw) and width centred at center. Throws WorldError on a non-positive size.

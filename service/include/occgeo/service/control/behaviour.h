@@ -85,8 +85,11 @@ std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<E
 
 // Beyond the seeds: deadlock escape. Runs the inner behaviour; when it reports no_path, or the loop detector sees it
 // loop or stall, plans a global path over the remembered HIMM grid (inflated by the footprint) to the inner
-// behaviour's current goal and follows it by pure pursuit (state "escape"), then resumes a fresh inner behaviour from
-// `rebuild`. An inner behaviour without a goal runs unchanged.
+// behaviour's current goal and follows it by pure pursuit (state "escape_<trigger>"), then resumes a fresh inner
+// behaviour from `rebuild`. For goto it also looks ahead: when the straight way to the goal runs into an occupied cell
+// of the remembered grid, it follows the global path at once (state "escape_blocked"). The global path's hard limit is
+// the footprint's inscribed radius, with a cost gradient out to its circumscribed radius. An inner behaviour without a
+// goal runs unchanged.
 std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot);
 
 // The ±90°, 1° sweep PointBug reads, taken from a laser scan: each whole degree reads the nearest beam within half a

@@ -27,6 +27,13 @@ struct GlobalPathParams {
   double footprint_radius_m = 0.25;
   // A step into an unknown cell costs (1 + unknown_extra_cost) times its length; >= 0. 0 treats unknown as free.
   double unknown_extra_cost = 1.0;
+  // Beyond footprint_radius_m (the hard limit: pass the footprint's inscribed radius so narrow but passable gaps stay
+  // open) cells whose centre lies within cost_radius_m of an occupied cell cost extra, falling linearly from
+  // near_obstacle_extra_cost at footprint_radius_m to 0 at cost_radius_m (pass the circumscribed radius): paths keep
+  // away from walls where there is room and squeeze through gaps only when they must. Metres, in [0, 5]; 0: no
+  // gradient.
+  double cost_radius_m = 0.0;
+  double near_obstacle_extra_cost = 2.0;  // >= 0
   // A cell is occupied from this certainty on; 0 means the grid's own occupied threshold. In [0, 255].
   int occupied_threshold = 0;
   // The search window: the box around start and goal, grown by this on every side, metres.
@@ -96,6 +103,17 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen
 // The free/blocked verdict plan_global_path uses for each cell of the window (row-major like cells): true where the
 // centre is closer than footprint_radius_m + half a cell diagonal to an occupied cell's square.
 std::vector<bool> inflate(const PlanningWindow& window, double footprint_radius_m);
+
+// The extra cost per metre plan_global_path adds for each cell of the window (row-major like cells) near obstacles:
+// near_obstacle_extra_cost at footprint_radius_m + half a cell diagonal from an occupied cell's square, falling
+// linearly to 0 at cost_radius_m + half a cell diagonal; 0 everywhere when cost_radius_m <= footprint_radius_m.
+std::vector<float> obstacle_cost(const PlanningWindow& window, const GlobalPathParams& params);
+
+// True when no occupied cell of the snapshot comes within radius_m of the segment from a_W to b_W (world frame): the
+// straight way is open as far as the robot remembers. Cells are measured to their squares, so this errs toward
+// "blocked". Throws std::invalid_argument naming the field when a point is not finite or radius_m is not in [0, 5].
+bool segment_clear(const mapping::GridSnapshot& grid, const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W,
+                   double radius_m);
 
 // Tuning of the path follower.
 struct PurePursuitParams {
