@@ -15,6 +15,7 @@
 
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
+#include "occgeo/client/json.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -157,14 +158,7 @@ Connection connect_query(const Options& options) {
   return connection;
 }
 
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
-}
+using occgeo::client::json_string;
 
 std::string fmt(double v) {
   char buffer[32];
@@ -418,9 +412,8 @@ int run_query_occupancy(const Options& options) {
               << ",\"iy\":" << s.cell().iy() << "},\"observed\":" << (s.observed() ? "true" : "false")
               << ",\"certainty\":" << s.certainty() << ",\"occupied\":" << (s.occupied() ? "true" : "false")
               << ",\"octree_known\":" << (s.octree_known() ? "true" : "false")
-              << ",\"octree_probability\":" << fmt(s.octree_probability())
-              << ",\"threat\":" << fmt(s.threat()) << ",\"restricted\":" << (s.restricted() ? "true" : "false")
-              << "}\n";
+              << ",\"octree_probability\":" << fmt(s.octree_probability()) << ",\"threat\":" << fmt(s.threat())
+              << ",\"restricted\":" << (s.restricted() ? "true" : "false") << "}\n";
   } else {
     std::cout << "grid certainty " << s.certainty() << (s.occupied() ? " (occupied)" : "")
               << (s.observed() ? "" : " (never observed)") << ", octree "
@@ -450,8 +443,8 @@ int run_query_swept(const Options& options) {
               << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
               << ",\"theta\":" << fmt(r.pose().theta()) << "}";
     if (r.hit()) {
-      std::cout << ",\"model\":" << json_string(model_name(r.model())) << ",\"contact\":{\"x\":"
-                << fmt(r.contact().x()) << ",\"y\":" << fmt(r.contact().y()) << "}";
+      std::cout << ",\"model\":" << json_string(model_name(r.model())) << ",\"contact\":{\"x\":" << fmt(r.contact().x())
+                << ",\"y\":" << fmt(r.contact().y()) << "}";
     }
     std::cout << "}\n";
   } else if (r.hit()) {
@@ -979,8 +972,8 @@ int run_goto(const std::vector<std::string>& args) {
   std::vector<std::string> rest;
   std::vector<std::string> goal;
   for (std::size_t i = 1; i < args.size(); ++i) {
-    const bool option_value = i > 1 && args[i - 1].rfind("--", 0) == 0 && args[i - 1] != "--json" &&
-                              args[i - 1] != "--no-escape";
+    const bool option_value =
+        i > 1 && args[i - 1].rfind("--", 0) == 0 && args[i - 1] != "--json" && args[i - 1] != "--no-escape";
     if (args[i].rfind("--", 0) != 0 && !option_value) {
       goal.push_back(args[i]);
       continue;
@@ -1049,7 +1042,9 @@ int run_goto(const std::vector<std::string>& args) {
   // robot's status for the progress line.
   const double period_s = std::clamp(acquired.expires_in_s() / 3.0, 0.05, 0.5);
   const auto started = std::chrono::steady_clock::now();
-  const auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
+  const auto elapsed_s = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  };
   std::string outcome = "limit";
   std::string last_state;
   v1::RobotStatus last;
@@ -1099,9 +1094,9 @@ int run_goto(const std::vector<std::string>& args) {
               << ",\"distance_to_goal_m\":" << fmt(distance) << ",\"wall_s\":" << fmt(elapsed_s())
               << ",\"returned\":" << (returned.granted() ? "true" : "false") << "}\n";
   } else {
-    std::cout << "robot " << robot << ": " << outcome << " at (" << fmt(last.pose().x()) << ", "
-              << fmt(last.pose().y()) << "), " << fmt(distance) << " m from the goal, lease "
-              << (returned.granted() ? "returned" : "lost") << "\n";
+    std::cout << "robot " << robot << ": " << outcome << " at (" << fmt(last.pose().x()) << ", " << fmt(last.pose().y())
+              << "), " << fmt(distance) << " m from the goal, lease " << (returned.granted() ? "returned" : "lost")
+              << "\n";
   }
   if (outcome == "reached") return 0;
   return outcome == "interrupted" ? 130 : 1;
@@ -1168,8 +1163,7 @@ int main(int argc, char** argv) {
       return run_query_occupancy(parse_options(args, 2, {"world", "x", "y", "z", "models"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "swept") {
-      return run_query_swept(
-          parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models"}));
+      return run_query_swept(parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "window") {
       return run_query_window(parse_options(args, 2, {"world", "min-x", "min-y", "max-x", "max-y", "since"}));

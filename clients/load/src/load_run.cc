@@ -27,6 +27,7 @@
 #include <unordered_map>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/client/json.h"
 #include "occgeo/client/pipeline.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
@@ -660,22 +661,7 @@ std::string json_number(double value) {
   return text;
 }
 
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof escaped, "\\u%04x", static_cast<unsigned>(c));
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
+using client::json_string;
 
 }  // namespace
 

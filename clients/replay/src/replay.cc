@@ -12,6 +12,7 @@
 
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
+#include "occgeo/client/json.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_file.h"
 #include "occgeo/mapfile/map_picture.h"
@@ -31,22 +32,7 @@ std::string fmt(double v) {
   return buffer;
 }
 
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buffer[8];
-      std::snprintf(buffer, sizeof buffer, "\\u%04x", static_cast<unsigned>(c));
-      out += buffer;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
+using client::json_string;
 
 std::string json_counts(const std::map<std::string, std::uint64_t>& counts) {
   std::string out = "{";

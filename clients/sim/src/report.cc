@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <iomanip>
 #include <sstream>
+#include "occgeo/client/json.h"
 
 namespace occgeo::sim {
 
@@ -19,34 +20,7 @@ std::string number_text(double value) {
   return std::string(buffer.data(), result.ptr);
 }
 
-std::string json_string(const std::string& text) {
-  std::string quoted = "\"";
-  for (const char c : text) {
-    switch (c) {
-      case '"':
-        quoted += "\\\"";
-        break;
-      case '\\':
-        quoted += "\\\\";
-        break;
-      case '\n':
-        quoted += "\\n";
-        break;
-      case '\t':
-        quoted += "\\t";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          std::array<char, 8> escaped{};
-          std::snprintf(escaped.data(), escaped.size(), "\\u%04x", static_cast<unsigned>(c));
-          quoted += escaped.data();
-        } else {
-          quoted += c;
-        }
-    }
-  }
-  return quoted + "\"";
-}
+using client::json_string;
 
 }  // namespace
 
