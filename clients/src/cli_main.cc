@@ -7,6 +7,7 @@
 #include <iostream>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -31,11 +32,15 @@ namespace v1 = occgeo::v1;
 constexpr const char* kUsage = R"(usage: occgeo COMMAND [options]
 commands:
   status                                     robots, worlds and clients of the server
-  query collision --robot ID --x X --y Y [--theta T] [--models grid,octomap,ptem]
+  query collision --robot ID --x X --y Y [--theta T] [--models grid,octomap,ptem] [--footprint SHAPE]
                                              is the robot's footprint at this pose in collision?
   query clearance --robot ID --x X --y Y [--theta T] [--max-distance D] [--models grid,octomap,ptem]
                                              distance from the footprint to the nearest obstacle
-                                             (--models: which of the world's models; default all three)
+                                             (--models: which of the world's models; default all three;
+                                             --footprint: use this footprint instead of the robot's, in
+                                             base_link, metres: box:LENGTH,WIDTH,HEIGHT[,CENTER_X],
+                                             cylinder:RADIUS,HEIGHT or polygon:HEIGHT:X1,Y1:X2,Y2:X3,Y3...
+                                             (a convex outline, either winding); also for clearance, swept)
   query ptem --world W --x X --y Y           the PTEM's threat, gradient and restricted flag at a point
   query raycast --x X --y Y --theta T --max-range R [--world W] [--models ...]
                                              range along a ray and what it hit, per model
@@ -198,6 +203,72 @@ std::string model_name(v1::Model model) {
   }
 }
 
+// Comma-separated numbers of a --footprint part; throws UsageError naming the option.
+std::vector<double> footprint_numbers(const std::string& text, const std::string& spec) {
+  std::vector<double> numbers;
+  std::stringstream list(text);
+  std::string item;
+  while (std::getline(list, item, ',')) {
+    std::size_t used = 0;
+    double value = 0.0;
+    try {
+      value = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(value)) {
+      throw UsageError("option --footprint: '" + item + "' in '" + spec + "' is not a number");
+    }
+    numbers.push_back(value);
+  }
+  return numbers;
+}
+
+// --footprint box:L,W,H[,CX] | cylinder:R,H | polygon:H:X1,Y1:X2,Y2:...; nullopt when absent. The server checks the
+// values themselves (positive sizes, convex outline) and names the bad field.
+std::optional<v1::Footprint> footprint_from(const Options& options) {
+  const std::string spec = options.text("footprint");
+  if (spec.empty()) return std::nullopt;
+  const auto colon = spec.find(':');
+  const std::string shape = spec.substr(0, colon);
+  const std::string rest = colon == std::string::npos ? std::string() : spec.substr(colon + 1);
+  v1::Footprint footprint;
+  if (shape == "box") {
+    const std::vector<double> n = footprint_numbers(rest, spec);
+    if (n.size() != 3 && n.size() != 4) {
+      throw UsageError("option --footprint: box takes LENGTH,WIDTH,HEIGHT[,CENTER_X]");
+    }
+    auto* box = footprint.mutable_box();
+    box->set_length_m(n[0]);
+    box->set_width_m(n[1]);
+    box->set_height_m(n[2]);
+    box->set_center_x_m(n.size() == 4 ? n[3] : 0.0);
+  } else if (shape == "cylinder") {
+    const std::vector<double> n = footprint_numbers(rest, spec);
+    if (n.size() != 2) throw UsageError("option --footprint: cylinder takes RADIUS,HEIGHT");
+    footprint.mutable_cylinder()->set_radius_m(n[0]);
+    footprint.mutable_cylinder()->set_height_m(n[1]);
+  } else if (shape == "polygon") {
+    std::stringstream parts(rest);
+    std::string part;
+    std::getline(parts, part, ':');
+    const std::vector<double> height = footprint_numbers(part, spec);
+    if (height.size() != 1) throw UsageError("option --footprint: polygon takes HEIGHT:X1,Y1:X2,Y2:X3,Y3...");
+    auto* polygon = footprint.mutable_polygon();
+    polygon->set_height_m(height[0]);
+    while (std::getline(parts, part, ':')) {
+      const std::vector<double> xy = footprint_numbers(part, spec);
+      if (xy.size() != 2) throw UsageError("option --footprint: polygon vertex '" + part + "' is not X,Y");
+      auto* vertex = polygon->add_vertices();
+      vertex->set_x(xy[0]);
+      vertex->set_y(xy[1]);
+    }
+  } else {
+    throw UsageError("option --footprint takes box:..., cylinder:... or polygon:..., not '" + spec + "'");
+  }
+  return footprint;
+}
+
 v1::Pose2D pose_from(const Options& options) {
   v1::Pose2D pose;
   pose.set_x(options.number("x"));
@@ -278,6 +349,7 @@ int run_query_collision(const Options& options) {
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
   for (const v1::Model model : models_from(options)) query->add_models(model);
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
   const v1::CollisionReply reply = connection.call(request, 1).collision();
   if (options.json) {
     std::cout << "{\"hit\":" << (reply.hit() ? "true" : "false");
@@ -311,6 +383,7 @@ int run_query_clearance(const Options& options) {
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
   query->set_max_distance_m(options.number("max-distance", 0.0));
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
   for (const v1::Model model : models_from(options)) query->add_models(model);
   const v1::ClearanceReply reply = connection.call(request, 1).clearance();
   if (options.json) {
@@ -435,6 +508,7 @@ int run_query_swept(const Options& options) {
   motion->set_linear_mps(options.number("v"));
   motion->set_angular_radps(options.number("w"));
   motion->set_duration_s(options.number("duration"));
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
   const v1::SweptReply reply = connection.call(request, 1).swept();
   if (reply.results_size() != 1) throw ClientError("the server answered with no result for the motion");
   const v1::SweptResult& r = reply.results(0);
@@ -1151,10 +1225,11 @@ int main(int argc, char** argv) {
     if (args[0] == "goto" || args[0] == "waypoints") return run_goto(args);
     if (args[0] == "estop") return run_estop(parse_options(args, 1, {"robot", "token"}, {"release"}));
     if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {
-      return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models"}));
+      return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models", "footprint"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "clearance") {
-      return run_query_clearance(parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance", "models"}));
+      return run_query_clearance(
+          parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance", "models", "footprint"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "raycast") {
       return run_query_raycast(parse_options(args, 2, {"world", "x", "y", "theta", "max-range", "models"}));
@@ -1163,7 +1238,8 @@ int main(int argc, char** argv) {
       return run_query_occupancy(parse_options(args, 2, {"world", "x", "y", "z", "models"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "swept") {
-      return run_query_swept(parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models"}));
+      return run_query_swept(
+          parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models", "footprint"}));
     }
     if (args.size() >= 2 && args[0] == "query" && args[1] == "window") {
       return run_query_window(parse_options(args, 2, {"world", "min-x", "min-y", "max-x", "max-y", "since"}));

@@ -12,6 +12,9 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+#include "occgeo/geometry/convex_polygon.h"
 
 // How the work is split between exact 2D geometry and FCL.
 //
@@ -224,6 +227,98 @@ class PlacedDisc {
   std::optional<FclContactArbiter<fcl::Sphered>> fcl_;
 };
 
+// A convex polygon footprint placed in the world. Its FCL twin (fcl::Convex, used against the OctoMap) is GJK-based,
+// which the measurements above found inexact near touching, so here the exact 2D separating-axis test decides every
+// cell itself, touching included.
+class PlacedPolygon {
+ public:
+  PlacedPolygon(const ConvexPolygonFootprint& polygon, const Pose2& X_WB)
+      : vertices_W_(placed_vertices(polygon, X_WB)), center_W_(vertex_centroid(vertices_W_)) {
+    const std::size_t n = vertices_W_.size();
+    edge_normals_W_.reserve(n);
+    edge_offsets_.reserve(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::Vector2d edge = vertices_W_[(k + 1) % n] - vertices_W_[k];
+      const Eigen::Vector2d outward = Eigen::Vector2d(edge.y(), -edge.x()).normalized();
+      edge_normals_W_.push_back(outward);
+      edge_offsets_.push_back(outward.dot(vertices_W_[k]));
+      aabb_W_.extend(vertices_W_[k]);
+    }
+  }
+
+  [[nodiscard]] const Eigen::Vector2d& center_W() const { return center_W_; }
+  [[nodiscard]] Eigen::AlignedBox2d aabb_W() const { return aabb_W_; }
+
+  // The largest gap on the separating-axis candidates (world x and y both ways, each edge's outward normal), metres:
+  // positive means separated by at least that much, otherwise they overlap.
+  [[nodiscard]] double separating_gap(const CellSquare& cell) const {
+    double gap = std::max({aabb_W_.min().x() - (cell.center_W.x() + cell.half_size),
+                           cell.center_W.x() - cell.half_size - aabb_W_.max().x(),
+                           aabb_W_.min().y() - (cell.center_W.y() + cell.half_size),
+                           cell.center_W.y() - cell.half_size - aabb_W_.max().y()});
+    for (std::size_t k = 0; k < edge_normals_W_.size(); ++k) {
+      const Eigen::Vector2d& n = edge_normals_W_[k];
+      const double cell_low = n.dot(cell.center_W) - cell.half_size * (std::abs(n.x()) + std::abs(n.y()));
+      gap = std::max(gap, cell_low - edge_offsets_[k]);
+    }
+    return gap;
+  }
+
+  // Exact distance to a cell the polygon does not overlap: the closest pair of two disjoint convex polygons always
+  // includes a vertex of one of them.
+  [[nodiscard]] CellDistance distance_to(const CellSquare& cell) const {
+    double best_squared = std::numeric_limits<double>::infinity();
+    Eigen::Vector2d best_point_W = cell.center_W;
+    for (const Eigen::Vector2d& vertex_W : vertices_W_) {
+      const Eigen::Vector2d on_cell_W = closest_point_in(cell, vertex_W);
+      const double squared = (vertex_W - on_cell_W).squaredNorm();
+      if (squared < best_squared) {
+        best_squared = squared;
+        best_point_W = on_cell_W;
+      }
+    }
+    for (const double sx : {-1.0, 1.0}) {
+      for (const double sy : {-1.0, 1.0}) {
+        const Eigen::Vector2d cell_corner_W = cell.center_W + cell.half_size * Eigen::Vector2d(sx, sy);
+        const double squared =
+            (closest_point_in_convex_polygon(vertices_W_, cell_corner_W) - cell_corner_W).squaredNorm();
+        if (squared < best_squared) {
+          best_squared = squared;
+          best_point_W = cell_corner_W;
+        }
+      }
+    }
+    return {std::sqrt(best_squared), best_point_W};
+  }
+
+  // Called only within kContactBand_m of touching: the same separating axes with unnormalised edge normals, whose
+  // products are exact for vertices and cells on a binary lattice, so exact touching counts as contact there.
+  bool fcl_in_contact(const CellSquare& cell) const {
+    if (aabb_W_.min().x() > cell.center_W.x() + cell.half_size ||
+        aabb_W_.max().x() < cell.center_W.x() - cell.half_size ||
+        aabb_W_.min().y() > cell.center_W.y() + cell.half_size ||
+        aabb_W_.max().y() < cell.center_W.y() - cell.half_size) {
+      return false;
+    }
+    const std::size_t n = vertices_W_.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::Vector2d edge = vertices_W_[(k + 1) % n] - vertices_W_[k];
+      const Eigen::Vector2d outward(edge.y(), -edge.x());
+      const double cell_low =
+          outward.dot(cell.center_W) - cell.half_size * (std::abs(outward.x()) + std::abs(outward.y()));
+      if (cell_low > outward.dot(vertices_W_[k])) return false;
+    }
+    return true;
+  }
+
+ private:
+  std::vector<Eigen::Vector2d> vertices_W_;
+  Eigen::Vector2d center_W_;
+  std::vector<Eigen::Vector2d> edge_normals_W_;
+  std::vector<double> edge_offsets_;  // Outward normal . any point of the edge, metres.
+  Eigen::AlignedBox2d aabb_W_;
+};
+
 // Contact between footprint and cell given their separating gap; FCL decides the cases near touching.
 template <typename PlacedFootprint>
 bool in_contact(PlacedFootprint& footprint, const CellSquare& cell, double separating_gap) {
@@ -350,6 +445,14 @@ void validate(const Footprint& footprint, const Pose2& pose, const char* request
     }
     return;
   }
+  if (const auto* polygon = std::get_if<ConvexPolygonFootprint>(&footprint)) {
+    require_positive(polygon->height, request_name, "footprint.height");
+    if (const std::string problem = convex_polygon_problem(polygon->vertices_B, Orientation::counter_clockwise);
+        !problem.empty()) {
+      throw std::invalid_argument(std::string(request_name) + ".footprint.polygon." + problem);
+    }
+    return;
+  }
   const auto& cylinder = std::get<CylinderFootprint>(footprint);
   require_positive(cylinder.radius, request_name, "footprint.radius");
   require_positive(cylinder.height, request_name, "footprint.height");
@@ -366,6 +469,10 @@ template <typename Query>
 auto with_placed_footprint(const Footprint& footprint, const Pose2& X_WB, double cell_size, Query&& query) {
   if (const auto* box = std::get_if<BoxFootprint>(&footprint)) {
     PlacedBox placed(*box, X_WB, cell_size);
+    return query(placed);
+  }
+  if (const auto* polygon = std::get_if<ConvexPolygonFootprint>(&footprint)) {
+    PlacedPolygon placed(*polygon, X_WB);
     return query(placed);
   }
   PlacedDisc placed(std::get<CylinderFootprint>(footprint), X_WB, cell_size);

@@ -9,6 +9,9 @@
 #include <string>
 #include <utility>
 #include <variant>
+#include <vector>
+
+#include "occgeo/geometry/convex_polygon.h"
 
 // Distances in the brushfire are integers: the squared distance from a cell's centre to an occupied cell's square in
 // units of (cell_size / 2)^2, which for index offsets (dx, dy) is (2|dx| - 1)+^2 + (2|dy| - 1)+^2. Being exact
@@ -74,11 +77,13 @@ std::pair<std::int64_t, std::int64_t> required_range(std::int64_t lo, std::int64
 // A footprint placed in the world, in 2D.
 struct PlacedFootprint {
   bool is_box = true;
-  Eigen::Vector2d center_W;  // Box centre or disc centre.
+  bool is_polygon = false;
+  Eigen::Vector2d center_W;  // Box centre, disc centre or polygon's vertex centroid.
   Eigen::Vector2d axis_x_W = Eigen::Vector2d::UnitX();
   Eigen::Vector2d axis_y_W = Eigen::Vector2d::UnitY();
   Eigen::Vector2d half_extents = Eigen::Vector2d::Zero();  // Box only.
   double radius = 0.0;                                     // Disc only.
+  std::vector<Eigen::Vector2d> vertices_W;                 // Polygon only, counter-clockwise.
   Eigen::Vector2d aabb_half_extents_W;
 
   PlacedFootprint(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
@@ -94,6 +99,16 @@ struct PlacedFootprint {
       return;
     }
     is_box = false;
+    if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+      is_polygon = true;
+      vertices_W = geometry::placed_vertices(*polygon, X_WB);
+      center_W = geometry::vertex_centroid(vertices_W);
+      aabb_half_extents_W = Eigen::Vector2d::Zero();
+      for (const Eigen::Vector2d& vertex_W : vertices_W) {
+        aabb_half_extents_W = aabb_half_extents_W.cwiseMax((vertex_W - center_W).cwiseAbs());
+      }
+      return;
+    }
     radius = std::get<geometry::CylinderFootprint>(footprint).radius;
     center_W = X_WB.position();
     aabb_half_extents_W = Eigen::Vector2d::Constant(radius);
@@ -101,6 +116,7 @@ struct PlacedFootprint {
 
   // The point of the footprint closest to p_W (p_W itself when inside).
   [[nodiscard]] Eigen::Vector2d closest_point(const Eigen::Vector2d& p_W) const {
+    if (is_polygon) return geometry::closest_point_in_convex_polygon(vertices_W, p_W);
     const Eigen::Vector2d offset = p_W - center_W;
     if (is_box) {
       const double along = std::clamp(offset.dot(axis_x_W), -half_extents.x(), half_extents.x());
@@ -113,6 +129,7 @@ struct PlacedFootprint {
 
   // Distance from p_W to the footprint, metres; 0 inside.
   [[nodiscard]] double distance_to_point(const Eigen::Vector2d& p_W) const {
+    if (is_polygon) return (geometry::closest_point_in_convex_polygon(vertices_W, p_W) - p_W).norm();
     const Eigen::Vector2d offset = p_W - center_W;
     if (is_box) {
       const double out_x = std::max(std::abs(offset.dot(axis_x_W)) - half_extents.x(), 0.0);
@@ -129,6 +146,12 @@ struct PlacedFootprint {
     const Eigen::Vector2d lo = square_center_W - Eigen::Vector2d::Constant(half);
     const Eigen::Vector2d hi = square_center_W + Eigen::Vector2d::Constant(half);
     const Eigen::Vector2d nearest_to_center = center_W.cwiseMax(lo).cwiseMin(hi);
+    if (is_polygon) {
+      const geometry::PolygonSquareDistance d =
+          geometry::convex_polygon_square_distance(vertices_W, square_center_W, half);
+      if (d.overlap) return {0.0, nearest_to_center};
+      return {d.distance_m, d.point_on_square};
+    }
     if (!is_box) {
       const double gap = (center_W - nearest_to_center).norm() - radius;
       return {std::max(gap, 0.0), nearest_to_center};
@@ -185,6 +208,11 @@ void validate_request(const geometry::ClearanceRequest& request) {
     positive(box->height, "footprint.height");
     if (!std::isfinite(box->center_x))
       throw std::invalid_argument("ClearanceRequest.footprint.center_x must be finite");
+  } else if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&request.footprint)) {
+    positive(polygon->height, "footprint.height");
+    const std::string problem =
+        geometry::convex_polygon_problem(polygon->vertices_B, geometry::Orientation::counter_clockwise);
+    if (!problem.empty()) throw std::invalid_argument("ClearanceRequest.footprint.polygon." + problem);
   } else {
     const auto& cylinder = std::get<geometry::CylinderFootprint>(request.footprint);
     positive(cylinder.radius, "footprint.radius");

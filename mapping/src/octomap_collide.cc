@@ -49,6 +49,14 @@ OctoCollision collide_footprint(const FclOctreeView& view, const geometry::Footp
           if (!std::isfinite(f.center_x)) throw std::invalid_argument("collide: footprint center_x must be finite");
           shape = std::make_shared<fcl::Boxd>(f.length, f.width, f.height);
           X_BF.translation() = Eigen::Vector3d{f.center_x, 0.0, f.height / 2};
+        } else if constexpr (std::is_same_v<T, geometry::ConvexPolygonFootprint>) {
+          require_dimension(f.height, "height");
+          if (f.vertices_B.size() < 3) throw std::invalid_argument("collide: footprint polygon needs >= 3 vertices");
+          geometry::PrismMesh mesh = geometry::prism_mesh(f);
+          // The mesh stands on base_link's z = 0 already: X_BF stays identity.
+          shape = std::make_shared<fcl::Convexd>(
+              std::make_shared<const std::vector<Eigen::Vector3d>>(std::move(mesh.vertices_B)), mesh.face_count,
+              std::make_shared<const std::vector<int>>(std::move(mesh.faces)));
         } else {
           require_dimension(f.radius, "radius");
           require_dimension(f.height, "height");

@@ -57,11 +57,19 @@ FrameStatus FrameDecoder::next(google::protobuf::MessageLite& out) {
 
 std::string encode_frame(const google::protobuf::MessageLite& message) {
   std::string out;
-  {
-    google::protobuf::io::StringOutputStream stream(&out);
-    google::protobuf::util::SerializeDelimitedToZeroCopyStream(message, &stream);
-  }
+  append_frame(message, out);
   return out;
+}
+
+void append_frame(const google::protobuf::MessageLite& message, std::string& out) {
+  const std::size_t size = message.ByteSizeLong();
+  const std::size_t start = out.size();
+  const auto prefix_bytes =
+      static_cast<std::size_t>(google::protobuf::io::CodedOutputStream::VarintSize32(static_cast<std::uint32_t>(size)));
+  out.resize(start + prefix_bytes + size);
+  auto* target = reinterpret_cast<std::uint8_t*>(out.data() + start);
+  target = google::protobuf::io::CodedOutputStream::WriteVarint32ToArray(static_cast<std::uint32_t>(size), target);
+  message.SerializeWithCachedSizesToArray(target);
 }
 
 }  // namespace occgeo::proto

@@ -7,6 +7,15 @@
 
 namespace occgeo::service {
 
+namespace {
+// Snapshot generations are unique across worlds, so a thread's cached snapshot can never be mistaken for that of a
+// world created later at the same address.
+std::uint64_t next_snapshot_generation() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
 World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand)
     : name_(std::move(name)),
       grid_(std::move(grid)),
@@ -20,6 +29,7 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
   auto grid_snapshot = grid_.snapshot();
   distance_field_.update(grid_snapshot);
   snapshot_ = {std::move(grid_snapshot), ptem_.snapshot(), distance_field_.snapshot(), octomap_.publish()};
+  snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
 void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::optional<Eigen::Vector2d> focus_W) {
@@ -48,12 +58,14 @@ void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::opti
   WorldSnapshot snapshot{std::move(grid), ptem_.snapshot(), distance_field_.snapshot(), octomap_.snapshot()};
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_ = std::move(snapshot);
+  snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
 std::shared_ptr<const mapping::OctoMapSnapshot> World::publish_octomap_on_strand() {
   auto octomap = octomap_.publish();
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_.octomap = octomap;
+  snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
   return octomap;
 }
 
@@ -77,6 +89,23 @@ std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
 WorldSnapshot World::snapshots() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_;
+}
+
+const WorldSnapshot& World::snapshots_for_this_thread() const {
+  struct Cached {
+    const World* world = nullptr;
+    std::uint64_t generation = 0;
+    WorldSnapshot snapshot;
+  };
+  thread_local Cached cached;
+  const std::uint64_t generation = snapshot_generation_.load(std::memory_order_acquire);
+  if (cached.world != this || cached.generation != generation) {
+    const std::lock_guard lock(snapshot_mutex_);
+    cached.world = this;
+    cached.snapshot = snapshot_;
+    cached.generation = snapshot_generation_.load(std::memory_order_relaxed);
+  }
+  return cached.snapshot;
 }
 
 namespace {

@@ -100,6 +100,10 @@ class World : public std::enable_shared_from_this<World> {
   void attach_journal(std::shared_ptr<durability::WorldJournal> journal) { journal_ = std::move(journal); }
   // The latest published grid and PTEM, from the same publication; safe from any thread.
   [[nodiscard]] WorldSnapshot snapshots() const;
+  // The same for a network thread answering many queries: when nothing was published since this thread's last call,
+  // no lock is taken and no reference count touched (both are shared by every thread). The reference is valid until
+  // this thread calls it again.
+  [[nodiscard]] const WorldSnapshot& snapshots_for_this_thread() const;
 
  private:
   std::string name_;
@@ -116,6 +120,8 @@ class World : public std::enable_shared_from_this<World> {
   std::uint32_t messages_since_octomap_ = 0;
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
+  // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).
+  std::atomic<std::uint64_t> snapshot_generation_{0};
   std::shared_ptr<durability::WorldJournal> journal_;
 };
 

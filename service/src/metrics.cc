@@ -182,24 +182,49 @@ Entry& find_or_add(std::string_view name, const Labels& labels, std::string_view
 
 }  // namespace
 
+std::size_t detail::this_thread_slot() {
+  static std::atomic<std::size_t> next{0};
+  thread_local const std::size_t slot = next.fetch_add(1, std::memory_order_relaxed) % kSlots;
+  return slot;
+}
+
+std::uint64_t Counter::value() const {
+  std::uint64_t total = 0;
+  for (const Slot& slot : slots_) total += slot.value.load(std::memory_order_relaxed);
+  return total;
+}
+
 void Histogram::observe(double value) {
   std::size_t bucket = 0;
   while (bucket < kLatencyBounds.size() && value > kLatencyBounds[bucket]) ++bucket;
-  buckets_[bucket].fetch_add(1, std::memory_order_relaxed);
-  std::uint64_t old_bits = sum_bits_.load(std::memory_order_relaxed);
-  while (!sum_bits_.compare_exchange_weak(
+  Slot& slot = slots_[detail::this_thread_slot()];
+  slot.buckets[bucket].fetch_add(1, std::memory_order_relaxed);
+  std::uint64_t old_bits = slot.sum_bits.load(std::memory_order_relaxed);
+  while (!slot.sum_bits.compare_exchange_weak(
       old_bits, std::bit_cast<std::uint64_t>(std::bit_cast<double>(old_bits) + value), std::memory_order_relaxed)) {
   }
-  count_.fetch_add(1, std::memory_order_relaxed);
+  slot.count.fetch_add(1, std::memory_order_relaxed);
 }
 
 std::array<std::uint64_t, Histogram::kLatencyBounds.size() + 1> Histogram::bucket_counts() const {
   std::array<std::uint64_t, kLatencyBounds.size() + 1> counts{};
-  for (std::size_t i = 0; i < counts.size(); ++i) counts[i] = buckets_[i].load(std::memory_order_relaxed);
+  for (const Slot& slot : slots_) {
+    for (std::size_t i = 0; i < counts.size(); ++i) counts[i] += slot.buckets[i].load(std::memory_order_relaxed);
+  }
   return counts;
 }
 
-double Histogram::sum() const { return std::bit_cast<double>(sum_bits_.load(std::memory_order_relaxed)); }
+std::uint64_t Histogram::count() const {
+  std::uint64_t total = 0;
+  for (const Slot& slot : slots_) total += slot.count.load(std::memory_order_relaxed);
+  return total;
+}
+
+double Histogram::sum() const {
+  double total = 0.0;
+  for (const Slot& slot : slots_) total += std::bit_cast<double>(slot.sum_bits.load(std::memory_order_relaxed));
+  return total;
+}
 
 Counter& counter(std::string_view name, const Labels& labels, std::string_view help) {
   return *find_or_add(name, labels, help, Type::counter).counter;

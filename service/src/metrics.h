@@ -6,12 +6,14 @@
 //   metrics::histogram("occgeo_query_duration_seconds", {{"kind", "collision"}}).observe(seconds);
 //
 // Looking a metric up takes a mutex (once per name and label set: keep the reference where it is hot);
-// updating it is a relaxed atomic, so ingest and query threads never wait for a scrape. References stay
+// updating it is a relaxed atomic on a slot of the updating thread's own (one cache line per slot, summed when read),
+// so ingest and query threads never wait for a scrape nor bounce a cache line between them. References stay
 // valid for the life of the process. Names follow Prometheus conventions: counters end in _total,
 // durations are in seconds.
 
 #include <array>
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <initializer_list>
 #include <string>
@@ -24,14 +26,26 @@ namespace occgeo::service::metrics {
 // Label name/value pairs; the order given is the order shown.
 using Labels = std::vector<std::pair<std::string, std::string>>;
 
+namespace detail {
+// Slots per counter and histogram: threads take them in turn, so up to this many threads update without sharing.
+inline constexpr std::size_t kSlots = 8;
+// The calling thread's slot.
+std::size_t this_thread_slot();
+}  // namespace detail
+
 // A value that only goes up.
 class Counter {
  public:
-  void inc(std::uint64_t amount = 1) { value_.fetch_add(amount, std::memory_order_relaxed); }
-  [[nodiscard]] std::uint64_t value() const { return value_.load(std::memory_order_relaxed); }
+  void inc(std::uint64_t amount = 1) {
+    slots_[detail::this_thread_slot()].value.fetch_add(amount, std::memory_order_relaxed);
+  }
+  [[nodiscard]] std::uint64_t value() const;
 
  private:
-  std::atomic<std::uint64_t> value_{0};
+  struct alignas(64) Slot {
+    std::atomic<std::uint64_t> value{0};
+  };
+  std::array<Slot, detail::kSlots> slots_{};
 };
 
 // A value that goes up and down (sessions open, queue depth).
@@ -55,13 +69,16 @@ class Histogram {
   void observe(double value);
   // Per bucket (not cumulative), the last one for values above every bound (+Inf).
   [[nodiscard]] std::array<std::uint64_t, kLatencyBounds.size() + 1> bucket_counts() const;
-  [[nodiscard]] std::uint64_t count() const { return count_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t count() const;
   [[nodiscard]] double sum() const;
 
  private:
-  std::array<std::atomic<std::uint64_t>, kLatencyBounds.size() + 1> buckets_{};
-  std::atomic<std::uint64_t> count_{0};
-  std::atomic<std::uint64_t> sum_bits_{0};  // a double, updated by compare-exchange
+  struct alignas(64) Slot {
+    std::array<std::atomic<std::uint64_t>, kLatencyBounds.size() + 1> buckets{};
+    std::atomic<std::uint64_t> count{0};
+    std::atomic<std::uint64_t> sum_bits{0};  // a double, updated by compare-exchange
+  };
+  std::array<Slot, detail::kSlots> slots_{};
 };
 
 // The metric with this name and labels, created (at zero) on first use. `help` describes the family the

@@ -82,8 +82,8 @@ struct Server::Impl {
   }
 
   void accept() {
-    auto session_strand = asio::make_strand(loop_for_next_session());
-    acceptor.async_accept(session_strand, [this](const boost::system::error_code& error, tcp::socket socket) {
+    // Each loop is run by one thread, so a session on it needs no strand: its handlers never run concurrently.
+    acceptor.async_accept(loop_for_next_session(), [this](const boost::system::error_code& error, tcp::socket socket) {
       if (error) {
         if (error != asio::error::operation_aborted) {
           log::warn("accept_failed", {{"error", error.message()}});

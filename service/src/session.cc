@@ -1,6 +1,6 @@
 #include "session.h"
 
-#include <boost/asio/dispatch.hpp>
+#include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
 
@@ -94,7 +94,13 @@ void Session::start() {
 }
 
 void Session::close() {
-  asio::dispatch(executor_, [self = shared_from_this()] { self->shutdown(); });
+  // Posted, never run inline: the caller may hold locks that closing takes (leases, the session list).
+  asio::post(executor_, [self = shared_from_this()] { self->shutdown(); });
+}
+
+bool Session::on_session_thread() const {
+  const auto* loop = executor_.target<asio::io_context::executor_type>();
+  return loop != nullptr && loop->running_in_this_thread();
 }
 
 void Session::read_more() {
@@ -181,10 +187,18 @@ void Session::send(v1::ServerMessage message) {
     while (pending > 0 && !pending_requests_.compare_exchange_weak(pending, pending - 1)) {
     }
   }
-  // Encoding happens on the caller's thread so the network strand only moves bytes.
+  // An answer given inline while this session's frames are being handled is serialised straight into the outbox.
+  // corked_ is read only on the session's own thread (the && stops before it elsewhere).
+  if (on_session_thread() && corked_) {
+    if (closed_) return;
+    proto::append_frame(message, queued_);
+    after_enqueue();
+    return;
+  }
+  // Encoding happens on the caller's thread so the network thread only moves bytes. Posted (not run inline even on
+  // this session's thread): the caller may be another session's handler holding locks that closing this one takes.
   std::string frame = proto::encode_frame(message);
-  asio::dispatch(executor_,
-                 [self = shared_from_this(), frame = std::move(frame)]() mutable { self->enqueue(std::move(frame)); });
+  asio::post(executor_, [self = shared_from_this(), frame = std::move(frame)] { self->enqueue(frame); });
 }
 
 void Session::close_after_send() {
@@ -226,10 +240,14 @@ void Session::enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
   if (!writing_ && !corked_) write_next();
 }
 
-void Session::enqueue(std::string frame) {
+void Session::enqueue(const std::string& frame) {
   if (closed_) return;
-  outbox_bytes_ += frame.size();
-  outbox_.push_back(std::move(frame));
+  queued_ += frame;
+  after_enqueue();
+}
+
+void Session::after_enqueue() {
+  outbox_bytes_ = queued_.size() + writing_buffer_.size();
   if (outbox_bytes_ > core_.config().limits.max_send_queue_bytes) {
     log::warn("session_slow_client_dropped",
               {{"session", info_.id}, {"peer", info_.peer}, {"unsent_bytes", outbox_bytes_}});
@@ -247,21 +265,19 @@ void Session::enqueue(std::string frame) {
 }
 
 void Session::write_next() {
-  if (outbox_.empty() && !close_after_write_) {
+  if (queued_.empty() && !close_after_write_) {
     // Replies first; watch events are encoded only when they are about to be written, the first carrying the drop
     // count.
-    while (!watch_queue_.empty() && outbox_.size() < kMaxFramesPerWrite) {
-      v1::ServerMessage message;
+    v1::ServerMessage message;
+    for (std::size_t events = 0; !watch_queue_.empty() && events < kMaxWatchEventsPerWrite; ++events) {
       *message.mutable_watch_event() = *watch_queue_.front();
       message.mutable_watch_event()->set_dropped_since_last(watch_dropped_);
       watch_dropped_ = 0;
       watch_queue_.pop_front();
-      std::string frame = proto::encode_frame(message);
-      outbox_bytes_ += frame.size();
-      outbox_.push_back(std::move(frame));
+      proto::append_frame(message, queued_);
     }
   }
-  if (outbox_.empty()) {
+  if (queued_.empty()) {
     writing_ = false;
     if (close_after_write_) shutdown();
     return;
@@ -269,23 +285,21 @@ void Session::write_next() {
   writing_ = true;
   write_started_ = std::chrono::steady_clock::now();
   arm_write_timer();
-  // Every queued frame (up to kMaxFramesPerWrite) in one gathered write: one system call for a burst of replies.
-  const std::size_t frames = std::min(outbox_.size(), kMaxFramesPerWrite);
-  std::vector<asio::const_buffer> buffers;
-  buffers.reserve(frames);
-  for (std::size_t i = 0; i < frames; ++i) buffers.push_back(asio::buffer(outbox_[i]));
+  // Every queued frame in one write: one system call for a burst of replies.
+  if (writing_buffer_.capacity() > kKeptWriteBufferBytes) std::string().swap(writing_buffer_);
+  writing_buffer_.clear();
+  writing_buffer_.swap(queued_);
+  outbox_bytes_ = writing_buffer_.size();
   with_stream([&](auto& stream) {
-    asio::async_write(stream, buffers,
-                      [self = shared_from_this(), frames](const boost::system::error_code& error, std::size_t) {
+    asio::async_write(stream, asio::buffer(writing_buffer_),
+                      [self = shared_from_this()](const boost::system::error_code& error, std::size_t) {
                         if (self->closed_) return;
                         if (error) {
                           self->shutdown();
                           return;
                         }
-                        for (std::size_t i = 0; i < frames; ++i) {
-                          self->outbox_bytes_ -= self->outbox_.front().size();
-                          self->outbox_.pop_front();
-                        }
+                        self->writing_buffer_.clear();
+                        self->outbox_bytes_ = self->queued_.size();
                         self->write_next();
                       });
   });
@@ -316,7 +330,10 @@ void Session::fail_stream(v1::ErrorCode code, const std::string& message) {
   v1::ServerMessage reply;
   reply.mutable_error()->set_code(code);
   reply.mutable_error()->set_message(message + "; closing the connection");
-  enqueue(proto::encode_frame(reply));
+  if (!closed_) {
+    proto::append_frame(reply, queued_);
+    outbox_bytes_ = queued_.size() + writing_buffer_.size();
+  }
   close_after_write_ = true;
   if (!writing_) write_next();  // writes the error, then shuts down
 }
@@ -329,7 +346,7 @@ void Session::shutdown() {
   write_timer_.cancel();
   tcp_socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
   tcp_socket().close(ignored);
-  outbox_.clear();
+  queued_.clear();
   outbox_bytes_ = 0;
   watch_queue_.clear();
   handle_disconnect(core_, info_);

@@ -91,7 +91,11 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   void process_frames();
   // The decoding loop of process_frames; true when it stopped after kMaxFramesPerRound frames with more buffered.
   bool dispatch_frames();
-  void enqueue(std::string frame);
+  // True on the thread running this session's event loop (its handlers all run there, one at a time).
+  [[nodiscard]] bool on_session_thread() const;
+  // Checks the outbox after frames were appended to it, then writes unless corked or a write is in progress.
+  void after_enqueue();
+  void enqueue(const std::string& frame);
   void enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event);
   void write_next();
   void arm_write_timer();
@@ -101,19 +105,25 @@ class Session final : public SessionContext, public std::enable_shared_from_this
 
   ServerCore& core_;
   SessionShared& shared_;
-  asio::any_io_executor executor_;  // the session's strand
-  asio::ip::tcp::socket socket_;    // plain TCP; unused (moved into tls_) with TLS
+  // The session's event loop, run by one thread: no strand is needed to keep its handlers apart.
+  asio::any_io_executor executor_;
+  asio::ip::tcp::socket socket_;  // plain TCP; unused (moved into tls_) with TLS
   std::unique_ptr<asio::ssl::stream<asio::ip::tcp::socket>> tls_;
   asio::steady_timer write_timer_;
   SessionInfo info_;
   proto::FrameDecoder decoder_;
   std::array<char, std::size_t{64} * 1024> read_buffer_{};
-  // Frames gathered into one write at most (asio's writev takes up to 64 buffers).
-  static constexpr std::size_t kMaxFramesPerWrite = 64;
+  // Watch events encoded into one write at most.
+  static constexpr std::size_t kMaxWatchEventsPerWrite = 64;
+  // A write buffer that grew beyond this (a large reply) is released once written rather than kept.
+  static constexpr std::size_t kKeptWriteBufferBytes = std::size_t{1} << 20;
   // Frames handled in one go before other sessions on the same network thread get a turn.
   static constexpr std::size_t kMaxFramesPerRound = 256;
-  std::deque<std::string> outbox_;
-  std::size_t outbox_bytes_ = 0;
+  // Frames serialised back to back: queued_ waits for the write of writing_ to finish, then the two swap, so a burst
+  // of replies costs one system call and no allocation per frame.
+  std::string queued_;
+  std::string writing_buffer_;
+  std::size_t outbox_bytes_ = 0;  // queued_ and writing_buffer_
   std::deque<std::shared_ptr<const v1::WatchEvent>> watch_queue_;
   std::uint64_t watch_dropped_ = 0;  // events dropped since the last one delivered
   std::atomic<std::size_t> pending_requests_{0};

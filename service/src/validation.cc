@@ -1,7 +1,11 @@
 #include "validation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
+
+#include "occgeo/geometry/convex_polygon.h"
 
 namespace occgeo::service {
 
@@ -52,7 +56,33 @@ std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& foo
     }
     return std::nullopt;
   }
-  error = field_error(prefix, "must be a box or a cylinder");
+  if (footprint.has_polygon()) {
+    const auto& polygon = footprint.polygon();
+    // Checked before copying, so an oversized list costs nothing.
+    if (static_cast<std::size_t>(polygon.vertices_size()) > geometry::kMaxPolygonVertices) {
+      error = field_error(prefix + ".polygon.vertices", "holds " + std::to_string(polygon.vertices_size()) +
+                                                            " vertices, at most " +
+                                                            std::to_string(geometry::kMaxPolygonVertices) + " allowed");
+      return std::nullopt;
+    }
+    std::vector<Eigen::Vector2d> vertices_B;
+    vertices_B.reserve(static_cast<std::size_t>(polygon.vertices_size()));
+    for (const auto& vertex : polygon.vertices()) vertices_B.emplace_back(vertex.x(), vertex.y());
+    // Checked in the client's order so that a named vertex is the client's; clockwise outlines are then reversed.
+    if (const std::string problem = geometry::convex_polygon_problem(vertices_B, geometry::Orientation::either);
+        !problem.empty()) {
+      const auto space = problem.find(' ');
+      error = field_error(prefix + ".polygon." + problem.substr(0, space), problem.substr(space + 1));
+      return std::nullopt;
+    }
+    if (!finite_positive(polygon.height_m())) {
+      error = field_error(prefix + ".polygon.height_m", "must be a positive length");
+      return std::nullopt;
+    }
+    if (geometry::twice_signed_area(vertices_B) < 0.0) std::reverse(vertices_B.begin(), vertices_B.end());
+    return geometry::ConvexPolygonFootprint{std::move(vertices_B), polygon.height_m()};
+  }
+  error = field_error(prefix, "must be a box, a cylinder or a polygon");
   return std::nullopt;
 }
 

@@ -100,10 +100,11 @@ function computeTransform() {
 
 function footprintCorners(robot) {
   const f = robot.footprint;
-  if (!f || f.shape !== 'box') return null;
-  const hl = f.length_m / 2, hw = f.width_m / 2, cx = f.center_x_m;
+  if (!f || (f.shape !== 'box' && f.shape !== 'polygon')) return null;
   const c = Math.cos(robot.pose.theta), s = Math.sin(robot.pose.theta);
-  return [[cx + hl, hw], [cx - hl, hw], [cx - hl, -hw], [cx + hl, -hw]].map(
+  const hl = f.length_m / 2, hw = f.width_m / 2, cx = f.center_x_m;
+  const outline = f.shape === 'polygon' ? f.vertices_m : [[cx + hl, hw], [cx - hl, hw], [cx - hl, -hw], [cx + hl, -hw]];
+  return outline.map(
       ([bx, by]) => [robot.pose.x + c * bx - s * by, robot.pose.y + s * bx + c * by]);
 }
 
@@ -187,7 +188,9 @@ function draw() {
     ctx.stroke();
     // Heading: a tick from the front edge outwards, so the pose's own pixel keeps the robot's colour.
     const c = Math.cos(robot.pose.theta), s = Math.sin(robot.pose.theta);
-    const reach = robot.footprint && robot.footprint.length_m ? robot.footprint.length_m / 2 : 0.3;
+    const f = robot.footprint;
+    const reach = f && f.shape === 'polygon' ? Math.max(...f.vertices_m.map(([x]) => x))
+                : f && f.length_m ? f.length_m / 2 : 0.3;
     ctx.beginPath();
     ctx.moveTo(t.x(robot.pose.x + c * reach), t.y(robot.pose.y + s * reach));
     ctx.lineTo(t.x(robot.pose.x + c * (reach + 0.4)), t.y(robot.pose.y + s * (reach + 0.4)));

@@ -84,6 +84,16 @@ const occgeo::mapping::GridSnapshot& bench_snapshot() {
 
 const Footprint kBearcat = BoxFootprint{1.0, 0.8, 1.0, 0.0};
 const Footprint kCylinder = CylinderFootprint{0.4, 1.0};
+// The Bearcat's box as a polygon (the cost of the general path against the box's), and an octagon of 0.45 m radius.
+const Footprint kBearcatPolygon =
+    occgeo::geometry::ConvexPolygonFootprint{{{-0.5, -0.4}, {0.5, -0.4}, {0.5, 0.4}, {-0.5, 0.4}}, 1.0};
+const Footprint kOctagon = [] {
+  occgeo::geometry::ConvexPolygonFootprint octagon{{}, 1.0};
+  for (int k = 0; k < 8; ++k) {
+    octagon.vertices_B.emplace_back(0.45 * std::cos(k * M_PI / 4), 0.45 * std::sin(k * M_PI / 4));
+  }
+  return Footprint{octagon};
+}();
 
 // Which poses a benchmark cycles through: uniform over the map (at 5% density almost all collide, and a check stops
 // at the first cell in contact), or only collision-free ones (every candidate cell is examined: the worst case).
@@ -168,9 +178,13 @@ void BM_SourceScanOfFootprintAabb(benchmark::State& state) {
 BENCHMARK_CAPTURE(BM_CheckCollision, bearcat_uniform, kBearcat, Poses::kUniform);
 BENCHMARK_CAPTURE(BM_CheckCollision, bearcat_free, kBearcat, Poses::kCollisionFree);
 BENCHMARK_CAPTURE(BM_CheckCollision, cylinder_free, kCylinder, Poses::kCollisionFree);
+BENCHMARK_CAPTURE(BM_CheckCollision, bearcat_polygon_free, kBearcatPolygon, Poses::kCollisionFree);
+BENCHMARK_CAPTURE(BM_CheckCollision, octagon_free, kOctagon, Poses::kCollisionFree);
 BENCHMARK_CAPTURE(BM_ComputeClearance, bearcat_uniform, kBearcat, Poses::kUniform);
 BENCHMARK_CAPTURE(BM_ComputeClearance, bearcat_free, kBearcat, Poses::kCollisionFree);
 BENCHMARK_CAPTURE(BM_ComputeClearance, cylinder_free, kCylinder, Poses::kCollisionFree);
+BENCHMARK_CAPTURE(BM_ComputeClearance, bearcat_polygon_free, kBearcatPolygon, Poses::kCollisionFree);
+BENCHMARK_CAPTURE(BM_ComputeClearance, octagon_free, kOctagon, Poses::kCollisionFree);
 BENCHMARK(BM_SourceScanOfFootprintAabb);
 BENCHMARK_CAPTURE(BM_CheckCollision, bearcat_free_on_grid_snapshot, kBearcat, Poses::kCollisionFree, true);
 BENCHMARK_CAPTURE(BM_ComputeClearance, bearcat_free_on_grid_snapshot, kBearcat, Poses::kCollisionFree, true);

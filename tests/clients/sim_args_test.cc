@@ -87,7 +87,7 @@ TEST(ParseArgs, ErrorsNameTheFlag) {
       {{"--world", "w.yaml", "--start", "1,2,x"}, "--start: expected X,Y,THETA"},
       {{"--world", "w.yaml", "--start", "1,2,3,4"}, "--start: expected X,Y,THETA"},
       {{"--world", "w.yaml", "--robot", "r2d2"},
-       "--robot: unknown robot 'r2d2' (known: bearcat, scout, activitybot, ugv)"},
+       "--robot: unknown robot 'r2d2' (known: bearcat, scout, activitybot, ugv, bearcat_3d)"},
       {{"--world", "w.yaml", "--server", "localhost"}, "--server: "},
       {{"--world", "w.yaml", "--server", "localhost:99999"}, "--server: "},
       {{"--world", "w.yaml", "--seed", "-3"}, "--seed: expected a non-negative integer"},

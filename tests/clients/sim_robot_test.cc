@@ -145,7 +145,7 @@ TEST(RobotPresets, BearcatMatchesTheSeed) {
   EXPECT_EQ(preset.laser()->mount_height_m, 0.6);
   EXPECT_EQ(preset.command_timeout_s, 0.5);
   EXPECT_EQ(find_robot_preset("r2d2"), nullptr);
-  EXPECT_EQ(robot_preset_names(), "bearcat, scout, activitybot, ugv");
+  EXPECT_EQ(robot_preset_names(), "bearcat, scout, activitybot, ugv, bearcat_3d");
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -11,6 +13,8 @@
 #include <string>
 #include <unordered_set>
 #include <vector>
+
+#include "occgeo/geometry/convex_polygon.h"
 
 namespace occgeo::geometry {
 namespace {
@@ -109,12 +113,36 @@ Polygon box_polygon(const BoxFootprint& box, const Pose2& X_WB, double grow) {
   return corners;
 }
 
+// The polygon footprint's outline in world, each edge moved outwards by `grow` metres (negative shrinks): vertex k
+// becomes the intersection of its two edges' moved lines.
+Polygon grown_polygon(const ConvexPolygonFootprint& polygon, const Pose2& X_WB, double grow) {
+  Polygon placed;
+  for (const Vec& v : polygon.vertices_B) placed.push_back(X_WB.transform(v));
+  if (grow == 0.0) return placed;
+  const std::size_t n = placed.size();
+  Polygon grown;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec& previous = placed[(k + n - 1) % n];
+    const Vec& vertex = placed[k];
+    const Vec& next = placed[(k + 1) % n];
+    const Vec d1 = (vertex - previous).normalized(), d2 = (next - vertex).normalized();
+    const Vec n1(d1.y(), -d1.x()), n2(d2.y(), -d2.x());
+    // vertex + t: n1 . t = grow and n2 . t = grow.
+    const double det = n1.x() * n2.y() - n1.y() * n2.x();
+    grown.push_back(vertex + Vec(grow * (n2.y() - n1.y()), grow * (n1.x() - n2.x())) / det);
+  }
+  return grown;
+}
+
 // Distance from the footprint, grown by `grow` metres, to the cell; 0 when they overlap or touch.
 double reference_distance(const Footprint& footprint, const Pose2& X_WB, const CellIndex& cell, double s,
                           double grow = 0.0) {
   const Polygon square = cell_polygon(cell, s);
   if (const auto* box = std::get_if<BoxFootprint>(&footprint)) {
     return polygon_distance(box_polygon(*box, X_WB, grow), square);
+  }
+  if (const auto* polygon = std::get_if<ConvexPolygonFootprint>(&footprint)) {
+    return polygon_distance(grown_polygon(*polygon, X_WB, grow), square);
   }
   const double radius = std::get<CylinderFootprint>(footprint).radius + grow;
   return std::max(0.0, point_polygon_distance(X_WB.position(), square) - radius);
@@ -135,6 +163,8 @@ Contact reference_contact(const Footprint& footprint, const Pose2& X_WB, const C
 
 // ---------------------------------------------------------------------------------------------------------------
 // Random maps and poses.
+
+enum class Shape { kBox, kCylinder, kPolygon };
 
 // Maps cover cells [-half_cells, half_cells)^2 around `origin_cell`; poses fall on and a little beyond the map.
 class RandomCases {
@@ -168,6 +198,39 @@ class RandomCases {
     std::uniform_real_distribution<double> radius(0.05, 0.8);
     return CylinderFootprint{radius(rng_), 1.2};
   }
+  // 3 to 16 vertices on a tilted ellipse (strictly convex in angle order), offset so base_link may lie outside.
+  Footprint make_polygon() {
+    std::uniform_real_distribution<double> semi_axis(0.05, 0.8), offset(-0.4, 0.4), angle(0.0, 2 * M_PI);
+    const int n = std::uniform_int_distribution<int>(3, 16)(rng_);
+    const double a = semi_axis(rng_), b = semi_axis(rng_), cx = offset(rng_), cy = offset(rng_), tilt = angle(rng_);
+    std::vector<double> angles;
+    while (static_cast<int>(angles.size()) < n) {
+      const double t = angle(rng_);
+      const bool apart = std::all_of(angles.begin(), angles.end(), [&](double u) {
+        const double gap = std::abs(t - u);
+        return std::min(gap, 2 * M_PI - gap) > 0.05;
+      });
+      if (apart) angles.push_back(t);
+    }
+    std::sort(angles.begin(), angles.end());
+    ConvexPolygonFootprint polygon{.vertices_B = {}, .height = 0.8};
+    for (const double t : angles) {
+      const Vec p = Eigen::Rotation2Dd(tilt) * Vec(a * std::cos(t), b * std::sin(t));
+      polygon.vertices_B.push_back(p + Vec(cx, cy));
+    }
+    return polygon;
+  }
+  Footprint make(Shape shape) {
+    switch (shape) {
+      case Shape::kBox:
+        return make_box();
+      case Shape::kCylinder:
+        return make_cylinder();
+      case Shape::kPolygon:
+        return make_polygon();
+    }
+    return make_box();
+  }
   double make_max_distance() { return std::uniform_real_distribution<double>(0.0, 3.0)(rng_); }
 
  private:
@@ -195,13 +258,13 @@ struct Tally {
   int hits = 0;
 };
 
-void check_collision_against_reference(bool boxes, std::uint32_t seed) {
+void check_collision_against_reference(Shape shape, std::uint32_t seed) {
   RandomCases random(seed);
   Tally tally;
   for (const MapSpec& spec : kMaps) {
     const SetCellSource map = random.make_map(spec.cell_size, spec.density, spec.origin_cell, kHalfCells);
     for (int i = 0; i < kPosesPerMap; ++i) {
-      const Footprint footprint = boxes ? random.make_box() : random.make_cylinder();
+      const Footprint footprint = random.make(shape);
       const Pose2 pose = random.make_pose(map, spec.origin_cell, kHalfCells);
       bool any_yes = false, any_ambiguous = false;
       for (const CellIndex& cell : map.cells()) {
@@ -240,14 +303,14 @@ void check_collision_against_reference(bool boxes, std::uint32_t seed) {
 // (~1e-13 m at 700 m from the origin); 1e-9 m is far above that and far below anything that matters.
 constexpr double kDistanceTolerance_m = 1e-9;
 
-void check_clearance_against_reference(bool boxes, std::uint32_t seed) {
+void check_clearance_against_reference(Shape shape, std::uint32_t seed) {
   RandomCases random(seed);
   int compared = 0, in_contact = 0, apart = 0;
   for (const MapSpec& spec : kMaps) {
     const SetCellSource map = random.make_map(spec.cell_size, spec.density, spec.origin_cell, kHalfCells);
     const double s = map.cell_size();
     for (int i = 0; i < kPosesPerMap; ++i) {
-      const Footprint footprint = boxes ? random.make_box() : random.make_cylinder();
+      const Footprint footprint = random.make(shape);
       const Pose2 pose = random.make_pose(map, spec.origin_cell, kHalfCells);
       const double max_distance = random.make_max_distance();
       double nearest = std::numeric_limits<double>::infinity();
@@ -277,9 +340,14 @@ void check_clearance_against_reference(bool boxes, std::uint32_t seed) {
       EXPECT_TRUE(p.x() >= square[0].x() - 1e-12 && p.x() <= square[2].x() + 1e-12 && p.y() >= square[0].y() - 1e-12 &&
                   p.y() <= square[2].y() + 1e-12);
       if (result.clearance_m > 0.0) {
-        const double point_distance =
-            boxes ? point_polygon_distance(p, box_polygon(std::get<BoxFootprint>(footprint), pose, 0.0))
-                  : (p - pose.position()).norm() - std::get<CylinderFootprint>(footprint).radius;
+        double point_distance = 0.0;
+        if (const auto* box = std::get_if<BoxFootprint>(&footprint)) {
+          point_distance = point_polygon_distance(p, box_polygon(*box, pose, 0.0));
+        } else if (const auto* polygon = std::get_if<ConvexPolygonFootprint>(&footprint)) {
+          point_distance = point_polygon_distance(p, grown_polygon(*polygon, pose, 0.0));
+        } else {
+          point_distance = (p - pose.position()).norm() - std::get<CylinderFootprint>(footprint).radius;
+        }
         EXPECT_NEAR(point_distance, result.clearance_m, kDistanceTolerance_m);
       }
     }
@@ -290,10 +358,16 @@ void check_clearance_against_reference(bool boxes, std::uint32_t seed) {
   EXPECT_GE(apart, compared / 4);
 }
 
-TEST(CollisionRandomized, BoxAgreesWithBruteForce) { check_collision_against_reference(true, 20240601); }
-TEST(CollisionRandomized, CylinderAgreesWithBruteForce) { check_collision_against_reference(false, 20240602); }
-TEST(ClearanceRandomized, BoxAgreesWithBruteForce) { check_clearance_against_reference(true, 20240603); }
-TEST(ClearanceRandomized, CylinderAgreesWithBruteForce) { check_clearance_against_reference(false, 20240604); }
+TEST(CollisionRandomized, BoxAgreesWithBruteForce) { check_collision_against_reference(Shape::kBox, 20240601); }
+TEST(CollisionRandomized, CylinderAgreesWithBruteForce) {
+  check_collision_against_reference(Shape::kCylinder, 20240602);
+}
+TEST(CollisionRandomized, PolygonAgreesWithBruteForce) { check_collision_against_reference(Shape::kPolygon, 20240605); }
+TEST(ClearanceRandomized, BoxAgreesWithBruteForce) { check_clearance_against_reference(Shape::kBox, 20240603); }
+TEST(ClearanceRandomized, CylinderAgreesWithBruteForce) {
+  check_clearance_against_reference(Shape::kCylinder, 20240604);
+}
+TEST(ClearanceRandomized, PolygonAgreesWithBruteForce) { check_clearance_against_reference(Shape::kPolygon, 20240606); }
 
 // Axis-aligned poses on a binary-exact lattice (cell size 0.25 m, positions in 1/8 m) make touching exact in floating
 // point, so here the comparison includes touching and allows no tolerance.
@@ -310,9 +384,18 @@ TEST(CollisionLattice, TouchingCountsAsContactExactly) {
   int touching_only = 0;
   for (int i = 0; i < 2000; ++i) {
     const Pose2 pose{eighths(rng) / 8.0, eighths(rng) / 8.0, 0.0};
-    const Footprint footprint =
+    Footprint footprint =
         i % 2 == 0 ? Footprint{BoxFootprint{size_in_eighths(rng) / 8.0, size_in_eighths(rng) / 8.0, 1.0, 0.0}}
                    : Footprint{CylinderFootprint{size_in_eighths(rng) / 8.0, 1.0}};
+    if (i % 3 == 0) {
+      // A lattice rectangle with one corner cut at 45 degrees: a pentagon whose edges, slanted one included, meet
+      // cells exactly.
+      const double x0 = -size_in_eighths(rng) / 8.0, y0 = -size_in_eighths(rng) / 8.0;
+      const double x1 = size_in_eighths(rng) / 8.0, y1 = size_in_eighths(rng) / 8.0;
+      const double cut = std::min(x1 - x0, y1 - y0) / 2.0;
+      footprint = ConvexPolygonFootprint{.vertices_B = {{x0 + cut, y0}, {x1, y0}, {x1, y1}, {x0, y1}, {x0, y0 + cut}},
+                                         .height = 1.0};
+    }
     bool expected = false, overlapping = false;
     for (const CellIndex& cell : map.cells()) {
       expected |= reference_distance(footprint, pose, cell, 0.25) == 0.0;
@@ -483,6 +566,100 @@ TEST(Collision, RejectsBadRequestsNamingTheField) {
             "CollisionRequest.pose: search area outside the int32 cell index range");
   EXPECT_EQ(clearance_error({CylinderFootprint{}, {}, 1e9}),
             "ClearanceRequest.pose and max_distance_m: search area outside the int32 cell index range");
+  const std::vector<Vec> square = {{0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}, {-0.5, -0.5}};
+  EXPECT_EQ(collision_error({ConvexPolygonFootprint{square, 0.0}, {}}),
+            "CollisionRequest.footprint.height must be positive and finite, got 0.000000");
+  const std::vector<Vec> clockwise(square.rbegin(), square.rend());
+  EXPECT_EQ(collision_error({ConvexPolygonFootprint{clockwise, 1.0}, {}}),
+            "CollisionRequest.footprint.polygon.vertices must be counter-clockwise");
+  EXPECT_EQ(clearance_error({ConvexPolygonFootprint{{{0.0, 0.0}, {1.0, 0.0}}, 1.0}, {}}),
+            "ClearanceRequest.footprint.polygon.vertices needs at least 3 vertices, got 2");
+}
+
+// A polygon footprint answers exactly like the box with the same outline, on random maps and poses (collision, the
+// contact cell, clearance and its nearest cell), and a lattice-placed square exactly touching a cell is a hit.
+TEST(PolygonFootprint, AnswersLikeTheBoxWithTheSameOutline) {
+  RandomCases random(20240607);
+  int cases = 0, hits = 0;
+  for (const MapSpec& spec : kMaps) {
+    const SetCellSource map = random.make_map(spec.cell_size, spec.density, spec.origin_cell, kHalfCells);
+    for (int i = 0; i < 100; ++i, ++cases) {
+      const auto box = std::get<BoxFootprint>(random.make_box());
+      const double hx = box.length / 2, hy = box.width / 2, cx = box.center_x;
+      const ConvexPolygonFootprint polygon{{{cx - hx, -hy}, {cx + hx, -hy}, {cx + hx, hy}, {cx - hx, hy}}, box.height};
+      const Pose2 pose = random.make_pose(map, spec.origin_cell, kHalfCells);
+      const CollisionResult by_box = check_collision({box, pose}, map);
+      const CollisionResult by_polygon = check_collision({polygon, pose}, map);
+      ASSERT_EQ(by_polygon.hit, by_box.hit) << "case " << cases;
+      hits += by_box.hit;
+      const ClearanceResult box_clearance = compute_clearance({box, pose, 1.5}, map);
+      const ClearanceResult polygon_clearance = compute_clearance({polygon, pose, 1.5}, map);
+      ASSERT_EQ(polygon_clearance.found, box_clearance.found) << "case " << cases;
+      EXPECT_NEAR(polygon_clearance.clearance_m, box_clearance.clearance_m, 1e-12) << "case " << cases;
+    }
+  }
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(hits, cases / 5);
+  EXPECT_LT(hits, cases * 4 / 5);
+
+  SetCellSource one_cell(0.25);
+  one_cell.add({2, 0});  // x in [0.5, 0.75], y in [0, 0.25].
+  const ConvexPolygonFootprint triangle{{{0.0, 0.0}, {0.5, 0.0}, {0.0, 0.5}}, 1.0};
+  EXPECT_TRUE(check_collision({triangle, {0.0, 0.0, 0.0}}, one_cell).hit) << "touching the cell's corner counts";
+  EXPECT_FALSE(check_collision({triangle, {-0.125, 0.0, 0.0}}, one_cell).hit);
+  const ClearanceResult clear = compute_clearance({triangle, {-0.125, 0.0, 0.0}, 1.0}, one_cell);
+  ASSERT_TRUE(clear.found);
+  EXPECT_NEAR(clear.clearance_m, 0.125, 1e-12);
+  EXPECT_NEAR((clear.nearest_point_W - Vec(0.5, 0.0)).norm(), 0.0, 1e-12);
+}
+
+TEST(PolygonFootprint, ValidationNamesTheOffendingVertex) {
+  using Vertices = std::vector<Vec>;
+  const auto problem = [](const Vertices& vertices) {
+    return convex_polygon_problem(vertices, Orientation::counter_clockwise);
+  };
+  EXPECT_EQ(problem({{0, 0}, {1, 0}, {1, 1}, {0, 1}}), "");
+  EXPECT_EQ(problem({{0, 0}, {1, 0}, {0.5, 0.2}, {1, 1}, {0, 1}}),
+            "vertices[2] makes the outline non-convex (or is collinear with its neighbours)");
+  EXPECT_EQ(problem({{0, 0}, {1, 0}, {2, 0}, {1, 1}}),
+            "vertices[1] makes the outline non-convex (or is collinear with its neighbours)");
+  EXPECT_EQ(problem({{0, 0}, {1, 0}, {1, 0}, {0, 1}}), "vertices[1] repeats the next vertex");
+  EXPECT_EQ(problem({{0, 0}, {1, 0}, {NAN, 1}}), "vertices[2] must be finite");
+  EXPECT_EQ(problem({{0, 0}, {1, 1}, {2, 2}}), "vertices must enclose a non-zero area");
+  EXPECT_EQ(problem({{0, 0}, {0, 1}, {1, 1}, {1, 0}}), "vertices must be counter-clockwise");
+  EXPECT_EQ(convex_polygon_problem({{0, 0}, {0, 1}, {1, 1}, {1, 0}}, Orientation::either), "");
+  // A pentagram's vertices all turn left, but it winds twice.
+  Vertices star;
+  for (int k = 0; k < 5; ++k) star.emplace_back(std::cos(4 * M_PI * k / 5), std::sin(4 * M_PI * k / 5));
+  EXPECT_EQ(problem(star), "vertices wind around more than once: the outline crosses itself");
+  Vertices many;
+  for (int k = 0; k < 65; ++k) many.emplace_back(std::cos(2 * M_PI * k / 65), std::sin(2 * M_PI * k / 65));
+  EXPECT_EQ(problem(many), "vertices holds 65 vertices, at most 64 allowed");
+  many.pop_back();
+  EXPECT_EQ(problem(many), "");
+}
+
+TEST(PolygonFootprint, RadiiAndPrismMesh) {
+  const ConvexPolygonFootprint pentagon{{{-0.2, -0.3}, {0.4, -0.3}, {0.6, 0.0}, {0.4, 0.3}, {-0.2, 0.3}}, 0.7};
+  EXPECT_NEAR(bounding_radius(pentagon), 0.6, 1e-15);
+  EXPECT_NEAR(origin_inscribed_radius(pentagon.vertices_B), 0.2, 1e-15);
+  EXPECT_EQ(origin_inscribed_radius({{0.1, 0.1}, {1.0, 0.1}, {0.1, 1.0}}), 0.0) << "origin outside";
+  const PrismMesh mesh = prism_mesh(pentagon);
+  ASSERT_EQ(mesh.vertices_B.size(), 10U);
+  EXPECT_EQ(mesh.face_count, 7);
+  // Every face's normal (right-hand rule over its listed vertices) points away from the prism's interior.
+  const Eigen::Vector3d inside(0.2, 0.0, 0.35);
+  std::size_t at = 0;
+  for (int face = 0; face < mesh.face_count; ++face) {
+    const int count = mesh.faces[at];
+    ASSERT_GE(count, 3);
+    const Eigen::Vector3d& a = mesh.vertices_B[static_cast<std::size_t>(mesh.faces[at + 1])];
+    const Eigen::Vector3d& b = mesh.vertices_B[static_cast<std::size_t>(mesh.faces[at + 2])];
+    const Eigen::Vector3d& c = mesh.vertices_B[static_cast<std::size_t>(mesh.faces[at + 3])];
+    EXPECT_GT((b - a).cross(c - a).dot(a - inside), 0.0) << "face " << face;
+    at += static_cast<std::size_t>(count) + 1;
+  }
+  EXPECT_EQ(at, mesh.faces.size());
 }
 
 }  // namespace

@@ -411,6 +411,38 @@ TEST(DistanceFieldClearanceTest, AgreesWithExactAndFclOnOpenField) {
   EXPECT_LT(field.snapshot()->exact_fallback_count(), 600U);
 }
 
+// Convex polygon footprints (3 to 10 vertices on a tilted ellipse, base_link possibly outside): the field's clearance
+// is never below the exact search's and at most a cell above it, and contact is contact.
+TEST(DistanceFieldClearanceTest, PolygonAgreesWithExactOnRandomWorld) {
+  std::mt19937 rng(23);
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(random_world(rng, 200, 200, 60, 300).snapshot()));
+  const DistanceFieldSnapshot& snapshot = *field.snapshot();
+  std::uniform_real_distribution<double> coordinate(1.0, 19.0), angle(-std::numbers::pi, std::numbers::pi);
+  std::uniform_real_distribution<double> semi_axis(0.1, 0.7), offset(-0.3, 0.3);
+  int in_contact = 0, apart = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const int n = std::uniform_int_distribution<int>(3, 10)(rng);
+    const double a = semi_axis(rng), b = semi_axis(rng), cx = offset(rng), cy = offset(rng), tilt = angle(rng);
+    geometry::ConvexPolygonFootprint polygon{{}, 1.0};
+    for (int k = 0; k < n; ++k) {
+      // Evenly spread angles with a random phase: strictly convex in this order.
+      const double t = tilt + 2.0 * std::numbers::pi * k / n;
+      polygon.vertices_B.emplace_back(cx + a * std::cos(t), cy + b * std::sin(t));
+    }
+    geometry::ClearanceRequest request{polygon, {coordinate(rng), coordinate(rng), angle(rng)}, 2.0};
+    const geometry::ClearanceResult fast = snapshot.compute_clearance(request);
+    const geometry::ClearanceResult exact = geometry::compute_clearance(request, snapshot.grid());
+    EXPECT_GE(fast.clearance_m, exact.clearance_m - 1e-9) << "pose " << i;
+    EXPECT_LE(fast.clearance_m, exact.clearance_m + kCell + 1e-9) << "pose " << i;
+    EXPECT_EQ(fast.clearance_m == 0.0, exact.clearance_m == 0.0) << "pose " << i;
+    in_contact += exact.clearance_m == 0.0;
+    apart += exact.found && exact.clearance_m > 0.0;
+  }
+  EXPECT_GT(in_contact, 100);
+  EXPECT_GT(apart, 100);
+}
+
 TEST(DistanceFieldClearanceTest, ContactAndNothingInRange) {
   World world(40, 40);
   world.at(20, 20) = true;

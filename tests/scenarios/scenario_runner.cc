@@ -15,6 +15,7 @@
 #include "../support/json_fields.h"
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
+#include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 #include "occgeo/sim/shape_world.h"
 #include "occgeo/sim/sim_world.h"
@@ -57,6 +58,42 @@ v1::LeaseReply lease(client::Connection& connection, const std::string& robot, v
   request.mutable_lease()->set_action(action);
   request.mutable_lease()->set_timeout_s(10.0);
   return connection.call(request, request_id).lease();
+}
+
+// "X,Y,THETA" as occgeo-sim --start reads it.
+geometry::Pose2 parse_start(const std::string& text) {
+  std::string fields = text;
+  std::replace(fields.begin(), fields.end(), ',', ' ');
+  std::istringstream in(fields);
+  geometry::Pose2 pose;
+  if (!(in >> pose.x >> pose.y >> pose.theta)) {
+    throw std::runtime_error("scenario start '" + text + "' is not X,Y,THETA");
+  }
+  return pose;
+}
+
+// Registers the robot from a driver session of the runner's own with the preset's spec (the one the simulator sends),
+// then closes it: the robot stays registered offline, and its control (lease, behaviour) is kept for the simulator's
+// session. So the behaviour is in force before the simulator's first scan, and a lockstep run starts at sim time 0
+// whatever the wall-clock timing of the controller; otherwise the moving obstacles would have moved on by a varying
+// amount when the robot starts.
+void register_robot_offline(const std::string& address, const std::string& robot, const Scenario& scenario) {
+  const sim::RobotPreset* preset = sim::find_robot_preset(scenario.preset);
+  if (preset == nullptr) throw std::runtime_error("unknown robot preset '" + scenario.preset + "'");
+  auto driver = client::Connection::open(client::Endpoint::parse(address));
+  driver.hello(sim::make_driver_hello(robot, "default"));
+  v1::ClientMessage spec;
+  *spec.mutable_robot_spec() = sim::make_robot_spec(*preset, parse_start(scenario.start));
+  driver.send(spec);
+  // The spec has no reply: a status request on the same session is answered after the spec was handled.
+  v1::ClientMessage request;
+  request.mutable_status()->set_request_id(1);
+  const v1::StatusReply status = driver.call(request, 1).status();
+  if (std::none_of(status.robots().begin(), status.robots().end(),
+                   [&](const v1::RobotStatus& r) { return r.id() == robot; })) {
+    throw std::runtime_error("the robot's spec was refused");
+  }
+  driver.close();
 }
 
 struct TraceRow {
@@ -289,16 +326,11 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     std::filesystem::create_directories(*picture_dir);
     argv.insert(argv.end(), {"--png-out", (std::filesystem::path(*picture_dir) / (scenario.name + ".png")).string()});
   }
-  BackgroundProcess sim(argv, dir.path() / "sim.out", dir.path() / "sim.err");
+  std::optional<BackgroundProcess> sim;
   try {
+    register_robot_offline(server.address(), robot, scenario);
     auto controller = open_controller(server.address());
     std::uint64_t id = 0;
-    // The robot registers when the simulator's spec arrives; it stands still (initial_behaviour: stop) until then.
-    const Clock::time_point registering = Clock::now();
-    while (!robot_status(controller, robot, ++id)) {
-      if (seconds_since(registering) > 20.0 || !sim.running()) throw std::runtime_error("the robot never registered");
-      std::this_thread::sleep_for(20ms);
-    }
     if (!lease(controller, robot, v1::LeaseRequest::ACQUIRE, ++id).granted()) {
       throw std::runtime_error("the lease was refused");
     }
@@ -320,11 +352,19 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     }
     const v1::ServerMessage reply = controller.call(drive, id);
     if (!reply.has_drive()) throw std::runtime_error("drive refused: " + reply.DebugString());
+    // The simulator may connect as the robot's driver once the server has let the runner's driver session go.
+    const Clock::time_point releasing = Clock::now();
+    for (auto status = robot_status(controller, robot, ++id); !status || status->connected();
+         status = robot_status(controller, robot, ++id)) {
+      if (seconds_since(releasing) > 20.0) throw std::runtime_error("the runner's driver session was never released");
+      std::this_thread::sleep_for(5ms);
+    }
+    sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
     // Hold the lease while the simulator runs (bounded: lockstep runs far faster than real time).
     Clock::time_point last_retain = Clock::now();
-    while (sim.running()) {
+    while (sim->running()) {
       if (seconds_since(started) > 240.0) {
-        static_cast<void>(sim.stop(SIGTERM, std::chrono::seconds(10)));
+        static_cast<void>(sim->stop(SIGTERM, std::chrono::seconds(10)));
         throw std::runtime_error("the simulation ran past 240 s of wall time");
       }
       std::this_thread::sleep_for(20ms);
@@ -336,11 +376,11 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     static_cast<void>(lease(controller, robot, v1::LeaseRequest::RETURN, ++id));
   } catch (const std::exception& e) {
     result.failure = e.what();
-    static_cast<void>(sim.stop(SIGTERM, std::chrono::seconds(10)));
+    if (sim) static_cast<void>(sim->stop(SIGTERM, std::chrono::seconds(10)));
     result.wall_s = seconds_since(started);
     return result;
   }
-  const std::optional<int> code = sim.stop(SIGTERM, std::chrono::seconds(10));
+  const std::optional<int> code = sim->stop(SIGTERM, std::chrono::seconds(10));
   result.wall_s = seconds_since(started);
   const std::string out = read_file(dir.path() / "sim.out");
   if (code != 0) {
@@ -360,7 +400,7 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     result.failure = "empty trace";
     return result;
   }
-  // Sim time counts from the first motion: the robot stood still until the controller set its behaviour.
+  // Sim time counts from the first motion: a behaviour may hold the robot still for its first scans.
   std::size_t first = 0;
   while (first + 1 < trace.size() &&
          std::hypot(trace[first + 1].x - trace[0].x, trace[first + 1].y - trace[0].y) < 1e-4 &&
@@ -389,6 +429,8 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   }
   result.sim_s = trace[last].t - trace[first].t;
   result.final_pose = {trace.back().x, trace.back().y, trace.back().theta};
+  result.trace.reserve(trace.size());
+  for (const TraceRow& row : trace) result.trace.emplace_back(row.t, row.x, row.y, row.theta);
   result.ran = true;
   return result;
 }

@@ -1,9 +1,9 @@
 #pragma once
 
 // Runs one simulated scenario against the real server in lockstep: occgeod, occgeo-sim with a robot preset in a
-// shipped world, and a controller session that takes the robot's lease and sets its behaviour; then measures the run
-// from the simulator's ground truth (collisions, the true trajectory) and compares its path with the shortest any-angle
-// path on the true world.
+// shipped world, and a controller session that takes the robot's lease and sets its behaviour before the simulator
+// connects (so the run is a function of the scenario alone); then measures the run from the simulator's ground truth
+// (collisions, the true trajectory) and compares its path with the shortest any-angle path on the true world.
 
 #include <Eigen/Core>
 #include <optional>
@@ -46,6 +46,9 @@ struct ScenarioResult {
   double wall_s = 0.0;              // wall time of the whole run
   std::string last_state;           // the behaviour's last state as the simulator received it
   Eigen::Vector3d final_pose = Eigen::Vector3d::Zero();  // x, y, theta of the last trace row
+  // The true pose at every batch the simulator sent: sim time (s), x, y (m, world frame), theta (rad). Two lockstep
+  // runs of one scenario must give the same rows.
+  std::vector<Eigen::Vector4d> trace;
   [[nodiscard]] std::optional<double> ratio() const {
     if (!optimal_m || *optimal_m <= 0.0 || !reached || !*reached) return std::nullopt;
     return path_m / *optimal_m;

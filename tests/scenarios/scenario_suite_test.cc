@@ -195,17 +195,16 @@ TEST(ScenarioCatalogue, PtemMovingObstacles) {
   run_all({
       {make("ptem_crossing_waypoints", "ptem_crossing.yaml", "ugv", "waypoints", 40.0, past_obstacle),
        Expect::kFullStack},
-      // Printed, not asserted: lockstep runs are not yet repeatable here. Most runs reach the goal with 0 collisions
-      // (ratio 1.18), but one in a few stalls in the escape after touching the approaching obstacle.
+      // The robot turns aside from the obstacle coming head-on; the run repeats exactly (repeatability_test.cc).
       {make("ptem_approaching_waypoints", "ptem_approaching.yaml", "ugv", "waypoints", 40.0, Eigen::Vector2d(4.5, 0.0)),
-       Expect::kReported},
+       Expect::kFullStack},
       {cumulative_approach, Expect::kFailsToDriveWell},
   });
 }
 
-// Seed 003 Fig 2.10: a goal inside a cup whose opening faces away. Measured and printed only: on this layout PointBug
-// alone reaches the goal (its endless loop is not reproduced), and the full stack's look-ahead detour is longer than
-// the 1.25 bound (the global path prices unseen cells at twice their length).
+// Seed 003 Fig 2.10: a goal inside a cup whose opening faces away, driven by the Bearcat. Measured and printed only:
+// PointBug's corrections, scaled to the 0.8 m wide Bearcat, carry it round the cup's corner, so it reaches the goal
+// (the endless loop shows with the smaller UGV, PointBugEndlessLoop below).
 TEST(ScenarioCatalogue, PointBugCup) {
   const Eigen::Vector2d in_the_cup(4.4, 0.0);
   run_all({
@@ -219,11 +218,19 @@ TEST(ScenarioCatalogue, PointBugCup) {
 }
 
 // Seed 000 Fig 5.1 and 5.2: what one laser plane cannot see or tell apart. These are sensing limits no behaviour
-// fixes: the short and the overhanging obstacle are hit with or without the guard (no model ever holds them), and
-// the ramp reads as a wall, so nothing drives over it.
+// fixes: with the Bearcat's one laser the short and the overhanging obstacle are hit with or without the guard (no
+// model holds them), and the ramp reads as a wall, so nothing drives over it. With a depth camera (bearcat_3d) the
+// octree holds both obstacles: the guard stops short of them, and goto's look-ahead and global path go round them.
 TEST(ScenarioCatalogue, SensingLimitsOfOneLaserPlane) {
   const Eigen::Vector2d up_the_ramp(9.0, 0.0);
+  const Eigen::Vector2d beyond_both(6.0, 0.0);
   run_all({
+      {noted(make("short_and_overhang_bearcat_3d_guarded", "short_and_overhang.yaml", "bearcat_3d", "bearcat", 20.0),
+             "depth camera: the guard stops short of the kerb"),
+       Expect::kNoCollisions},
+      {noted(make("short_and_overhang_goto_3d", "short_and_overhang.yaml", "bearcat_3d", "goto", 40.0, beyond_both),
+             "depth camera: look-ahead and global path over the octree's height band"),
+       Expect::kFullStack},
       {seed_only(make("short_and_overhang_bearcat", "short_and_overhang.yaml", "bearcat", "bearcat", 20.0),
                  "seed 000 Fig 5.2: invisible to the laser", kNoGuard),
        Expect::kCollides},
@@ -236,6 +243,63 @@ TEST(ScenarioCatalogue, SensingLimitsOfOneLaserPlane) {
       {noted(make("ramp_goto_escape", "ramp.yaml", "bearcat", "goto", 60.0, up_the_ramp),
              "known limit: no terrain model, the ramp stays a wall"),
        Expect::kNotReached},
+      {noted(make("ramp_goto_3d", "ramp.yaml", "bearcat_3d", "goto", 40.0, up_the_ramp),
+             "known limit: no terrain rule, the seen slope is in the height band"),
+       Expect::kNotReached},
+  });
+}
+
+// Seed 003 Fig 2.10 ("the robot continues moving in infinite loops"): the cup of PointBugCup driven by the seed 004
+// UGV, whose smaller size (PointBug's corrections scale with the width) leaves room for the whole loop: from every
+// sudden point PointBug re-aims at the goal, meets the cup's closed back again and picks a sudden point on the other
+// side, so it zigzags in front of the back for ever. The full stack sees the back in its map and follows the global
+// path round the cup and in through the opening.
+TEST(ScenarioCatalogue, PointBugEndlessLoop) {
+  const Eigen::Vector2d in_the_cup(4.4, 0.0);
+  const std::vector<ScenarioResult> results = run_all({
+      {seed_only(make("pointbug_cup_ugv_goto", "pointbug_cup.yaml", "ugv", "goto", 60.0, in_the_cup),
+                 "seed 003 Fig 2.10: PointBug alone loops"),
+       Expect::kNotReached},
+      {noted(make("pointbug_cup_ugv_goto_escape", "pointbug_cup.yaml", "ugv", "goto", 60.0, in_the_cup),
+             "seed 003 Fig 2.10: map look-ahead + global path"),
+       Expect::kFullStack},
+  });
+  // The loop is visible: far more driven than the whole way in, and still in front of the cup's closed back.
+  const ScenarioResult& alone = results[0];
+  ASSERT_TRUE(alone.ran && alone.optimal_m);
+  EXPECT_GT(alone.path_m, 2.0 * *alone.optimal_m);
+  EXPECT_LT(alone.final_pose.x(), 3.0);
+}
+
+// Seed 004 §6.3.2: "the UGV performs an undesirable loop when it tries to avoid a stationary obstacle from the right
+// side ... as UGV tries to take a turn to avoid the obstacle the PTEM grows slightly bigger". With the seed's
+// cumulative construction the UGV circles the obstacle and never reaches the waypoint. With the escape as well, the
+// loop detector's stall verdict hands over to the global path, which gets there, late (printed only).
+TEST(ScenarioCatalogue, PtemLoopCumulative) {
+  const Eigen::Vector2d past_obstacle(4.5, 0.0);
+  const std::string cumulative = "ptem:\n  construction: cumulative\n";
+  Scenario with_escape =
+      make("ptem_loop_waypoints_cumulative_escape", "ptem_loop.yaml", "ugv", "waypoints", 60.0, past_obstacle);
+  with_escape.extra_config = cumulative;
+  with_escape.note = "cumulative PTEM + loop detector + global path";
+  const std::vector<ScenarioResult> results = run_all({
+      {seed_only(make("ptem_loop_waypoints_cumulative", "ptem_loop.yaml", "ugv", "waypoints", 60.0, past_obstacle),
+                 "seed 004 §6.3.2: cumulative PTEM alone loops", cumulative),
+       Expect::kNotReached},
+      {with_escape, Expect::kReported},
+  });
+  const ScenarioResult& alone = results[0];
+  ASSERT_TRUE(alone.ran && alone.optimal_m);
+  EXPECT_GT(alone.path_m, 2.0 * *alone.optimal_m) << "the loop is visible";
+}
+
+// The same layout with the full stack: single-scan PTEM guidance meets the obstacle's concave corner, the loop
+// detector sees no progress and the escape follows the global path past the tail.
+TEST(ScenarioCatalogue, PtemLoopFullStack) {
+  run_all({
+      {noted(make("ptem_loop_waypoints_escape", "ptem_loop.yaml", "ugv", "waypoints", 60.0, Eigen::Vector2d(4.5, 0.0)),
+             "seed 004 §6.3.2: loop detector + global path"),
+       Expect::kFullStack},
   });
 }
 

@@ -97,10 +97,18 @@ RandomWorld make_world(std::mt19937& rng, int width, int height, int boxes, int 
 
 struct Outline {
   bool is_box = true;
+  bool is_polygon = false;
   Eigen::Vector2d center;
   Eigen::Vector2d axis_x, axis_y;  // unit axes (box)
   double half_x = 0.0, half_y = 0.0, radius = 0.0;
+  std::vector<Eigen::Vector2d> corners;  // polygon, world, counter-clockwise
 };
+
+double segment_point_distance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d ab = b - a;
+  const double s = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (a + s * ab - p).norm();
+}
 
 Outline outline_of(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
   Outline o;
@@ -110,6 +118,14 @@ Outline outline_of(const geometry::Footprint& footprint, const geometry::Pose2& 
     o.center = X_WB.position() + box->center_x * o.axis_x;
     o.half_x = box->length / 2;
     o.half_y = box->width / 2;
+  } else if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    o.is_box = false;
+    o.is_polygon = true;
+    o.center = Eigen::Vector2d::Zero();
+    for (const Eigen::Vector2d& v : polygon->vertices_B) {
+      o.corners.push_back(X_WB.position() + v.x() * o.axis_x + v.y() * o.axis_y);
+      o.center += o.corners.back() / static_cast<double>(polygon->vertices_B.size());
+    }
   } else {
     o.is_box = false;
     o.center = X_WB.position();
@@ -121,6 +137,19 @@ Outline outline_of(const geometry::Footprint& footprint, const geometry::Pose2& 
 // Distance from point p to the outline (0 inside).
 double point_distance(const Outline& o, const Eigen::Vector2d& p) {
   const Eigen::Vector2d d = p - o.center;
+  if (o.is_polygon) {
+    const std::size_t n = o.corners.size();
+    bool inside = true;
+    double best = 1e300;
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::Vector2d& a = o.corners[k];
+      const Eigen::Vector2d& b = o.corners[(k + 1) % n];
+      const Eigen::Vector2d ab = b - a, ap = p - a;
+      if (ab.x() * ap.y() - ab.y() * ap.x() < 0.0) inside = false;
+      best = std::min(best, segment_point_distance(a, b, p));
+    }
+    return inside ? 0.0 : best;
+  }
   if (!o.is_box) return std::max(0.0, d.norm() - o.radius);
   const double ox = std::max(std::abs(d.dot(o.axis_x)) - o.half_x, 0.0);
   const double oy = std::max(std::abs(d.dot(o.axis_y)) - o.half_y, 0.0);
@@ -132,22 +161,31 @@ double point_distance(const Outline& o, const Eigen::Vector2d& p) {
 double cell_distance(const Outline& o, const CellIndex& c) {
   const Eigen::Vector2d lo(c.ix * kCell, c.iy * kCell);
   const Eigen::Vector2d hi = lo + Eigen::Vector2d::Constant(kCell);
-  if (!o.is_box) {
+  if (!o.is_box && !o.is_polygon) {
     const Eigen::Vector2d q = o.center.cwiseMax(lo).cwiseMin(hi);
     return std::max(0.0, (o.center - q).norm() - o.radius);
   }
-  // Separating axis test for overlap.
-  std::array<Eigen::Vector2d, 4> box_corners;
-  int k = 0;
-  for (const double sx : {-1.0, 1.0}) {
-    for (const double sy : {-1.0, 1.0}) {
-      box_corners[static_cast<std::size_t>(k++)] = o.center + sx * o.half_x * o.axis_x + sy * o.half_y * o.axis_y;
+  // Separating axis test for overlap: the axes of both outlines' edges.
+  std::vector<Eigen::Vector2d> box_corners = o.corners;
+  std::vector<Eigen::Vector2d> axes = {Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1)};
+  if (o.is_polygon) {
+    for (std::size_t k = 0; k < o.corners.size(); ++k) {
+      const Eigen::Vector2d edge = o.corners[(k + 1) % o.corners.size()] - o.corners[k];
+      axes.emplace_back(-edge.y(), edge.x());
     }
+  } else {
+    for (const double sx : {-1.0, 1.0}) {
+      for (const double sy : {-1.0, 1.0}) {
+        box_corners.push_back(o.center + sx * o.half_x * o.axis_x + sy * o.half_y * o.axis_y);
+      }
+    }
+    axes.push_back(o.axis_x);
+    axes.push_back(o.axis_y);
   }
   const std::array<Eigen::Vector2d, 4> cell_corners = {lo, Eigen::Vector2d(hi.x(), lo.y()), hi,
                                                        Eigen::Vector2d(lo.x(), hi.y())};
   bool separated = false;
-  for (const Eigen::Vector2d& axis : {Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1), o.axis_x, o.axis_y}) {
+  for (const Eigen::Vector2d& axis : axes) {
     double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
     for (const auto& p : box_corners) a0 = std::min(a0, p.dot(axis)), a1 = std::max(a1, p.dot(axis));
     for (const auto& p : cell_corners) b0 = std::min(b0, p.dot(axis)), b1 = std::max(b1, p.dot(axis));
@@ -175,6 +213,35 @@ geometry::Footprint random_footprint(std::mt19937& rng) {
   return geometry::CylinderFootprint{size(rng) / 2, 0.5};
 }
 
+// A convex polygon of 3 to 12 vertices on an ellipse (points on an ellipse in angle order are strictly convex), up
+// to 0.4 m across each semi-axis and offset up to 0.25 m from base_link, so base_link may lie outside it.
+geometry::Footprint random_polygon_footprint(std::mt19937& rng) {
+  std::uniform_real_distribution<double> semi_axis(0.08, 0.4), offset(-0.25, 0.25), angle(0.0, 2 * M_PI);
+  const int n = std::uniform_int_distribution<int>(3, 12)(rng);
+  const double a = semi_axis(rng), b = semi_axis(rng), cx = offset(rng), cy = offset(rng), tilt = angle(rng);
+  std::vector<double> angles;
+  while (static_cast<int>(angles.size()) < n) {
+    const double t = angle(rng);
+    // Vertices at least 0.05 rad apart, so no edge is degenerate.
+    if (std::all_of(angles.begin(), angles.end(), [&](double u) {
+          const double gap = std::abs(t - u);
+          return std::min(gap, 2 * M_PI - gap) > 0.05;
+        })) {
+      angles.push_back(t);
+    }
+  }
+  std::sort(angles.begin(), angles.end());
+  geometry::ConvexPolygonFootprint polygon{.vertices_B = {}, .height = 0.5};
+  for (const double t : angles) {
+    const Eigen::Vector2d p(a * std::cos(t), b * std::sin(t));
+    polygon.vertices_B.emplace_back(cx + std::cos(tilt) * p.x() - std::sin(tilt) * p.y(),
+                                    cy + std::sin(tilt) * p.x() + std::cos(tilt) * p.y());
+  }
+  return polygon;
+}
+
+using FootprintMaker = geometry::Footprint (*)(std::mt19937&);
+
 geometry::Pose2 random_pose(std::mt19937& rng, const RandomWorld& world) {
   std::uniform_real_distribution<double> x(-0.5, world.width * kCell + 0.5), y(-0.5, world.height * kCell + 0.5),
       theta(-M_PI, M_PI);
@@ -183,14 +250,14 @@ geometry::Pose2 random_pose(std::mt19937& rng, const RandomWorld& world) {
 
 const std::vector<v1::Model> kGrid = {v1::MODEL_GRID};
 
-TEST(QueriesBruteForce, CollisionAgreesWithExactGeometryAndNamesATouchingCell) {
-  std::mt19937 rng(1);
+void check_collision_cases(unsigned seed, FootprintMaker make_footprint) {
+  std::mt19937 rng(seed);
   int cases = 0, hits = 0, shortcut = 0;
   for (int w = 0; w < 6; ++w) {
     const RandomWorld world = make_world(rng, 60, 50, 10, 40);
     const auto cells = world.occupied_cells();
     for (int i = 0; i < 400; ++i, ++cases) {
-      const geometry::Footprint footprint = random_footprint(rng);
+      const geometry::Footprint footprint = make_footprint(rng);
       const geometry::Pose2 pose = random_pose(rng, world);
       v1::CollisionReply reply;
       answer_collision(world.snapshot, footprint, geometry::bounding_radius(footprint), pose, kGrid, reply);
@@ -214,15 +281,23 @@ TEST(QueriesBruteForce, CollisionAgreesWithExactGeometryAndNamesATouchingCell) {
   EXPECT_GT(shortcut, 0) << "the distance-field shortcut was never taken";
 }
 
-TEST(QueriesBruteForce, ClearanceIsWithinACellOfExactAndItsGradientPointsAway) {
-  std::mt19937 rng(2);
+TEST(QueriesBruteForce, CollisionAgreesWithExactGeometryAndNamesATouchingCell) {
+  check_collision_cases(1, random_footprint);
+}
+
+TEST(QueriesBruteForce, PolygonCollisionAgreesWithExactGeometryAndNamesATouchingCell) {
+  check_collision_cases(11, random_polygon_footprint);
+}
+
+void check_clearance_cases(unsigned seed, FootprintMaker make_footprint) {
+  std::mt19937 rng(seed);
   int cases = 0, with_gradient = 0;
   const double max_distance = 2.0;
   for (int w = 0; w < 5; ++w) {
     const RandomWorld world = make_world(rng, 60, 50, 6, 20);
     const auto cells = world.occupied_cells();
     for (int i = 0; i < 250; ++i, ++cases) {
-      const geometry::Footprint footprint = random_footprint(rng);
+      const geometry::Footprint footprint = make_footprint(rng);
       const geometry::Pose2 pose = random_pose(rng, world);
       v1::ClearanceReply reply;
       answer_clearance(world.snapshot, footprint, pose, max_distance, kGrid, reply);
@@ -255,6 +330,14 @@ TEST(QueriesBruteForce, ClearanceIsWithinACellOfExactAndItsGradientPointsAway) {
   }
   EXPECT_GE(cases, 1000);
   EXPECT_GT(with_gradient, cases / 2);
+}
+
+TEST(QueriesBruteForce, ClearanceIsWithinACellOfExactAndItsGradientPointsAway) {
+  check_clearance_cases(2, random_footprint);
+}
+
+TEST(QueriesBruteForce, PolygonClearanceIsWithinACellOfExactAndItsGradientPointsAway) {
+  check_clearance_cases(12, random_polygon_footprint);
 }
 
 // Range at which the ray enters the closed square of c, by the slab method; negative when it misses.
@@ -341,14 +424,14 @@ TEST(QueriesBruteForce, OccupancyReadsTheGridCellAndTheThreatSum) {
   EXPECT_GE(cases, 1000);
 }
 
-TEST(QueriesBruteForce, SweptMotionNeverStepsOverAContact) {
-  std::mt19937 rng(5);
+void check_swept_cases(unsigned seed, FootprintMaker make_footprint) {
+  std::mt19937 rng(seed);
   int cases = 0, hits = 0;
   for (int w = 0; w < 5; ++w) {
     const RandomWorld world = make_world(rng, 50, 40, 5, 15);
     const auto cells = world.occupied_cells();
     for (int i = 0; i < 200; ++i, ++cases) {
-      const geometry::Footprint footprint = random_footprint(rng);
+      const geometry::Footprint footprint = make_footprint(rng);
       v1::SweptMotion motion;
       const geometry::Pose2 start = random_pose(rng, world);
       const bool as_path = i % 3 == 0;
@@ -431,6 +514,10 @@ TEST(QueriesBruteForce, SweptMotionNeverStepsOverAContact) {
   EXPECT_GT(hits, cases / 10);
 }
 
+TEST(QueriesBruteForce, SweptMotionNeverStepsOverAContact) { check_swept_cases(5, random_footprint); }
+
+TEST(QueriesBruteForce, PolygonSweptMotionNeverStepsOverAContact) { check_swept_cases(15, random_polygon_footprint); }
+
 TEST(QueriesBruteForce, ChangesSinceAVersionPatchAWindowIntoTheFreshOne) {
   std::mt19937 rng(6);
   mapping::HimmGrid grid(mapping::HimmParams{});
@@ -476,15 +563,15 @@ TEST(QueriesBruteForce, ChangesSinceAVersionPatchAWindowIntoTheFreshOne) {
 // The PTEM collision check skips sampling the footprint against the sum of every PDF for poses where a bound on that
 // sum stays below f_r; the answers stay those of the full check: a hit names a restricted point, and a miss leaves no
 // restricted point anywhere on the footprint (sampled densely here).
-TEST(QueriesBruteForce, PtemCollisionSkipsOnlyPosesThatCannotHit) {
-  std::mt19937 rng(5);
+void check_ptem_cases(unsigned seed, FootprintMaker make_footprint) {
+  std::mt19937 rng(seed);
   const RandomWorld world = make_world(rng, 60, 50, 0, 0);
   const mapping::PtemSnapshot& ptem = *world.snapshot.ptem;
   ASSERT_TRUE(ptem.restricted_threshold());
   int hits = 0;
   constexpr int kCases = 2000;
   for (int i = 0; i < kCases; ++i) {
-    const geometry::Footprint footprint = random_footprint(rng);
+    const geometry::Footprint footprint = make_footprint(rng);
     const geometry::Pose2 pose = random_pose(rng, world);
     const PtemContact contact = collide_ptem(ptem, footprint, pose);
     if (contact.hit) {
@@ -492,10 +579,10 @@ TEST(QueriesBruteForce, PtemCollisionSkipsOnlyPosesThatCannotHit) {
       EXPECT_TRUE(ptem.restricted(contact.point_W)) << "case " << i;
       continue;
     }
-    // Every footprint is within 0.75 m of its outline's centre; points beyond project onto its boundary.
+    // Every footprint is within 0.8 m of its outline's centre; points beyond project onto its boundary.
     const Outline o = outline_of(footprint, pose);
-    for (double u = -0.8; u <= 0.8; u += 0.025) {
-      for (double v = -0.8; v <= 0.8; v += 0.025) {
+    for (double u = -0.85; u <= 0.85; u += 0.025) {
+      for (double v = -0.85; v <= 0.85; v += 0.025) {
         const Eigen::Vector2d p_W = nearest_footprint_point(footprint, pose, o.center + Eigen::Vector2d(u, v));
         ASSERT_FALSE(ptem.restricted(p_W)) << "case " << i << ": a restricted point of the footprint was missed";
       }
@@ -503,6 +590,106 @@ TEST(QueriesBruteForce, PtemCollisionSkipsOnlyPosesThatCannotHit) {
   }
   std::printf("%d cases, %d PTEM hits\n", kCases, hits);
   EXPECT_GT(hits, kCases / 50);
+}
+
+TEST(QueriesBruteForce, PtemCollisionSkipsOnlyPosesThatCannotHit) { check_ptem_cases(5, random_footprint); }
+
+TEST(QueriesBruteForce, PolygonPtemCollisionSkipsOnlyPosesThatCannotHit) {
+  check_ptem_cases(16, random_polygon_footprint);
+}
+
+// The polygon's outline in world with every edge moved outwards by grow metres (negative shrinks).
+std::vector<Eigen::Vector2d> offset_outline(const std::vector<Eigen::Vector2d>& corners, double grow) {
+  const std::size_t n = corners.size();
+  std::vector<Eigen::Vector2d> moved;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::Vector2d d1 = (corners[k] - corners[(k + n - 1) % n]).normalized();
+    const Eigen::Vector2d d2 = (corners[(k + 1) % n] - corners[k]).normalized();
+    const Eigen::Vector2d n1(d1.y(), -d1.x()), n2(d2.y(), -d2.x());
+    const double det = n1.x() * n2.y() - n1.y() * n2.x();
+    moved.push_back(corners[k] + Eigen::Vector2d(grow * (n2.y() - n1.y()), grow * (n1.x() - n2.x())) / det);
+  }
+  return moved;
+}
+
+// Against the OctoMap a polygon footprint is an fcl::Convex prism lifted to the ground band: its answer agrees with
+// exact geometry over the occupied voxels whose z range meets [band, height] (voxel cubes against the extruded
+// polygon), its contact lies on such a voxel and on the footprint, and a rectangle answers like the box.
+TEST(QueriesBruteForce, PolygonOctomapCollisionAgreesWithExactGeometry) {
+  std::mt19937 rng(21);
+  mapping::OctoMapParams params;
+  params.voxel_filter_enabled = false;
+  params.outlier_filter_enabled = false;
+  mapping::OctoMapModel model(params);
+  std::uniform_real_distribution<float> across(-3.0F, 3.0F), up(-0.5F, 0.6F);
+  std::vector<Eigen::Vector3f> points_S;
+  for (int i = 0; i < 300; ++i) points_S.emplace_back(across(rng), across(rng), up(rng));
+  model.insert_cloud(geometry::Pose3::from_xyz_rpy(3.0, 3.0, 0.5, 0.0, 0.0, 0.0), points_S);
+  const auto octomap = model.publish();
+  const double band = octomap_ground_band_m(octomap->resolution());
+  const std::vector<mapping::OctoVoxel> voxels =
+      octomap->occupied_in_box(Eigen::Vector3d(-1.0, -1.0, -1.0), Eigen::Vector3d(7.0, 7.0, 3.0));
+  ASSERT_GT(voxels.size(), 100U);
+
+  int cases = 0, compared = 0, hits = 0, box_cases = 0;
+  std::uniform_real_distribution<double> where(0.0, 6.0), heading(-M_PI, M_PI), height(0.1, 1.2);
+  for (int i = 0; i < 1200; ++i, ++cases) {
+    auto polygon = std::get<geometry::ConvexPolygonFootprint>(random_polygon_footprint(rng));
+    polygon.height = height(rng);
+    const geometry::Pose2 pose{where(rng), where(rng), heading(rng)};
+    const mapping::OctoCollision result = collide_octomap(*octomap, polygon, pose);
+    const Outline o = outline_of(polygon, pose);
+    const std::vector<Eigen::Vector2d> shrunk = offset_outline(o.corners, -1e-6);
+    const std::vector<Eigen::Vector2d> grown = offset_outline(o.corners, 1e-6);
+    bool surely = false, maybe = false;
+    for (const mapping::OctoVoxel& voxel : voxels) {
+      const double half = voxel.size_m / 2;
+      const double bottom = voxel.center_W.z() - half, top = voxel.center_W.z() + half;
+      if (top < band - 1e-6 || bottom > polygon.height + 1e-6) continue;
+      const bool z_sure = top > band + 1e-6 && bottom < polygon.height - 1e-6;
+      const Eigen::Vector2d centre = voxel.center_W.head<2>();
+      const auto touches = [&](const std::vector<Eigen::Vector2d>& corners) {
+        Outline shape = o;
+        shape.corners = corners;
+        // The voxel's square as a cell of its own size: cell_distance's cells are kCell squares, so test with the
+        // polygon translated into that frame and scaled.
+        const double scale = kCell / voxel.size_m;
+        for (Eigen::Vector2d& c : shape.corners) c = (c - (centre - Eigen::Vector2d::Constant(half))) * scale;
+        return cell_distance(shape, CellIndex{0, 0}) == 0.0;
+      };
+      if (touches(grown)) maybe = true;
+      if (z_sure && touches(shrunk)) surely = true;
+    }
+    if (surely == maybe) {
+      ++compared;
+      ASSERT_EQ(result.hit, surely) << "case " << i << " pose " << pose.x << "," << pose.y << "," << pose.theta;
+    }
+    if (result.hit) {
+      ++hits;
+      // The contact point lies on the footprint (2D, within FCL's tolerance) and on an occupied voxel of the band.
+      EXPECT_LE(point_distance(o, result.contact_W.head<2>()), 1e-4) << "case " << i;
+      const bool on_voxel = std::any_of(voxels.begin(), voxels.end(), [&](const mapping::OctoVoxel& voxel) {
+        return ((result.contact_W - voxel.center_W).cwiseAbs().array() <= voxel.size_m / 2 + 1e-4).all();
+      });
+      EXPECT_TRUE(on_voxel) << "case " << i;
+    }
+    // The same outline as a box answers like the box.
+    if (i % 4 == 0) {
+      ++box_cases;
+      std::uniform_real_distribution<double> side(0.1, 0.8), shift(-0.3, 0.3);
+      const geometry::BoxFootprint box{side(rng), side(rng), polygon.height, shift(rng)};
+      const double hx = box.length / 2, hy = box.width / 2;
+      const geometry::ConvexPolygonFootprint rectangle{
+          {{box.center_x - hx, -hy}, {box.center_x + hx, -hy}, {box.center_x + hx, hy}, {box.center_x - hx, hy}},
+          box.height};
+      EXPECT_EQ(collide_octomap(*octomap, rectangle, pose).hit, collide_octomap(*octomap, box, pose).hit)
+          << "case " << i;
+    }
+  }
+  std::printf("%d cases, %d compared, %d hits, %d box twins\n", cases, compared, hits, box_cases);
+  EXPECT_GE(compared, 1000);
+  EXPECT_GT(hits, cases / 10);
+  EXPECT_LT(hits, cases * 9 / 10);
 }
 
 }  // namespace

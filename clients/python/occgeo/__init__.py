@@ -38,7 +38,12 @@ from occgeo.mapfile import (  # noqa: E402
     image_from_certainty,
     write_map,
 )
-from occgeo.specs import laser_robot_spec  # noqa: E402
+from occgeo.specs import (  # noqa: E402
+    box_footprint,
+    cylinder_footprint,
+    laser_robot_spec,
+    polygon_footprint,
+)
 
 __all__ = [
     "BEHAVIOURS",
@@ -51,7 +56,10 @@ __all__ = [
     "LeaseRefused",
     "Timeout",
     "ServerError",
+    "box_footprint",
+    "cylinder_footprint",
     "image_from_certainty",
     "laser_robot_spec",
+    "polygon_footprint",
     "write_map",
 ]

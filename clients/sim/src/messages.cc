@@ -1,5 +1,7 @@
 #include "occgeo/sim/messages.h"
 
+#include <algorithm>
+#include <cmath>
 #include <variant>
 
 namespace occgeo::sim {
@@ -65,6 +67,24 @@ void add_sensor(v1::RobotSpec& spec, const ServoRangePreset& servo) {
   servo_spec.set_step_period_s(servo.step_period_s);
   servo_spec.set_range_min_m(servo.range_min_m);
   servo_spec.set_range_max_m(servo.range_max_m);
+}
+
+void add_sensor(v1::RobotSpec& spec, const DepthSensorPreset& depth) {
+  v1::SensorSpec& sensor = *spec.add_sensors();
+  sensor.set_name(depth.name);
+  // Roll, pitch and yaw of the mount in the order Pose3D composes them (yaw, then pitch, then roll).
+  const Eigen::Matrix3d R = depth.X_BS.transform.linear();
+  v1::Pose3D& mount = *sensor.mutable_mount();
+  const Eigen::Vector3d t = depth.X_BS.translation();
+  mount.mutable_position()->set_x(t.x());
+  mount.mutable_position()->set_y(t.y());
+  mount.mutable_position()->set_z(t.z());
+  mount.set_yaw(std::atan2(R(1, 0), R(0, 0)));
+  mount.set_pitch(std::asin(std::clamp(-R(2, 0), -1.0, 1.0)));
+  mount.set_roll(std::atan2(R(2, 1), R(2, 2)));
+  v1::PointCloudSpec& cloud = *sensor.mutable_point_cloud();
+  cloud.set_range_max_m(depth.range_max_m);
+  cloud.set_max_points(depth.rows * depth.columns);
 }
 
 void set_kinematics(v1::RobotSpec& spec, const geometry::DifferentialDriveParams& params) {
@@ -159,6 +179,17 @@ v1::ClientMessage make_servo_range_message(const std::string& sensor, std::uint6
   reading.set_stamp_s(stamp_s);
   reading.set_servo_angle_rad(servo_angle_rad);
   reading.set_range_m(range_m);
+  return message;
+}
+
+v1::ClientMessage make_point_cloud_message(const std::string& sensor, std::uint64_t seq, double stamp_s,
+                                           const std::vector<float>& xyz_S) {
+  v1::ClientMessage message;
+  v1::PointCloud& cloud = *message.mutable_point_cloud();
+  cloud.set_sensor(sensor);
+  cloud.set_seq(seq);
+  cloud.set_stamp_s(stamp_s);
+  cloud.mutable_xyz()->Add(xyz_S.begin(), xyz_S.end());
   return message;
 }
 

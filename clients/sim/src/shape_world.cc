@@ -90,6 +90,43 @@ Shape Shape::polygon(std::vector<Eigen::Vector2d> points) {
   return shape;
 }
 
+Shape Shape::ramp(const Eigen::Vector2d& center, double length_m, double width_m, double yaw_rad) {
+  Shape shape = box(center, length_m, width_m, yaw_rad);
+  shape.solid = false;
+  shape.slope_direction = {std::cos(yaw_rad), std::sin(yaw_rad)};
+  shape.slope_start_m = shape.slope_direction.dot(center) - length_m / 2.0;
+  shape.slope_rise = 1.0;  // set from the heights once they are known (see the parser)
+  return shape;
+}
+
+std::optional<Shape> Shape::slice_at(double height_m) const {
+  if (!spans_height(height_m)) return std::nullopt;
+  if (slope_rise == 0.0) return *this;
+  // Keep the polygon's part where slope_direction · p >= the distance at which the surface reaches height_m
+  // (Sutherland-Hodgman against one half-plane).
+  const double from_m = slope_start_m + (height_m - base_height_m) / slope_rise;
+  std::vector<Eigen::Vector2d> kept;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector2d& a = points[i];
+    const Eigen::Vector2d& b = points[(i + 1) % points.size()];
+    const double da = slope_direction.dot(a) - from_m;
+    const double db = slope_direction.dot(b) - from_m;
+    if (da >= 0.0) kept.push_back(a);
+    if ((da >= 0.0) != (db >= 0.0)) kept.push_back(a + (b - a) * (da / (da - db)));
+  }
+  if (kept.size() < 3) return std::nullopt;
+  try {
+    Shape slice = polygon(std::move(kept));
+    slice.name = name;
+    slice.base_height_m = base_height_m;
+    slice.top_height_m = top_height_m;
+    slice.solid = solid;
+    return slice;
+  } catch (const WorldError&) {
+    return std::nullopt;  // a sliver of no area at the very top edge
+  }
+}
+
 Shape Shape::translated(const Eigen::Vector2d& offset) const {
   Shape shape = *this;
   shape.center += offset;
@@ -170,6 +207,57 @@ std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_
   return hit->distance_m;
 }
 
+std::optional<double> ray_entry_3d(const Shape& shape, const Eigen::Vector3d& p_W, const Eigen::Vector3d& direction_W) {
+  // The ray's parameter interval inside the prism: the outline's (in the plane, with the horizontal part of the
+  // direction, which may be zero for a vertical ray) intersected with the height slab's.
+  double enter = 0.0;
+  double exit = std::numeric_limits<double>::infinity();
+  const auto clip = [&](double offset, double rate) {  // keeps the t where offset + rate t < 0
+    if (rate == 0.0) return offset < 0.0;
+    const double t = -offset / rate;
+    if (rate < 0.0) {
+      enter = std::max(enter, t);
+    } else {
+      exit = std::min(exit, t);
+    }
+    return true;
+  };
+  if (!clip(shape.base_height_m - p_W.z(), -direction_W.z()) || !clip(p_W.z() - shape.top_height_m, direction_W.z())) {
+    return std::nullopt;
+  }
+  if (shape.slope_rise != 0.0) {
+    // Below the ramp's surface: z <= base + rise (slope_direction · p - slope_start).
+    const double surface_offset = p_W.z() - shape.base_height_m -
+                                  shape.slope_rise * (shape.slope_direction.dot(p_W.head<2>()) - shape.slope_start_m);
+    const double surface_rate = direction_W.z() - shape.slope_rise * shape.slope_direction.dot(direction_W.head<2>());
+    if (!clip(surface_offset, surface_rate)) return std::nullopt;
+  }
+  const Eigen::Vector2d p_xy = p_W.head<2>();
+  const Eigen::Vector2d d_xy = direction_W.head<2>();
+  if (shape.kind == Shape::Kind::circle) {
+    const Eigen::Vector2d m = p_xy - shape.center;
+    const double a = d_xy.squaredNorm();
+    const double c = m.squaredNorm() - shape.radius_m * shape.radius_m;
+    if (a == 0.0) {
+      if (!(c < 0.0)) return std::nullopt;
+    } else {
+      const double b = m.dot(d_xy);
+      const double discriminant = b * b - a * c;
+      if (!(discriminant > 0.0)) return std::nullopt;
+      const double root = std::sqrt(discriminant);
+      enter = std::max(enter, (-b - root) / a);
+      exit = std::min(exit, (-b + root) / a);
+    }
+  } else {
+    for (std::size_t i = 0; i < shape.points.size(); ++i) {
+      const Eigen::Vector2d normal = outward_normal(shape.points, i);
+      if (!clip(normal.dot(p_xy - shape.points[i]), normal.dot(d_xy))) return std::nullopt;
+    }
+  }
+  if (!(enter < exit)) return std::nullopt;
+  return enter;
+}
+
 bool footprint_overlaps(const Shape& shape, const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB) {
   if (shape.kind == Shape::Kind::circle) {
     const Eigen::Vector2d q = X_WB.inverse().transform(shape.center) - Eigen::Vector2d(footprint.center_x, 0.0);
@@ -193,13 +281,30 @@ std::optional<RayHit> ShapeWorld::cast(const Eigen::Vector2d& p_W, const Eigen::
   }
   std::optional<RayHit> best;
   const auto consider = [&](const Shape& shape) {
-    if (!shape.spans_height(height_m)) return;
-    auto hit = ray_hit(shape, p_W, direction_W);
+    const std::optional<Shape> slice = shape.slice_at(height_m);
+    if (!slice) return;
+    auto hit = ray_hit(*slice, p_W, direction_W);
     if (hit && (!best || hit->distance_m < best->distance_m)) best = std::move(hit);
   };
   for (const Shape& shape : shapes_) consider(shape);
   for (const MovingObstacle& obstacle : moving_) consider(obstacle.shape_at(time_s));
   if (!best || !(best->distance_m < max_range_m)) return std::nullopt;
+  return best;
+}
+
+std::optional<double> ShapeWorld::cast_3d(const Eigen::Vector3d& p_W, const Eigen::Vector3d& direction_W,
+                                          double max_range_m, double time_s) const {
+  if (!p_W.allFinite() || !direction_W.allFinite() || !(max_range_m >= 0.0) || !std::isfinite(time_s)) {
+    throw std::invalid_argument("cast_3d: inputs must be finite and max_range_m >= 0");
+  }
+  std::optional<double> best;
+  const auto consider = [&](const Shape& shape) {
+    const auto t = ray_entry_3d(shape, p_W, direction_W);
+    if (t && (!best || *t < *best)) best = t;
+  };
+  for (const Shape& shape : shapes_) consider(shape);
+  for (const MovingObstacle& obstacle : moving_) consider(obstacle.shape_at(time_s));
+  if (!best || !(*best < max_range_m)) return std::nullopt;
   return best;
 }
 
@@ -274,7 +379,7 @@ class Parser {
 
   // One shape entry: a mapping with exactly one of circle / box / polygon. center_optional for moving obstacles.
   Shape shape(const YAML::Node& node, const std::string& path, bool moving) const {
-    if (!node.IsMap() || node.size() != 1) fail(path, "expected one of circle:, box:, polygon:");
+    if (!node.IsMap() || node.size() != 1) fail(path, "expected one of circle:, box:, polygon:, ramp:");
     const std::string kind = node.begin()->first.as<std::string>();
     const YAML::Node params = node.begin()->second;
     const std::string at = path + "." + kind;
@@ -294,12 +399,17 @@ class Parser {
         const Eigen::Vector2d size = point(required(params, "size", at), at + ".size");
         const double yaw = params["yaw"] ? number(params["yaw"], at + ".yaw") : 0.0;
         result = Shape::box(center, size.x(), size.y(), yaw);
+      } else if (kind == "ramp" && !moving) {
+        check_keys(params, at, {"center", "size", "yaw", "base_height", "top_height", "solid"});
+        const Eigen::Vector2d size = point(required(params, "size", at), at + ".size");
+        const double yaw = params["yaw"] ? number(params["yaw"], at + ".yaw") : 0.0;
+        result = Shape::ramp(point(required(params, "center", at), at + ".center"), size.x(), size.y(), yaw);
       } else if (kind == "polygon" && !moving) {
         check_keys(params, at, {"points", "base_height", "top_height", "solid"});
         result = Shape::polygon(points(required(params, "points", at), at + ".points"));
       } else {
         fail(path + "." + kind,
-             "unknown key '" + kind + "' (expected one of: circle, box" + (moving ? "" : ", polygon") + ")");
+             "unknown key '" + kind + "' (expected one of: circle, box" + (moving ? "" : ", polygon, ramp") + ")");
       }
     } catch (const WorldError& error) {
       const std::string message = error.what();
@@ -313,6 +423,11 @@ class Parser {
     if (!(result.base_height_m >= 0.0 && result.top_height_m > result.base_height_m)) {
       fail(at, "need 0 <= base_height < top_height, got " + std::to_string(result.base_height_m) + " and " +
                    std::to_string(result.top_height_m));
+    }
+    if (kind == "ramp") {
+      // From base_height at the low edge to top_height at the high edge.
+      const Eigen::Vector2d size = point(params["size"], at + ".size");
+      result.slope_rise = (result.top_height_m - result.base_height_m) / size.x();
     }
     if (params["solid"]) {
       if (moving) fail(at + ".solid", "only static shapes may be non-solid");

@@ -61,6 +61,9 @@ Simulation::Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& prese
           } else if constexpr (std::is_same_v<Preset, RangeArrayPreset>) {
             sensors_.push_back(
                 {sensor.name, period_steps(sensor.name, sensor.period_s), RangeArraySimulator(sensor, noise_seed)});
+          } else if constexpr (std::is_same_v<Preset, DepthSensorPreset>) {
+            sensors_.push_back(
+                {sensor.name, period_steps(sensor.name, sensor.period_s), DepthSensorSimulator(sensor, noise_seed)});
           } else {
             sensors_.push_back({sensor.name, period_steps(sensor.name, sensor.step_period_s),
                                 ServoRangeSimulator(sensor, noise_seed)});
@@ -144,6 +147,10 @@ SensorBatch Simulation::take_batch() {
       visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
       batch.messages.push_back(make_range_array_message(sensor.name, seq, stamp_s, scan.ranges_m));
       ++message_counts_["range_array"];
+    } else if (auto* depth = std::get_if<DepthSensorSimulator>(&sensor.simulator)) {
+      batch.messages.push_back(
+          make_point_cloud_message(sensor.name, seq, stamp_s, depth->capture(*world_, robot_.pose(), stamp_s)));
+      ++message_counts_["point_cloud"];
     } else {
       auto& servo = std::get<ServoRangeSimulator>(sensor.simulator);
       const ServoReading reading = servo.measure(*world_, robot_.pose(), stamp_s);

@@ -5,6 +5,8 @@
 #include <limits>
 #include <numbers>
 
+#include "height_band_layer.h"
+#include "occgeo/geometry/convex_polygon.h"
 #include "occgeo/service/control/global_path.h"
 #include "occgeo/service/control/loop_detector.h"
 #include "occgeo/service/control/ptem_guidance.h"
@@ -17,6 +19,9 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 double footprint_width(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->width;
+  if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    return geometry::extent_along(polygon->vertices_B, Eigen::Vector2d::UnitY());
+  }
   return 2.0 * std::get<geometry::CylinderFootprint>(footprint).radius;
 }
 
@@ -25,11 +30,17 @@ double inscribed_radius(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
     return std::max(0.0, std::min(box->width / 2.0, box->length / 2.0 - std::abs(box->center_x)));
   }
+  if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    return geometry::origin_inscribed_radius(polygon->vertices_B);
+  }
   return std::get<geometry::CylinderFootprint>(footprint).radius;
 }
 
 double footprint_front(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->center_x + box->length / 2.0;
+  if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    return geometry::farthest_along(polygon->vertices_B, Eigen::Vector2d::UnitX());
+  }
   return std::get<geometry::CylinderFootprint>(footprint).radius;
 }
 
@@ -205,7 +216,10 @@ class WaypointsAdapter final : public Behaviour {
 class EscapeWrapper final : public Behaviour {
  public:
   EscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
-      : rebuild_(std::move(rebuild)), inner_(rebuild_()), detector_(detector_params()) {
+      : rebuild_(std::move(rebuild)),
+        inner_(rebuild_()),
+        detector_(detector_params()),
+        height_m_(std::visit([](const auto& shape) { return shape.height; }, robot.footprint)) {
     // Hard limit at the inscribed radius, so a gap the body fits through aligned stays open; a cost gradient out to
     // the circumscribed radius keeps the path off walls where there is room (the guard checks the real footprint).
     planner_.footprint_radius_m = inscribed_radius(robot.footprint);
@@ -239,7 +253,9 @@ class EscapeWrapper final : public Behaviour {
     // the global path round it instead of driving in and finding out.
     if (inner_->name() == "goto" && input.grid != nullptr && input.stamp_s >= next_look_ahead_s_) {
       next_look_ahead_s_ = input.stamp_s + 0.5;
-      if (!segment_clear(*input.grid, {pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m)) {
+      const auto band = height_band(input);  // what the laser plane misses: a kerb, an overhang
+      if (!segment_clear(*input.grid, {pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m) ||
+          (band && !band->segment_clear({pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m))) {
         trigger_ = "blocked";
         if (plan(input, pose, *goal)) return follow(input, pose, *goal);
       }
@@ -264,9 +280,16 @@ class EscapeWrapper final : public Behaviour {
     return params;
   }
 
+  std::optional<HeightBandLayer> height_band(const BehaviourInput& input) const {
+    if (input.octomap == nullptr) return std::nullopt;
+    return std::optional<HeightBandLayer>(std::in_place, *input.octomap, height_m_);
+  }
+
   bool plan(const BehaviourInput& input, const Pose2& pose, const Eigen::Vector2d& goal) {
     if (input.grid == nullptr) return false;
-    const GlobalPathResult result = plan_global_path(*input.grid, {pose.x_m, pose.y_m}, goal, planner_);
+    const auto band = height_band(input);
+    const GlobalPathResult result =
+        plan_global_path(*input.grid, band ? &*band : nullptr, {pose.x_m, pose.y_m}, goal, planner_);
     if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) return false;
     path_ = result.waypoints_W;
     segment_ = 0;
@@ -315,6 +338,7 @@ class EscapeWrapper final : public Behaviour {
   double next_plan_s_ = -std::numeric_limits<double>::infinity();
   double next_look_ahead_s_ = -std::numeric_limits<double>::infinity();
   std::string trigger_;
+  double height_m_;  // the robot's top: octree obstacles below it block the way
 };
 
 }  // namespace

@@ -6,6 +6,8 @@
 #include <variant>
 #include <vector>
 
+#include "occgeo/geometry/convex_polygon.h"
+
 namespace occgeo::service {
 
 double octomap_ground_band_m(double resolution_m) { return std::max(0.05, resolution_m) + 0.01; }
@@ -61,6 +63,8 @@ Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, co
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
     q_B = {std::clamp(p_B.x(), box->center_x - box->length / 2, box->center_x + box->length / 2),
            std::clamp(p_B.y(), -box->width / 2, box->width / 2)};
+  } else if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    q_B = geometry::closest_point_in_convex_polygon(polygon->vertices_B, p_B);
   } else {
     const double radius = std::get<geometry::CylinderFootprint>(footprint).radius;
     const double n = p_B.norm();
@@ -71,6 +75,9 @@ Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, co
 
 Eigen::Vector2d footprint_center(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return X_WB.transform({box->center_x, 0.0});
+  if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    return X_WB.transform(geometry::vertex_centroid(polygon->vertices_B));
+  }
   return X_WB.position();
 }
 
@@ -87,6 +94,26 @@ std::vector<Eigen::Vector2d> footprint_samples(const geometry::Footprint& footpr
       for (int j = 0; j <= ny; ++j) {
         points_B.emplace_back(box->center_x - box->length / 2 + box->length * i / nx,
                               -box->width / 2 + box->width * j / ny);
+      }
+    }
+  } else if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    // The boundary every step, then a grid over the bounding box clipped to the polygon.
+    const std::vector<Eigen::Vector2d>& vertices = polygon->vertices_B;
+    Eigen::AlignedBox2d box_B;
+    for (std::size_t k = 0; k < vertices.size(); ++k) {
+      const Eigen::Vector2d& a = vertices[k];
+      const Eigen::Vector2d& b = vertices[(k + 1) % vertices.size()];
+      box_B.extend(a);
+      const int pieces = std::max(1, static_cast<int>(std::ceil((b - a).norm() / step)));
+      for (int i = 0; i < pieces; ++i) points_B.push_back(a + (b - a) * (static_cast<double>(i) / pieces));
+    }
+    const Eigen::Vector2d extent = box_B.sizes();
+    const int nx = std::max(1, static_cast<int>(std::ceil(extent.x() / step)));
+    const int ny = std::max(1, static_cast<int>(std::ceil(extent.y() / step)));
+    for (int i = 1; i < nx; ++i) {
+      for (int j = 1; j < ny; ++j) {
+        const Eigen::Vector2d p_B = box_B.min() + Eigen::Vector2d(extent.x() * i / nx, extent.y() * j / ny);
+        if (geometry::convex_polygon_contains(vertices, p_B)) points_B.push_back(p_B);
       }
     }
   } else {

@@ -150,12 +150,22 @@ template <typename Fill>
 void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, PoseQuery query,
                        Fill fill) {
   const bool answer_inline = query.poses.size() <= kMaxInlineEntries;
-  run_query(session, kind, request_id, answer_inline, [session, request_id, query = std::move(query), fill] {
-    const WorldSnapshot snapshot = query.target.robot->world().snapshots();
-    v1::ServerMessage reply;
-    fill(snapshot, query, reply);
-    session->send(std::move(reply));
-  });
+  run_query(session, kind, request_id, answer_inline,
+            [session, request_id, answer_inline, query = std::move(query), fill] {
+              // Inline answers use the network thread's cached snapshot; the query pool's threads take their own copy
+              // so they keep no stale snapshot alive between batches.
+              const World& world = query.target.robot->world();
+              if (answer_inline) {
+                v1::ServerMessage reply;
+                fill(world.snapshots_for_this_thread(), query, reply);
+                session->send(std::move(reply));
+                return;
+              }
+              const WorldSnapshot snapshot = world.snapshots();
+              v1::ServerMessage reply;
+              fill(snapshot, query, reply);
+              session->send(std::move(reply));
+            });
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "model_geometry.h"
+#include "occgeo/geometry/convex_polygon.h"
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/geometry/kinematics.h"
 
@@ -37,6 +38,9 @@ double footprint_height(const geometry::Footprint& footprint) {
 bool contains_origin(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
     return std::abs(box->center_x) <= box->length / 2;
+  }
+  if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    return geometry::convex_polygon_contains(polygon->vertices_B, Eigen::Vector2d::Zero());
   }
   return true;
 }

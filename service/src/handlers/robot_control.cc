@@ -1,10 +1,12 @@
 #include "robot_control.h"
 
+#include <algorithm>
 #include <boost/asio/post.hpp>
 #include <variant>
 
 #include "../metrics.h"
 #include "../validation.h"
+#include "occgeo/geometry/convex_polygon.h"
 #include "occgeo/service/log.h"
 
 namespace occgeo::service {
@@ -163,6 +165,9 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
         [&](const auto& shape_of) {
           if constexpr (requires { shape_of.width; }) {
             half_width_m = shape_of.width / 2.0;
+          } else if constexpr (requires { shape_of.vertices_B; }) {
+            half_width_m = std::max(geometry::farthest_along(shape_of.vertices_B, Eigen::Vector2d::UnitY()),
+                                    geometry::farthest_along(shape_of.vertices_B, -Eigen::Vector2d::UnitY()));
           } else {
             half_width_m = shape_of.radius;
           }
@@ -207,7 +212,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         robot.active_generation_on_strand() = control.drive_generation;
       }
       if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
-      wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get()});
+      wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get()});
       path_W = active->planned_path();
     } catch (const std::invalid_argument& e) {
       log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});

@@ -81,6 +81,18 @@ void append_footprint(std::string& out, const geometry::Footprint& footprint) {
     out += R"({"shape":"cylinder","radius_m":)";
     append_number(out, cylinder->radius);
     out += '}';
+  } else if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
+    // base_link vertices, counter-clockwise, metres.
+    out += R"({"shape":"polygon","vertices_m":[)";
+    for (std::size_t k = 0; k < polygon->vertices_B.size(); ++k) {
+      if (k > 0) out += ',';
+      out += '[';
+      append_number(out, polygon->vertices_B[k].x());
+      out += ',';
+      append_number(out, polygon->vertices_B[k].y());
+      out += ']';
+    }
+    out += "]}";
   } else {
     out += "null";
   }

@@ -1,6 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <variant>
+#include <vector>
 
 namespace occgeo::geometry {
 
@@ -19,9 +21,27 @@ struct CylinderFootprint {
   double height = 1.0;
 };
 
-using Footprint = std::variant<BoxFootprint, CylinderFootprint>;
+// A convex polygon in base_link's xy plane, extruded from z = 0 up to height. Metres. vertices_B are in
+// counter-clockwise order, strictly convex, without repeating the first vertex (service validation normalises
+// clockwise input and rejects anything else).
+struct ConvexPolygonFootprint {
+  std::vector<Eigen::Vector2d> vertices_B;
+  double height = 1.0;
+};
+
+using Footprint = std::variant<BoxFootprint, CylinderFootprint, ConvexPolygonFootprint>;
 
 // Radius of the smallest circle about the base_link origin that holds the footprint, metres.
 double bounding_radius(const Footprint& footprint);
+
+// A polygon footprint as a closed convex mesh in base_link, in FCL's fcl::Convex encoding (kept free of FCL types so
+// this header stays FCL-free): vertices_B[0, n) is the ring at z = 0, vertices_B[n, 2n) the ring at z = height;
+// faces holds, per face, its vertex count then its vertex indices, counter-clockwise seen from outside.
+struct PrismMesh {
+  std::vector<Eigen::Vector3d> vertices_B;
+  std::vector<int> faces;
+  int face_count = 0;
+};
+PrismMesh prism_mesh(const ConvexPolygonFootprint& polygon);
 
 }  // namespace occgeo::geometry

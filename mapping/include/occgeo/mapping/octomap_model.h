@@ -120,8 +120,9 @@ class OctoMapSnapshot {
   [[nodiscard]] std::optional<OctoRayHit> cast_ray(const Eigen::Vector3d& origin_W, const Eigen::Vector3d& direction_W,
                                                    double max_range_m) const;
 
-  // Collides a 3D footprint (a box or a vertical cylinder standing on base_link's z = 0, see geometry/footprint.h) at
-  // pose X_WB with the occupied voxels, using FCL's octree collision; unknown voxels count as free.
+  // Collides a 3D footprint (a box, a vertical cylinder or an extruded convex polygon standing on base_link's z = 0,
+  // see geometry/footprint.h) at pose X_WB with the occupied voxels, using FCL's octree collision; unknown voxels count
+  // as free.
   [[nodiscard]] OctoCollision collide(const geometry::Footprint& footprint, const geometry::Pose3& X_WB) const;
 
   // Edge of a leaf voxel, metres.

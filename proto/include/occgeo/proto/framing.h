@@ -42,5 +42,7 @@ class FrameDecoder {
 
 // Serialises `message` as one delimited frame (varint length prefix + bytes).
 std::string encode_frame(const google::protobuf::MessageLite& message);
+// The same frame appended to `out`, serialised in place (no temporary string).
+void append_frame(const google::protobuf::MessageLite& message, std::string& out);
 
 }  // namespace occgeo::proto

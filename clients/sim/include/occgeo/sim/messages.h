@@ -36,6 +36,10 @@ v1::ClientMessage make_range_array_message(const std::string& sensor, std::uint6
 v1::ClientMessage make_servo_range_message(const std::string& sensor, std::uint64_t seq, double stamp_s,
                                            double servo_angle_rad, float range_m);
 
+// A PointCloud message from the named sensor: x, y, z triples in the sensor frame, metres, at sim time stamp_s.
+v1::ClientMessage make_point_cloud_message(const std::string& sensor, std::uint64_t seq, double stamp_s,
+                                           const std::vector<float>& xyz_S);
+
 // A WheelEncoders message: cumulative tick counts at sim time stamp_s.
 v1::ClientMessage make_wheel_encoders_message(std::uint64_t seq, double stamp_s, const EncoderTicks& ticks);
 

@@ -68,7 +68,23 @@ struct ServoRangePreset {
   double noise_far_from_m = 0.0;    // where the far noise starts, metres
 };
 
-using SensorPreset = std::variant<LaserPreset, RangeArrayPreset, ServoRangePreset>;
+// A forward-looking depth camera or tilted 3-D lidar: rows x columns rays spread evenly in angle over its fields of
+// view about its x axis (see depth_ray_direction_S), cast in 3-D against the shapes and the ground. Each frame is sent
+// as a PointCloud of the returns (floor returns included), in the sensor frame.
+struct DepthSensorPreset {
+  std::string name;                  // sensor name, unique on the robot
+  geometry::Pose3 X_BS;              // 6-DoF sensor pose in base_link (x forward, z up; positive pitch looks down)
+  std::uint32_t columns = 0;         // rays across, left to right
+  std::uint32_t rows = 0;            // rays down, top to bottom
+  double horizontal_fov_rad = 0.0;   // full horizontal field of view, radians, in (0, π)
+  double vertical_fov_rad = 0.0;     // full vertical field of view, radians, in (0, π)
+  double range_min_m = 0.0;          // returns nearer than this are not reported, metres
+  double range_max_m = 0.0;          // returns from this on are not reported, metres
+  double period_s = 0.0;             // time between frames, seconds; a whole number of physics steps
+  double range_noise_sigma_m = 0.0;  // standard deviation of the Gaussian noise on each return's range, metres
+};
+
+using SensorPreset = std::variant<LaserPreset, RangeArrayPreset, ServoRangePreset, DepthSensorPreset>;
 
 // The name every sensor preset carries.
 const std::string& sensor_name(const SensorPreset& sensor);

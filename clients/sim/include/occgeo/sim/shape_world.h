@@ -29,6 +29,12 @@ struct Shape {
   // False for a surface the robot drives over although the laser sees it: a ramp's slope where it crosses the scan
   // plane (seed 000 Fig 5.1). Ground-truth collision ignores it.
   bool solid = true;
+  // A ramp's surface: a polygon whose material ends at the plane rising along slope_direction (unit, world frame) at
+  // slope_rise (height per metre) from base_height_m where slope_direction · p = slope_start_m, capped at
+  // top_height_m. slope_rise = 0: a flat-topped prism.
+  Eigen::Vector2d slope_direction{1.0, 0.0};
+  double slope_start_m = 0.0;
+  double slope_rise = 0.0;
 
   static Shape circle(const Eigen::Vector2d& center, double radius_m);
   // A box of the given length (along its yaw) and width centred at center. Throws WorldError on a non-positive size.
@@ -36,6 +42,14 @@ struct Shape {
   // A convex polygon (either winding; stored counter-clockwise). Throws WorldError unless it has at least 3 points,
   // positive area and is convex.
   static Shape polygon(std::vector<Eigen::Vector2d> points);
+
+  // A box-shaped ramp (non-solid: the robot drives up it) of the given length along yaw and width, rising from
+  // base_height_m at its low edge (-length/2 along yaw) to top_height_m at its high edge. Throws WorldError on a
+  // non-positive size.
+  static Shape ramp(const Eigen::Vector2d& center, double length_m, double width_m, double yaw_rad);
+  // The shape's outline where its material holds height_m (a ramp's part whose surface is at or above it), nullopt
+  // when nothing; the shape itself when it is not a ramp.
+  [[nodiscard]] std::optional<Shape> slice_at(double height_m) const;
 
   // The same shape shifted by offset.
   [[nodiscard]] Shape translated(const Eigen::Vector2d& offset) const;
@@ -73,6 +87,11 @@ std::optional<double> ray_distance(const Shape& shape, const Eigen::Vector2d& p_
 // -direction_W.
 std::optional<RayHit> ray_hit(const Shape& shape, const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W);
 
+// Where a 3-D ray from p_W along direction_W (world frame, need not be unit length; z up, the ground at z = 0) first
+// enters the shape's prism (its outline extruded from base_height_m to top_height_m), as the ray parameter t >= 0 of
+// the point p_W + t direction_W (0 when p_W is inside), or nullopt when it never does. Grazing a face is no entry.
+std::optional<double> ray_entry_3d(const Shape& shape, const Eigen::Vector3d& p_W, const Eigen::Vector3d& direction_W);
+
 // True when the box footprint at base_link pose X_WB and the shape overlap with positive area (ignoring heights).
 bool footprint_overlaps(const Shape& shape, const geometry::BoxFootprint& footprint, const geometry::Pose2& X_WB);
 
@@ -99,6 +118,11 @@ class ShapeWorld final : public SimWorld {
                                            double max_range_m, double time_s, double height_m) const override;
   [[nodiscard]] std::optional<std::string> find_collision(const geometry::BoxFootprint& footprint,
                                                           const geometry::Pose2& X_WB, double time_s) const override;
+  // The distance along the unit 3-D vector direction_W from p_W to the first shape the ray enters at sim time time_s,
+  // or nullopt when none is closer than max_range_m. Every shape is seen, non-solid ones too (a depth sensor sees a
+  // ramp's surface); the ground is not a shape (see cast_depth_ray).
+  [[nodiscard]] std::optional<double> cast_3d(const Eigen::Vector3d& p_W, const Eigen::Vector3d& direction_W,
+                                              double max_range_m, double time_s) const;
   [[nodiscard]] bool has_moving_obstacles() const override { return !moving_.empty(); }
 
  private:

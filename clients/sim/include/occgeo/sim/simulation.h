@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "occgeo/geometry/pose.h"
+#include "occgeo/sim/depth_sensor.h"
 #include "occgeo/sim/laser.h"
 #include "occgeo/sim/presets.h"
 #include "occgeo/sim/range_sensors.h"
@@ -37,8 +38,8 @@ inline constexpr double kEncoderPeriod_s = 0.02;
 // robot) first, then the sensor messages.
 struct SensorBatch {
   std::vector<v1::ClientMessage> messages;
-  // seq of the last sensor message (LaserScan, RangeArray, ServoRange) in the batch, whose ScanAck closes it; 0 when
-  // the batch has none.
+  // seq of the last sensor message (LaserScan, RangeArray, ServoRange, PointCloud) in the batch, whose ScanAck closes
+  // it; 0 when the batch has none.
   std::uint64_t last_sensor_seq = 0;
   // seq of the steering laser's scan when the batch holds it: the server answers it with a MotionCommand.
   std::optional<std::uint64_t> steering_scan_seq;
@@ -83,7 +84,8 @@ class Simulation {
   [[nodiscard]] SimulatedRobot& robot() { return robot_; }
   // Sensor messages (all kinds) sent so far.
   [[nodiscard]] std::uint64_t scan_count() const { return sensor_seq_; }
-  // Messages taken so far per kind: "odometry", "laser_scan", "range_array", "servo_range", "wheel_encoders".
+  // Messages taken so far per kind: "odometry", "laser_scan", "range_array", "servo_range",
+  // "point_cloud", "wheel_encoders".
   [[nodiscard]] const std::map<std::string, std::uint64_t>& message_counts() const { return message_counts_; }
   // Motion commands applied so far.
   [[nodiscard]] std::uint64_t command_count() const { return command_count_; }
@@ -105,7 +107,7 @@ class Simulation {
   struct ScheduledSensor {
     std::string name;
     std::int64_t period_steps = 0;
-    std::variant<LaserSimulator, RangeArraySimulator, ServoRangeSimulator> simulator;
+    std::variant<LaserSimulator, RangeArraySimulator, ServoRangeSimulator, DepthSensorSimulator> simulator;
   };
 
   std::unique_ptr<SimWorld> world_;

@@ -12,6 +12,7 @@
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/mapping/grid_snapshot.h"
+#include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
 #include "occgeo/service/control/pointbug.h"
@@ -30,6 +31,7 @@ struct BehaviourInput {
   double stamp_s = 0.0;                         // the scan's stamp, seconds
   const mapping::GridSnapshot* grid = nullptr;  // the world's latest models, when the caller has them
   const mapping::PtemSnapshot* ptem = nullptr;
+  const mapping::OctoMapSnapshot* octomap = nullptr;  // for obstacles above or below the laser plane
 };
 
 // What a behaviour commands.

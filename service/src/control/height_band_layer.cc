@@ -1,0 +1,117 @@
+#include "height_band_layer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+namespace occgeo::service::control {
+
+namespace {
+
+constexpr double kSqrt2 = 1.4142135623730951;
+// Cell indices beyond this are refused, as the grid planner refuses them.
+constexpr double kMaxCellIndex = 1073741824.0;  // 2^30
+
+void require(bool ok, const std::string& field, const std::string& what) {
+  if (!ok) throw std::invalid_argument(field + " " + what);
+}
+
+}  // namespace
+
+HeightBandLayer::HeightBandLayer(const mapping::OctoMapSnapshot& octomap, double robot_height_m)
+    : columns_(octomap, robot_height_m) {}
+
+std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window) const {
+  const double column_m = columns_.cell_size();
+  const double cell_m = window.cell_size_m;
+  // The window's extent in columns, so the octree is walked only there.
+  const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(window.origin.ix * cell_m / column_m)),
+                                static_cast<std::int32_t>(std::floor(window.origin.iy * cell_m / column_m))};
+  const geometry::CellIndex max{
+      static_cast<std::int32_t>(std::ceil((window.origin.ix + window.width) * cell_m / column_m)) - 1,
+      static_cast<std::int32_t>(std::ceil((window.origin.iy + window.height) * cell_m / column_m)) - 1};
+  std::size_t marked = 0;
+  columns_.for_each_occupied(min, max, [&](const geometry::CellIndex& column) {
+    // The grid cells the column's square [ix c, (ix + 1) c) overlaps; a hair inside its far edge so a column ending
+    // on a cell boundary does not spill into the next cell.
+    const double x0 = column.ix * column_m;
+    const double y0 = column.iy * column_m;
+    const double inset = column_m * 1e-6;
+    const int col0 = static_cast<int>(std::floor(x0 / cell_m + 1e-9)) - window.origin.ix;
+    const int col1 = static_cast<int>(std::floor((x0 + column_m - inset) / cell_m)) - window.origin.ix;
+    const int row0 = static_cast<int>(std::floor(y0 / cell_m + 1e-9)) - window.origin.iy;
+    const int row1 = static_cast<int>(std::floor((y0 + column_m - inset) / cell_m)) - window.origin.iy;
+    for (int row = std::max(row0, 0); row <= std::min(row1, window.height - 1); ++row) {
+      for (int col = std::max(col0, 0); col <= std::min(col1, window.width - 1); ++col) {
+        PlanningCell& cell = window.cells[static_cast<std::size_t>(row) * window.width + col];
+        if (cell != PlanningCell::kOccupied) {
+          cell = PlanningCell::kOccupied;
+          ++marked;
+        }
+      }
+    }
+    return true;
+  });
+  return marked;
+}
+
+bool HeightBandLayer::segment_clear(const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W, double radius_m) const {
+  require(a_W.allFinite(), "a_W", "must be finite");
+  require(b_W.allFinite(), "b_W", "must be finite");
+  require(std::isfinite(radius_m) && radius_m >= 0.0 && radius_m <= 5.0, "radius_m", "must be in [0, 5] metres");
+  const double column_m = columns_.cell_size();
+  const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - column_m;
+  const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + column_m;
+  for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
+    require(std::abs(value / column_m) < kMaxCellIndex, "a_W", "must lie within 2^30 cells of the origin");
+  }
+  const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(lo.x() / column_m)),
+                                static_cast<std::int32_t>(std::floor(lo.y() / column_m))};
+  const geometry::CellIndex max{static_cast<std::int32_t>(std::floor(hi.x() / column_m)),
+                                static_cast<std::int32_t>(std::floor(hi.y() / column_m))};
+  const Eigen::Vector2d along = b_W - a_W;
+  const double length_sq = along.squaredNorm();
+  // A column's square reaches half a diagonal beyond its centre.
+  const double reach_m = radius_m + column_m * kSqrt2 / 2.0;
+  bool clear = true;
+  columns_.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+    const Eigen::Vector2d centre((c.ix + 0.5) * column_m, (c.iy + 0.5) * column_m);
+    const double t = length_sq > 0.0 ? std::clamp((centre - a_W).dot(along) / length_sq, 0.0, 1.0) : 0.0;
+    if ((a_W + t * along - centre).norm() < reach_m) clear = false;
+    return clear;
+  });
+  return clear;
+}
+
+GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const HeightBandLayer* band,
+                                  const Eigen::Vector2d& start_W, const Eigen::Vector2d& goal_W,
+                                  const GlobalPathParams& params) {
+  if (band == nullptr) return plan_global_path(grid, start_W, goal_W, params);
+  params.validate();
+  require(start_W.allFinite(), "start_W", "must be finite");
+  require(goal_W.allFinite(), "goal_W", "must be finite");
+  // The same window as the grid overload: the cells around start and goal, grown by window_margin_m.
+  const double cell_m = grid.cell_size();
+  const double margin_cells = std::ceil(params.window_margin_m / cell_m);
+  const Eigen::Vector2d start_cell = (start_W / cell_m).array().floor();
+  const Eigen::Vector2d goal_cell = (goal_W / cell_m).array().floor();
+  for (const double value : {start_cell.x(), start_cell.y(), goal_cell.x(), goal_cell.y()}) {
+    require(std::abs(value) < kMaxCellIndex, "start_W", "and goal_W must lie within 2^30 cells of the origin");
+  }
+  const Eigen::Vector2d lo = start_cell.cwiseMin(goal_cell).array() - margin_cells;
+  const Eigen::Vector2d hi = start_cell.cwiseMax(goal_cell).array() + margin_cells;
+  if (hi.x() - lo.x() + 1.0 > params.max_window_cells || hi.y() - lo.y() + 1.0 > params.max_window_cells) {
+    GlobalPathResult result;
+    result.status = GlobalPathStatus::kWindowTooLarge;
+    return result;
+  }
+  PlanningWindow window = planning_window(grid, {static_cast<std::int32_t>(lo.x()), static_cast<std::int32_t>(lo.y())},
+                                          {static_cast<std::int32_t>(hi.x()), static_cast<std::int32_t>(hi.y())},
+                                          params.occupied_threshold);
+  band->mark_occupied(window);
+  return plan_global_path(window, start_W, goal_W, params);
+}
+
+}  // namespace occgeo::service::control
