@@ -126,7 +126,12 @@ std::optional<OctoRayHit> OctoMapSnapshot::cast_ray(const Eigen::Vector3d& origi
 }
 
 OctoCollision OctoMapSnapshot::collide(const geometry::Footprint& footprint, const geometry::Pose3& X_WB) const {
-  return collide_footprint(*impl_->fcl_view, footprint, X_WB);
+  return collide_footprint(*impl_->fcl_view, &impl_->columns, footprint, X_WB);
+}
+
+OctoCollision OctoMapSnapshot::collide_fcl_only(const geometry::Footprint& footprint,
+                                                const geometry::Pose3& X_WB) const {
+  return collide_footprint(*impl_->fcl_view, nullptr, footprint, X_WB);
 }
 
 double OctoMapSnapshot::resolution() const { return impl_->tree->getResolution(); }
@@ -487,6 +492,7 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   auto copy = std::make_shared<const octomap::OcTree>(*impl_->tree);
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
   snapshot_impl->fcl_view = make_fcl_view(copy);
+  snapshot_impl->columns = OccupiedColumns::build(*copy);
   snapshot_impl->tree = std::move(copy);
   std::shared_ptr<const OctoMapSnapshot> snapshot{new OctoMapSnapshot(std::move(snapshot_impl), version_)};
   {

@@ -179,8 +179,9 @@ void BM_PublishSnapshot(benchmark::State& state) {
 }
 BENCHMARK(BM_PublishSnapshot)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-// FCL collision of a 0.6 x 0.4 x 0.5 m box footprint against a snapshot, at poses sweeping the map.
-void BM_CollideBox(benchmark::State& state) {
+// Collision of a 0.6 x 0.4 x 0.5 m box footprint against a snapshot, at poses sweeping the map: with the snapshot's
+// occupied-column broadphase (collide) or FCL's octree walk for every pose (collide_fcl_only).
+void collide_box(benchmark::State& state, bool fcl_only) {
   OctoMapModel model{bench_params()};
   const bool big = state.range(0) == 1;
   Eigen::Vector3d lo{-3.0, -3.0, 0.0}, hi{3.0, 3.0, 0.0};
@@ -206,12 +207,16 @@ void BM_CollideBox(benchmark::State& state) {
   }
   std::size_t i = 0, hits = 0;
   for (auto _ : state) {
-    hits += snapshot->collide(box, poses[i++ % poses.size()]).hit ? 1 : 0;
+    const Pose3& X_WB = poses[i++ % poses.size()];
+    hits += (fcl_only ? snapshot->collide_fcl_only(box, X_WB) : snapshot->collide(box, X_WB)).hit ? 1 : 0;
   }
   state.counters["hit_fraction"] = static_cast<double>(hits) / static_cast<double>(std::max<std::size_t>(i, 1));
   state.SetLabel(big ? "geb079.bt" : "64 URG scans");
 }
+void BM_CollideBox(benchmark::State& state) { collide_box(state, false); }
 BENCHMARK(BM_CollideBox)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+void BM_CollideBoxFclOnly(benchmark::State& state) { collide_box(state, true); }
+BENCHMARK(BM_CollideBoxFclOnly)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // Leaves of a pruned tree as (depth-free key in half voxels, probability), for the same-map check.
 using Leaf = std::tuple<long, long, long, long, double>;
