@@ -94,6 +94,19 @@ class UsageError : public std::runtime_error {
 };
 
 // --name value options and bare --flags after the command words.
+// The whole of text as a finite number; nullopt for anything else (empty, trailing characters, inf, nan).
+std::optional<double> finite_number(const std::string& text) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
 struct Options {
   std::map<std::string, std::string> values;
   std::set<std::string> switches;  // bare --flags other than --json that the command allows, without the dashes
@@ -114,17 +127,9 @@ struct Options {
       if (fallback) return *fallback;
       throw UsageError("missing required option --" + name);
     }
-    std::size_t used = 0;
-    double value = 0.0;
-    try {
-      value = std::stod(it->second, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != it->second.size() || !std::isfinite(value)) {
-      throw UsageError("option --" + name + " needs a number, not '" + it->second + "'");
-    }
-    return value;
+    const std::optional<double> value = finite_number(it->second);
+    if (!value) throw UsageError("option --" + name + " needs a number, not '" + it->second + "'");
+    return *value;
   }
 };
 
@@ -209,17 +214,9 @@ std::vector<double> footprint_numbers(const std::string& text, const std::string
   std::stringstream list(text);
   std::string item;
   while (std::getline(list, item, ',')) {
-    std::size_t used = 0;
-    double value = 0.0;
-    try {
-      value = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(value)) {
-      throw UsageError("option --footprint: '" + item + "' in '" + spec + "' is not a number");
-    }
-    numbers.push_back(value);
+    const std::optional<double> value = finite_number(item);
+    if (!value) throw UsageError("option --footprint: '" + item + "' in '" + spec + "' is not a number");
+    numbers.push_back(*value);
   }
   return numbers;
 }
@@ -638,17 +635,9 @@ std::vector<occgeo::mapfile::PicturePose> read_trajectory(const std::string& pat
     std::stringstream fields(line);
     std::string field;
     while (std::getline(fields, field, ',')) {
-      std::size_t used = 0;
-      double value = 0.0;
-      try {
-        value = std::stod(field, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used == 0 || used != field.size() || !std::isfinite(value)) {
-        throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
-      }
-      values.push_back(value);
+      const std::optional<double> value = finite_number(field);
+      if (!value) throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
+      values.push_back(*value);
     }
     if (values.size() != 4) throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
     poses.push_back({values[1], values[2], values[3]});
@@ -767,17 +756,9 @@ v1::Pose3D pose3_from(const std::string& text) {
   std::stringstream list(text);
   std::string item;
   while (std::getline(list, item, ',')) {
-    std::size_t used = 0;
-    double value = 0.0;
-    try {
-      value = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != item.size() || item.empty() || !std::isfinite(value)) {
-      throw UsageError("option --pose needs x,y,z,roll,pitch,yaw numbers, not '" + text + "'");
-    }
-    values.push_back(value);
+    const std::optional<double> value = finite_number(item);
+    if (!value) throw UsageError("option --pose needs x,y,z,roll,pitch,yaw numbers, not '" + text + "'");
+    values.push_back(*value);
   }
   if (values.size() != 6) throw UsageError("option --pose needs six numbers x,y,z,roll,pitch,yaw, not '" + text + "'");
   v1::Pose3D pose;
@@ -1055,17 +1036,9 @@ int run_goto(const std::vector<std::string>& args) {
     rest.push_back(args[i]);
   }
   const auto number = [](const std::string& text, const std::string& what) {
-    std::size_t used = 0;
-    double value = 0.0;
-    try {
-      value = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != text.size() || !std::isfinite(value)) {
-      throw UsageError(what + " needs a number, not '" + text + "'");
-    }
-    return value;
+    const std::optional<double> value = finite_number(text);
+    if (!value) throw UsageError(what + " needs a number, not '" + text + "'");
+    return *value;
   };
   std::vector<std::pair<double, double>> points;
   if (waypoints) {

@@ -67,6 +67,35 @@ struct CellDistance {
   Eigen::Vector2d point_on_cell_W = Eigen::Vector2d::Zero();
 };
 
+// Exact distance between a convex shape and a cell square it does not overlap, with the closest point on the cell:
+// the closest pair of two disjoint convex polygons always includes a vertex of one of them, so it is the nearest of
+// the shape's vertices to the cell and the cell's corners to the shape (squared_to_shape(p_W): squared distance).
+template <typename Vertices, typename SquaredDistanceToShape>
+CellDistance convex_to_cell_distance(const CellSquare& cell, const Vertices& vertices_W,
+                                     const SquaredDistanceToShape& squared_to_shape) {
+  double best_squared = std::numeric_limits<double>::infinity();
+  Eigen::Vector2d best_point_W = cell.center_W;
+  for (const Eigen::Vector2d& vertex_W : vertices_W) {
+    const Eigen::Vector2d on_cell_W = closest_point_in(cell, vertex_W);
+    const double squared = (vertex_W - on_cell_W).squaredNorm();
+    if (squared < best_squared) {
+      best_squared = squared;
+      best_point_W = on_cell_W;
+    }
+  }
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      const Eigen::Vector2d cell_corner_W = cell.center_W + cell.half_size * Eigen::Vector2d(sx, sy);
+      const double squared = squared_to_shape(cell_corner_W);
+      if (squared < best_squared) {
+        best_squared = squared;
+        best_point_W = cell_corner_W;
+      }
+    }
+  }
+  return {std::sqrt(best_squared), best_point_W};
+}
+
 // Decides contact between a footprint's FCL shape and cell prisms with fcl::collide.
 template <typename FootprintShape>
 class FclContactArbiter {
@@ -136,33 +165,14 @@ class PlacedBox {
                      std::abs(offset.dot(axis_y_W_)) - half_extents_.y() - cell_extent_on_box_axes});
   }
 
-  // Exact distance to a cell the box does not overlap: the closest pair of two disjoint convex polygons always
-  // includes a vertex of one of them.
+  // Exact distance to a cell the box does not overlap.
   [[nodiscard]] CellDistance distance_to(const CellSquare& cell) const {
-    double best_squared = std::numeric_limits<double>::infinity();
-    Eigen::Vector2d best_point_W = cell.center_W;
-    for (const Eigen::Vector2d& corner_W : corners_W_) {
-      const Eigen::Vector2d on_cell_W = closest_point_in(cell, corner_W);
-      const double squared = (corner_W - on_cell_W).squaredNorm();
-      if (squared < best_squared) {
-        best_squared = squared;
-        best_point_W = on_cell_W;
-      }
-    }
-    for (const double sx : {-1.0, 1.0}) {
-      for (const double sy : {-1.0, 1.0}) {
-        const Eigen::Vector2d cell_corner_W = cell.center_W + cell.half_size * Eigen::Vector2d(sx, sy);
-        const Eigen::Vector2d offset = cell_corner_W - center_W_;
-        const Eigen::Vector2d outside(std::max(std::abs(offset.dot(axis_x_W_)) - half_extents_.x(), 0.0),
-                                      std::max(std::abs(offset.dot(axis_y_W_)) - half_extents_.y(), 0.0));
-        const double squared = outside.squaredNorm();
-        if (squared < best_squared) {
-          best_squared = squared;
-          best_point_W = cell_corner_W;
-        }
-      }
-    }
-    return {std::sqrt(best_squared), best_point_W};
+    return convex_to_cell_distance(cell, corners_W_, [&](const Eigen::Vector2d& p_W) {
+      const Eigen::Vector2d offset = p_W - center_W_;
+      const Eigen::Vector2d outside(std::max(std::abs(offset.dot(axis_x_W_)) - half_extents_.x(), 0.0),
+                                    std::max(std::abs(offset.dot(axis_y_W_)) - half_extents_.y(), 0.0));
+      return outside.squaredNorm();
+    });
   }
 
   bool fcl_in_contact(const CellSquare& cell) {
@@ -264,31 +274,11 @@ class PlacedPolygon {
     return gap;
   }
 
-  // Exact distance to a cell the polygon does not overlap: the closest pair of two disjoint convex polygons always
-  // includes a vertex of one of them.
+  // Exact distance to a cell the polygon does not overlap.
   [[nodiscard]] CellDistance distance_to(const CellSquare& cell) const {
-    double best_squared = std::numeric_limits<double>::infinity();
-    Eigen::Vector2d best_point_W = cell.center_W;
-    for (const Eigen::Vector2d& vertex_W : vertices_W_) {
-      const Eigen::Vector2d on_cell_W = closest_point_in(cell, vertex_W);
-      const double squared = (vertex_W - on_cell_W).squaredNorm();
-      if (squared < best_squared) {
-        best_squared = squared;
-        best_point_W = on_cell_W;
-      }
-    }
-    for (const double sx : {-1.0, 1.0}) {
-      for (const double sy : {-1.0, 1.0}) {
-        const Eigen::Vector2d cell_corner_W = cell.center_W + cell.half_size * Eigen::Vector2d(sx, sy);
-        const double squared =
-            (closest_point_in_convex_polygon(vertices_W_, cell_corner_W) - cell_corner_W).squaredNorm();
-        if (squared < best_squared) {
-          best_squared = squared;
-          best_point_W = cell_corner_W;
-        }
-      }
-    }
-    return {std::sqrt(best_squared), best_point_W};
+    return convex_to_cell_distance(cell, vertices_W_, [&](const Eigen::Vector2d& p_W) {
+      return (closest_point_in_convex_polygon(vertices_W_, p_W) - p_W).squaredNorm();
+    });
   }
 
   // Called only within kContactBand_m of touching: the same separating axes with unnormalised edge normals, whose
