@@ -3,6 +3,7 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/reflection.h>
 
+#include <algorithm>
 #include <array>
 #include <boost/asio.hpp>
 #include <charconv>
@@ -296,7 +297,9 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
   };
 
   Impl(asio::io_context& io_in, std::unique_ptr<asio::io_context> own_in, std::size_t max_in_flight_in)
-      : own_io(std::move(own_in)), io(io_in), socket(io_in), max_in_flight(max_in_flight_in) {}
+      : own_io(std::move(own_in)), io(io_in), socket(io_in), max_in_flight(max_in_flight_in) {
+    outstanding.reserve(std::min<std::size_t>(max_in_flight, 4096));
+  }
 
   std::unique_ptr<asio::io_context> own_io;  // set when the connection runs its own io_context
   asio::io_context& io;
@@ -537,6 +540,10 @@ std::size_t PipelinedConnection::in_flight() const { return impl_->outstanding.s
 bool PipelinedConnection::healthy() const { return !impl_->failed; }
 
 std::uint64_t PipelinedConnection::async_submit(v1::ClientMessage request, ReplyHandler on_reply) {
+  return async_submit_in_place(request, std::move(on_reply));
+}
+
+std::uint64_t PipelinedConnection::async_submit_in_place(v1::ClientMessage& request, ReplyHandler on_reply) {
   if (impl_->failed) throw ClientError("connection failed: " + impl_->failure_text);
   if (impl_->outstanding.size() >= impl_->max_in_flight) {
     throw ClientError("already " + std::to_string(impl_->max_in_flight) + " requests in flight");

@@ -4,12 +4,13 @@
 #include <boost/asio/post.hpp>
 
 #include "durability/world_store.h"
+#include "handlers/model_geometry.h"
 
 namespace occgeo::service {
 
 namespace {
-// Snapshot generations are unique across worlds, so a thread's cached snapshot can never be mistaken for that of a
-// world created later at the same address.
+// Snapshot generations (and those of the robot registry) are unique across worlds and cores, so a thread's cached
+// snapshot or robot can never be mistaken for that of a world or core created later at the same address.
 std::uint64_t next_snapshot_generation() {
   static std::atomic<std::uint64_t> next{1};
   return next.fetch_add(1, std::memory_order_relaxed);
@@ -152,7 +153,11 @@ RobotState Robot::state() const {
   return state_;
 }
 
-ServerCore::ServerCore(ServerConfig config) : config_(std::move(config)) {}
+ServerCore::ServerCore(ServerConfig config)
+    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
+  // Ingest, queries, behaviours and the guard read the terrain rule process-wide (model_geometry.h).
+  set_terrain_params(config_.terrain);
+}
 
 ServerCore::~ServerCore() { drain(); }
 
@@ -209,6 +214,24 @@ std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {
   return it == robots_.end() ? nullptr : it->second;
 }
 
+const RobotQueryView& ServerCore::robot_for_this_thread(const std::string& id) const {
+  struct Cached {
+    std::uint64_t generation = 0;
+    std::string id;
+    RobotQueryView view;
+  };
+  thread_local Cached cached;
+  if (cached.generation != robots_generation_.load(std::memory_order_acquire) || cached.id != id) {
+    const std::lock_guard lock(registry_mutex_);
+    const auto it = robots_.find(id);
+    cached.view =
+        it == robots_.end() ? RobotQueryView{} : RobotQueryView{it->second->model_ptr(), &it->second->world()};
+    cached.id = id;
+    cached.generation = robots_generation_.load(std::memory_order_relaxed);
+  }
+  return cached.view;
+}
+
 std::vector<std::shared_ptr<Robot>> ServerCore::robots() const {
   const std::lock_guard lock(registry_mutex_);
   std::vector<std::shared_ptr<Robot>> all;
@@ -237,6 +260,7 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
   }
   auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat, std::move(control));
   robots_[model->id] = robot;
+  robots_generation_.store(next_snapshot_generation(), std::memory_order_release);
   return robot;
 }
 

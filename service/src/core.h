@@ -320,6 +320,12 @@ class Robot : public std::enable_shared_from_this<Robot> {
   RobotState state_;
 };
 
+// What a query needs of a registered robot: its model (the footprint) and its world.
+struct RobotQueryView {
+  std::shared_ptr<const RobotModel> model;  // null when no robot has the id
+  World* world = nullptr;                   // worlds live as long as the ServerCore
+};
+
 // State shared by every session: configuration, worlds, robots and the worker pools. Ingest
 // runs on one pool (a strand per world) and queries on another, so neither waits for the other
 // or for the network thread.
@@ -344,6 +350,10 @@ class ServerCore {
   [[nodiscard]] WorldParams world_params(const std::string& name) const;
 
   [[nodiscard]] std::shared_ptr<Robot> find_robot(const std::string& id) const;
+  // The same for a network thread answering many queries: while no robot was registered since this thread's last
+  // call for the same id, no lock is taken and no reference count touched (both are shared by every thread). The
+  // reference is valid until this thread calls it again.
+  [[nodiscard]] const RobotQueryView& robot_for_this_thread(const std::string& id) const;
   [[nodiscard]] std::vector<std::shared_ptr<Robot>> robots() const;
   // Registers (or re-registers, when its driver reconnects) a robot; nullptr with `error` set
   // when the robot limit is reached.
@@ -364,6 +374,8 @@ class ServerCore {
   mutable std::mutex registry_mutex_;
   std::map<std::string, std::shared_ptr<World>> worlds_;
   std::map<std::string, std::shared_ptr<Robot>> robots_;
+  // Changes with every change of robots_, unique across cores (see robot_for_this_thread).
+  std::atomic<std::uint64_t> robots_generation_;
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
 };
 

@@ -383,8 +383,9 @@ class QueryClient {
  private:
   void submit_one() {
     const std::size_t kind_index = pick_kind();
-    connection_->async_submit(make_request(shared_.kinds[kind_index]),
-                              [this, kind_index](client::Reply&& reply) { on_reply(kind_index, std::move(reply)); });
+    fill_request(shared_.kinds[kind_index], request_);
+    connection_->async_submit_in_place(
+        request_, [this, kind_index](client::Reply&& reply) { on_reply(kind_index, std::move(reply)); });
   }
 
   void on_reply(std::size_t kind_index, client::Reply&& reply) {
@@ -406,14 +407,16 @@ class QueryClient {
                                     shared_.cumulative.begin());
   }
 
-  v1::ClientMessage make_request(QueryKind kind) {
+  // Makes `message` a fresh request of `kind`. Each kind's body is cleared rather than the whole message, so a
+  // message refilled with the same kind keeps its allocations (strings, nested and repeated messages).
+  void fill_request(QueryKind kind, v1::ClientMessage& message) {
     std::uniform_real_distribution<double> coordinate(-shared_.options.area_half_size_m,
                                                       shared_.options.area_half_size_m);
     std::uniform_real_distribution<double> heading(-std::numbers::pi, std::numbers::pi);
-    v1::ClientMessage message;
     switch (kind) {
       case QueryKind::collision: {
         v1::CollisionQuery& query = *message.mutable_collision();
+        query.Clear();
         query.set_robot_id(kSeedRobotId);
         query.mutable_pose()->set_x(coordinate(random_));
         query.mutable_pose()->set_y(coordinate(random_));
@@ -422,6 +425,7 @@ class QueryClient {
       }
       case QueryKind::clearance: {
         v1::ClearanceQuery& query = *message.mutable_clearance();
+        query.Clear();
         query.set_robot_id(kSeedRobotId);
         query.mutable_pose()->set_x(coordinate(random_));
         query.mutable_pose()->set_y(coordinate(random_));
@@ -431,6 +435,7 @@ class QueryClient {
       }
       case QueryKind::ptem: {
         v1::PtemQuery& query = *message.mutable_ptem();
+        query.Clear();
         for (std::uint32_t i = 0; i < shared_.options.ptem_points; ++i) {
           v1::Point2D& point = *query.add_points();
           point.set_x(coordinate(random_));
@@ -439,22 +444,25 @@ class QueryClient {
         break;
       }
       case QueryKind::status:
-        message.mutable_status();
+        message.mutable_status()->Clear();
         break;
       case QueryKind::grid:
+        message.mutable_grid()->Clear();
         message.mutable_grid()->set_world("default");
         break;
       case QueryKind::octree:
-        message.mutable_octree();
+        message.mutable_octree()->Clear();
         break;
       case QueryKind::collision_batch: {
         v1::CollisionBatchQuery& query = *message.mutable_collision_batch();
+        query.Clear();
         query.set_robot_id(kSeedRobotId);
         for (std::uint32_t i = 0; i < shared_.options.batch; ++i) random_pose(*query.add_poses());
         break;
       }
       case QueryKind::clearance_batch: {
         v1::ClearanceBatchQuery& query = *message.mutable_clearance_batch();
+        query.Clear();
         query.set_robot_id(kSeedRobotId);
         query.set_max_distance_m(2.0);
         for (std::uint32_t i = 0; i < shared_.options.batch; ++i) random_pose(*query.add_poses());
@@ -463,6 +471,7 @@ class QueryClient {
       case QueryKind::raycast:
       case QueryKind::raycast_batch: {
         v1::RaycastQuery& query = *message.mutable_raycast();
+        query.Clear();
         query.set_max_range_m(8.0);
         const std::uint32_t rays = kind == QueryKind::raycast ? 1 : shared_.options.batch;
         for (std::uint32_t i = 0; i < rays; ++i) random_pose(*query.add_rays());
@@ -471,6 +480,7 @@ class QueryClient {
       case QueryKind::occupancy:
       case QueryKind::occupancy_batch: {
         v1::OccupancyQuery& query = *message.mutable_occupancy();
+        query.Clear();
         const std::uint32_t points = kind == QueryKind::occupancy ? 1 : shared_.options.batch;
         for (std::uint32_t i = 0; i < points; ++i) {
           v1::Vector3& point = *query.add_points();
@@ -483,6 +493,7 @@ class QueryClient {
       case QueryKind::swept:
       case QueryKind::swept_batch: {
         v1::SweptQuery& query = *message.mutable_swept();
+        query.Clear();
         query.set_robot_id(kSeedRobotId);
         const std::uint32_t motions =
             kind == QueryKind::swept ? 1 : std::min<std::uint32_t>(shared_.options.batch, 1000);
@@ -498,6 +509,7 @@ class QueryClient {
       case QueryKind::grid_window: {
         // A 4 m square somewhere in the area, fetched whole.
         v1::GridWindowRequest& request = *message.mutable_grid_window();
+        request.Clear();
         const double x = coordinate(random_);
         const double y = coordinate(random_);
         request.mutable_min_corner()->set_x(x - 2.0);
@@ -508,6 +520,7 @@ class QueryClient {
       }
       case QueryKind::octree_window: {
         v1::OctreeWindowRequest& request = *message.mutable_octree_window();
+        request.Clear();
         const double x = coordinate(random_);
         const double y = coordinate(random_);
         request.mutable_min_corner()->set_x(x - 1.0);
@@ -519,7 +532,6 @@ class QueryClient {
         break;
       }
     }
-    return message;
   }
 
   void random_pose(v1::Pose2D& pose) {
@@ -534,6 +546,7 @@ class QueryClient {
   ClientShared& shared_;
   ThreadResult& result_;
   std::mt19937_64 random_;
+  v1::ClientMessage request_;  // refilled for every request (fill_request)
   std::unique_ptr<client::PipelinedConnection> connection_;
 };
 

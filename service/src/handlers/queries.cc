@@ -14,14 +14,18 @@ namespace occgeo::service {
 
 std::optional<QueryTarget> resolve_robot_footprint(const SessionPtr& session, const std::string& kind,
                                                    std::uint64_t request_id, const std::string& robot_id,
-                                                   bool has_footprint, const v1::Footprint& footprint) {
-  auto robot = session->core().find_robot(robot_id);
-  if (!robot) {
+                                                   bool has_footprint, const v1::Footprint& footprint,
+                                                   bool leaves_thread) {
+  const RobotQueryView& robot = session->core().robot_for_this_thread(robot_id);
+  if (!robot.model) {
     session->send_error(v1::ERROR_UNKNOWN_ROBOT, kind + ".robot_id", "no robot '" + robot_id + "' is registered",
                         request_id);
     return std::nullopt;
   }
-  QueryTarget target{robot, robot->model().footprint};
+  QueryTarget target;
+  target.model = robot.model.get();
+  target.world = robot.world;
+  if (leaves_thread) target.keep_model = robot.model;
   if (has_footprint) {
     FieldError error;
     auto override_footprint = footprint_from_proto(footprint, kind + ".footprint", error);
@@ -29,7 +33,7 @@ std::optional<QueryTarget> resolve_robot_footprint(const SessionPtr& session, co
       session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message, request_id);
       return std::nullopt;
     }
-    target.footprint = *override_footprint;
+    target.override_footprint = std::move(*override_footprint);
   }
   return target;
 }
@@ -43,11 +47,10 @@ std::optional<geometry::Pose2> resolve_pose(const SessionPtr& session, const v1:
   return geometry::Pose2{pose.x(), pose.y(), pose.theta()};
 }
 
-std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, const std::string& kind,
-                                                     std::uint64_t request_id,
-                                                     const google::protobuf::RepeatedField<int>& asked) {
-  if (asked.empty()) return std::vector<v1::Model>{v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM};
-  std::vector<v1::Model> models;
+std::optional<ModelList> resolve_models(const SessionPtr& session, const std::string& kind, std::uint64_t request_id,
+                                        const google::protobuf::RepeatedField<int>& asked) {
+  if (asked.empty()) return ModelList{v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM};
+  ModelList models;
   for (int i = 0; i < asked.size(); ++i) {
     const int value = asked.Get(i);
     if (value != v1::MODEL_GRID && value != v1::MODEL_OCTOMAP && value != v1::MODEL_PTEM) {
@@ -100,9 +103,10 @@ namespace {
 // A collision or clearance request, single or batch, once validated.
 struct PoseQuery {
   QueryTarget target;
-  std::vector<geometry::Pose2> poses;
-  double max_distance_m = 0.0;  // clearance only
-  std::vector<v1::Model> models;
+  geometry::Pose2 pose;                // single forms
+  std::vector<geometry::Pose2> poses;  // batch forms
+  double max_distance_m = 0.0;         // clearance only
+  ModelList models;
 };
 
 // Validates the fields the four pose queries share, in this order: robot and footprint, the poses (one, or a list of
@@ -112,10 +116,12 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   constexpr bool kBatch = requires(const Query& q) { q.poses(); };
   constexpr bool kClearance = requires(const Query& q) { q.max_distance_m(); };
   const std::uint64_t request_id = query.request_id();
-  auto target =
-      resolve_robot_footprint(session, kind, request_id, query.robot_id(), query.has_footprint(), query.footprint());
+  bool leaves_thread = false;
+  if constexpr (kBatch) leaves_thread = static_cast<std::size_t>(query.poses_size()) > kMaxInlineEntries;
+  auto target = resolve_robot_footprint(session, kind, request_id, query.robot_id(), query.has_footprint(),
+                                        query.footprint(), leaves_thread);
   if (!target) return std::nullopt;
-  PoseQuery out{std::move(*target), {}, 0.0, {}};
+  PoseQuery out{std::move(*target), {}, {}, 0.0, {}};
   if constexpr (kBatch) {
     if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, kind + ".poses",
                      request_id)) {
@@ -130,7 +136,7 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   } else {
     const auto pose = resolve_pose(session, query.pose(), kind + ".pose", request_id);
     if (!pose) return std::nullopt;
-    out.poses.push_back(*pose);
+    out.pose = *pose;
   }
   if constexpr (kClearance) {
     const auto max_distance =
@@ -140,7 +146,7 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   }
   auto models = resolve_models(session, kind, request_id, query.models());
   if (!models) return std::nullopt;
-  out.models = std::move(*models);
+  out.models = *models;
   return out;
 }
 
@@ -154,7 +160,7 @@ void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_
             [session, request_id, answer_inline, query = std::move(query), fill] {
               // Inline answers use the network thread's cached snapshot; the query pool's threads take their own copy
               // so they keep no stale snapshot alive between batches.
-              const World& world = query.target.robot->world();
+              const World& world = *query.target.world;
               if (answer_inline) {
                 v1::ServerMessage reply;
                 fill(world.snapshots_for_this_thread(), query, reply);
@@ -178,7 +184,7 @@ void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery&
       [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
         auto* out = reply.mutable_collision();
         out->set_request_id(request_id);
-        answer_collision(snapshot, q.target.footprint, geometry::bounding_radius(q.target.footprint), q.poses.front(),
+        answer_collision(snapshot, q.target.footprint(), geometry::bounding_radius(q.target.footprint()), q.pose,
                          q.models, *out);
       });
 }
@@ -191,7 +197,7 @@ void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery&
       [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
         auto* out = reply.mutable_clearance();
         out->set_request_id(request_id);
-        answer_clearance(snapshot, q.target.footprint, q.poses.front(), q.max_distance_m, q.models, *out);
+        answer_clearance(snapshot, q.target.footprint(), q.pose, q.max_distance_m, q.models, *out);
       });
 }
 
@@ -203,12 +209,12 @@ void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQ
       [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
         auto* out = reply.mutable_collision_batch();
         out->set_request_id(request_id);
-        const double radius = geometry::bounding_radius(q.target.footprint);
+        const double radius = geometry::bounding_radius(q.target.footprint());
         out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
         std::uint32_t hits = 0;
         for (const geometry::Pose2& pose : q.poses) {
           v1::CollisionReply* result = out->add_results();
-          answer_collision(snapshot, q.target.footprint, radius, pose, q.models, *result);
+          answer_collision(snapshot, q.target.footprint(), radius, pose, q.models, *result);
           hits += result->hit() ? 1 : 0;
         }
         out->set_hits(hits);
@@ -225,7 +231,7 @@ void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQ
         out->set_request_id(request_id);
         out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
         for (const geometry::Pose2& pose : q.poses) {
-          answer_clearance(snapshot, q.target.footprint, pose, q.max_distance_m, q.models, *out->add_results());
+          answer_clearance(snapshot, q.target.footprint(), pose, q.max_distance_m, q.models, *out->add_results());
         }
       });
 }

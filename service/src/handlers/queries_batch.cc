@@ -43,8 +43,12 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
   if (!models) return;
   const bool answer_inline = rays.size() <= kMaxInlineEntries;
   run_query(session, "raycast", request_id, answer_inline,
-            [session, world, models = std::move(*models), request_id, rays = std::move(rays), max_range, height] {
-              const WorldSnapshot snapshot = world->snapshots();
+            [session, world, models = *models, request_id, rays = std::move(rays), max_range, height, answer_inline] {
+              // Inline answers use the network thread's cached snapshot (no lock, no shared reference count); the
+              // query pool's threads take their own copy.
+              WorldSnapshot own;
+              const WorldSnapshot& snapshot =
+                  answer_inline ? world->snapshots_for_this_thread() : (own = world->snapshots());
               v1::ServerMessage reply;
               auto* out = reply.mutable_raycast();
               out->set_request_id(request_id);
@@ -82,8 +86,10 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
   if (!models) return;
   const bool answer_inline = points.size() <= kMaxInlineEntries;
   run_query(session, "occupancy", request_id, answer_inline,
-            [session, world, models = std::move(*models), request_id, points = std::move(points)] {
-              const WorldSnapshot snapshot = world->snapshots();
+            [session, world, models = *models, request_id, points = std::move(points), answer_inline] {
+              WorldSnapshot own;
+              const WorldSnapshot& snapshot =
+                  answer_inline ? world->snapshots_for_this_thread() : (own = world->snapshots());
               v1::ServerMessage reply;
               auto* out = reply.mutable_occupancy();
               out->set_request_id(request_id);
@@ -100,8 +106,8 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
 
 void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) {
   const std::uint64_t request_id = query.request_id();
-  auto target =
-      resolve_robot_footprint(session, "swept", request_id, query.robot_id(), query.has_footprint(), query.footprint());
+  auto target = resolve_robot_footprint(session, "swept", request_id, query.robot_id(), query.has_footprint(),
+                                        query.footprint(), /*leaves_thread=*/true);
   if (!target) return;
   if (!check_count(session, static_cast<std::size_t>(query.motions_size()), kMaxSweptMotions, "swept.motions",
                    request_id)) {
@@ -150,13 +156,13 @@ void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) 
   if (!models) return;
   // Conservative advancement may take many steps: always on the query pool.
   run_query(session, "swept", request_id, false,
-            [session, target = std::move(*target), models = std::move(*models), request_id, query] {
-              const WorldSnapshot snapshot = target.robot->world().snapshots();
+            [session, target = std::move(*target), models = *models, request_id, query] {
+              const WorldSnapshot snapshot = target.world->snapshots();
               v1::ServerMessage reply;
               auto* out = reply.mutable_swept();
               out->set_request_id(request_id);
               for (const v1::SweptMotion& motion : query.motions()) {
-                answer_swept(snapshot, target.footprint, models, motion, *out->add_results());
+                answer_swept(snapshot, target.footprint(), models, motion, *out->add_results());
               }
               session->send(std::move(reply));
             });

@@ -1,8 +1,10 @@
 #pragma once
 
+#include <array>
 #include <boost/asio/post.hpp>
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,20 +19,49 @@
 
 namespace occgeo::service {
 
-// The robot a query names and the footprint to check: the query's override or the robot's own.
+// The robot a query names and the footprint to check: the query's override or the robot's own. Answered on the
+// calling thread, it refers to the robot through that thread's cache (ServerCore::robot_for_this_thread) and copies
+// nothing; `keep_model` holds the model for work that leaves the thread.
 struct QueryTarget {
-  std::shared_ptr<Robot> robot;
-  geometry::Footprint footprint;
+  std::shared_ptr<const RobotModel> keep_model;  // set only for work answered on another thread
+  const RobotModel* model = nullptr;
+  World* world = nullptr;
+  std::optional<geometry::Footprint> override_footprint;
+
+  [[nodiscard]] const geometry::Footprint& footprint() const {
+    return override_footprint ? *override_footprint : model->footprint;
+  }
 };
 
+// The robot and footprint a query names; `leaves_thread`: the work will run on another thread (the query pool), so
+// the target keeps the robot's model alive itself.
 std::optional<QueryTarget> resolve_robot_footprint(const SessionPtr& session, const std::string& kind,
                                                    std::uint64_t request_id, const std::string& robot_id,
-                                                   bool has_footprint, const v1::Footprint& footprint);
+                                                   bool has_footprint, const v1::Footprint& footprint,
+                                                   bool leaves_thread);
 
-// The models a query asks about, in its order without repeats; GRID, OCTOMAP, PTEM when it names none.
-std::optional<std::vector<v1::Model>> resolve_models(const SessionPtr& session, const std::string& kind,
-                                                     std::uint64_t request_id,
-                                                     const google::protobuf::RepeatedField<int>& asked);
+// The models a query asks about, in its order without repeats; at most the three there are, so they are kept inline
+// (no allocation per query).
+class ModelList {
+ public:
+  ModelList() = default;
+  ModelList(std::initializer_list<v1::Model> models) {
+    for (const v1::Model model : models) push_back(model);
+  }
+  void push_back(v1::Model model) { models_.at(size_++) = model; }
+  [[nodiscard]] const v1::Model* data() const { return models_.data(); }
+  [[nodiscard]] std::size_t size() const { return size_; }
+  [[nodiscard]] const v1::Model* begin() const { return models_.data(); }
+  [[nodiscard]] const v1::Model* end() const { return models_.data() + size_; }
+
+ private:
+  std::array<v1::Model, 3> models_{};
+  std::size_t size_ = 0;
+};
+
+// GRID, OCTOMAP, PTEM when the query names none.
+std::optional<ModelList> resolve_models(const SessionPtr& session, const std::string& kind, std::uint64_t request_id,
+                                        const google::protobuf::RepeatedField<int>& asked);
 
 // The world a query names (empty: the server's default world).
 std::shared_ptr<World> resolve_world(const SessionPtr& session, const std::string& kind, std::uint64_t request_id,

@@ -74,6 +74,9 @@ class PipelinedConnection {
   // Throws ClientError when max_in_flight requests are already outstanding, the message kind carries no
   // request_id, or the connection failed.
   std::uint64_t async_submit(v1::ClientMessage request, ReplyHandler on_reply);
+  // The same, leaving `request` with the caller (its request_id overwritten): the request is serialised at once, so
+  // the caller may refill the same message for the next one, and a client sending many builds and frees none.
+  std::uint64_t async_submit_in_place(v1::ClientMessage& request, ReplyHandler on_reply);
 
   // Blocking: waits (running the io_context) until fewer than max_in_flight are outstanding, then submits; the
   // answer is kept for next()/wait_all(). Throws ClientError on timeout or connection failure.
