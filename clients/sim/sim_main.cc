@@ -191,6 +191,7 @@ int main(int argc, char** argv) {
     } catch (const std::invalid_argument& error) {
       throw occgeo::sim::ArgsError(std::string("--start: ") + error.what());
     }
+    simulation->set_command_latency(options.command_latency_s);
     try {
       if (options.drive) simulation->set_drive_script(*options.drive);
     } catch (const std::invalid_argument& error) {

@@ -38,7 +38,9 @@ TEST(ParseArgs, TakesEveryFlagInBothForms) {
                                          "--json",
                                          "--visible-out",
                                          "v.txt",
-                                         "--trace-out=t.csv"});
+                                         "--trace-out=t.csv",
+                                         "--command-latency",
+                                         "0.3"});
   EXPECT_EQ(options.world_file, "w.yaml");
   EXPECT_EQ(options.robot, "bearcat");
   EXPECT_EQ(options.robot_id, "bc-7");
@@ -56,6 +58,7 @@ TEST(ParseArgs, TakesEveryFlagInBothForms) {
   EXPECT_TRUE(options.json);
   EXPECT_EQ(options.visible_out, "v.txt");
   EXPECT_EQ(options.trace_out, "t.csv");
+  EXPECT_EQ(options.command_latency_s, 0.3);
 }
 
 TEST(ParseArgs, HasTheDocumentedDefaults) {
@@ -70,6 +73,7 @@ TEST(ParseArgs, HasTheDocumentedDefaults) {
   EXPECT_EQ(options.seed, 1U);
   EXPECT_FALSE(options.json);
   EXPECT_FALSE(options.visible_out);
+  EXPECT_EQ(options.command_latency_s, 0.0) << "lockstep without latency unless asked";
   EXPECT_TRUE(parse_args({"--help"}).help) << "--help needs no --world";
 }
 
@@ -94,6 +98,11 @@ TEST(ParseArgs, ErrorsNameTheFlag) {
       {{"--world", "w.yaml", "--noise", "-0.1"}, "--noise: must not be negative"},
       {{"--world", "w.yaml", "--laser-range", "0"}, "--laser-range: must be greater than 0"},
       {{"--world", "w.yaml", "--id", ""}, "--id: must not be empty"},
+      {{"--world", "w.yaml", "--command-latency", "-0.1"}, "--command-latency: must be between 0 and 5 s"},
+      {{"--world", "w.yaml", "--command-latency", "300"}, "--command-latency: must be between 0 and 5 s"},
+      {{"--world", "w.yaml", "--command-latency", "0.305"},
+       "--command-latency: must be a whole number of 0.01 s physics steps, got '0.305'"},
+      {{"--world", "w.yaml", "--command-latency", "nan"}, "--command-latency: expected a latency in seconds"},
       {{"--world", "w.yaml", "--json=yes"}, "--json: takes no value"},
       {{"--world", "w.yaml", "--seed", "1", "--seed", "2"}, "--seed: given more than once"},
       {{"--world", "w.yaml", "--speed", "2"}, "--speed: unknown flag"},
@@ -118,7 +127,7 @@ TEST(ConfiguredPreset, AppliesTheLaserOverrides) {
 TEST(Usage, ListsEveryFlag) {
   for (const char* flag :
        {"--world", "--robot", "--id", "--world-name", "--server", "--start", "--duration", "--lockstep",
-        "--laser-range", "--noise", "--seed", "--json", "--visible-out", "--trace-out"}) {
+        "--laser-range", "--noise", "--seed", "--json", "--visible-out", "--trace-out", "--command-latency"}) {
     EXPECT_NE(usage().find(flag), std::string::npos) << flag;
   }
 }

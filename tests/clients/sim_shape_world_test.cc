@@ -320,7 +320,7 @@ TEST(SimWorldLoad, EveryShippedWorldLoadsAndTheStartIsClear) {
     }
     ++loaded;
   }
-  EXPECT_EQ(loaded, 12) << "a world was added or removed: update this count and clients/sim/worlds/README.md";
+  EXPECT_EQ(loaded, 16) << "a world was added or removed: update this count and clients/sim/worlds/README.md";
   EXPECT_TRUE(dynamic_cast<const PixelWorld*>(load_sim_world(kWorlds / "corridor.yaml").get()));
   EXPECT_TRUE(dynamic_cast<const ShapeWorld*>(load_sim_world(kWorlds / "ptem_thin.yaml").get()));
 }

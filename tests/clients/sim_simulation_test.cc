@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
+#include <optional>
 #include <sstream>
 
 #include "occgeo/sim/messages.h"
@@ -30,8 +32,9 @@ v1::MotionCommand command_for(std::uint64_t scan_seq, double left_mps, double ri
 }
 
 // Runs a lockstep session against a stand-in server that answers every scan with a gentle left turn.
-RunSummary run_lockstep(std::uint64_t seed, int steps) {
+RunSummary run_lockstep(std::uint64_t seed, int steps, std::optional<double> command_latency_s = std::nullopt) {
   Simulation simulation(wall_ahead(), bearcat(), {}, seed);
+  if (command_latency_s) simulation.set_command_latency(*command_latency_s);
   for (int i = 0; i < steps; ++i) {
     if (simulation.batch_due()) {
       const SensorBatch batch = simulation.take_batch();
@@ -94,6 +97,70 @@ TEST(Simulation, LockstepRunsAreDeterministicForASeed) {
   EXPECT_EQ(first.commands_received, 50U);
   EXPECT_NEAR(first.sim_time_s, 5.0, 1e-12);
   EXPECT_GT(first.distance_m, 2.0);
+}
+
+// Steps the simulation until its clock reads time_s.
+void step_until(Simulation& simulation, double time_s) {
+  while (simulation.robot().time_s() < time_s - 1e-9) simulation.step();
+}
+
+TEST(CommandLatency, ACommandReceivedAtTTakesEffectAtTPlusTheLatency) {
+  Simulation simulation(wall_ahead(), bearcat(), {}, 1);
+  simulation.set_command_latency(0.3);
+  EXPECT_DOUBLE_EQ(simulation.command_latency_s(), 0.3);
+  step_until(simulation, 0.5);
+  // Received at t = 0.5 s, lockstep: the wheels still stand at t = 0.8 s and drive from then on.
+  simulation.apply_command(command_for(6, 0.5, 0.5, "clear"));
+  EXPECT_EQ(simulation.pending_command_count(), 1U);
+  EXPECT_EQ(simulation.command_count(), 0U) << "counted once it takes effect";
+  step_until(simulation, 0.8);
+  EXPECT_EQ(simulation.robot().pose().x, 0.0) << "not before t + latency";
+  EXPECT_EQ(simulation.last_state(), "");
+  simulation.step();
+  EXPECT_NEAR(simulation.robot().pose().x, 0.5 * kPhysicsStep_s, 1e-12) << "the step starting at t + latency drives";
+  EXPECT_EQ(simulation.pending_command_count(), 0U);
+  EXPECT_EQ(simulation.command_count(), 1U);
+  EXPECT_EQ(simulation.last_state(), "clear");
+}
+
+TEST(CommandLatency, TheWatchdogCountsFromWhenTheCommandTakesEffect) {
+  Simulation simulation(wall_ahead(), bearcat(), {}, 1);
+  simulation.set_command_latency(0.3);
+  simulation.apply_command(command_for(1, 0.5, 0.5, "clear"));
+  step_until(simulation, 2.0);
+  // The preset's 0.5 s watchdog from t = 0.3 s: 0.5 s at 0.5 m/s. Counted from receipt it would be 0.2 s of driving.
+  EXPECT_NEAR(simulation.robot().pose().x, 0.25, 1e-9);
+}
+
+TEST(CommandLatency, CommandsKeepTheirOrderAndSpacing) {
+  Simulation simulation(wall_ahead(), bearcat(), {}, 1);
+  simulation.set_command_latency(0.2);
+  simulation.apply_command(command_for(1, 0.5, 0.5, "clear"));
+  step_until(simulation, 0.1);
+  simulation.apply_command(command_for(2, 0.0, 0.0, "deadlock"));
+  step_until(simulation, 0.3);
+  EXPECT_EQ(simulation.last_state(), "clear");
+  EXPECT_NEAR(simulation.robot().pose().x, 0.05, 1e-9) << "driving since t = 0.2 s";
+  simulation.step();
+  EXPECT_EQ(simulation.last_state(), "deadlock") << "the second command, 0.1 s after the first";
+  step_until(simulation, 1.0);
+  EXPECT_NEAR(simulation.robot().pose().x, 0.05, 1e-9) << "stopped by it at t = 0.3 s";
+}
+
+TEST(CommandLatency, ZeroLatencyLeavesLockstepRunsUnchanged) {
+  const RunSummary plain = run_lockstep(5, 500);
+  EXPECT_EQ(to_json(run_lockstep(5, 500, 0.0)), to_json(plain));
+  const RunSummary delayed = run_lockstep(5, 500, 0.3);
+  EXPECT_NE(delayed.final_pose.x, plain.final_pose.x);
+  EXPECT_EQ(delayed.commands_received, 50U - 3U) << "the last three commands were still on their way at the end";
+}
+
+TEST(CommandLatency, RefusesALatencyThatIsNotWholeSteps) {
+  Simulation simulation(wall_ahead(), bearcat(), {}, 1);
+  EXPECT_THROW(simulation.set_command_latency(-0.01), std::invalid_argument);
+  EXPECT_THROW(simulation.set_command_latency(0.015), std::invalid_argument);
+  EXPECT_THROW(simulation.set_command_latency(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  EXPECT_DOUBLE_EQ(simulation.command_latency_s(), 0.0) << "a refused latency changes nothing";
 }
 
 TEST(Simulation, RefusesABadStartOrScanPeriod) {

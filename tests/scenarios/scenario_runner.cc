@@ -322,6 +322,9 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
                                    "--json",
                                    "--trace-out",
                                    (dir.path() / "trace.csv").string()};
+  if (scenario.command_latency_s > 0.0) {
+    argv.insert(argv.end(), {"--command-latency", std::to_string(scenario.command_latency_s)});
+  }
   if (picture_dir) {
     std::filesystem::create_directories(*picture_dir);
     argv.insert(argv.end(), {"--png-out", (std::filesystem::path(*picture_dir) / (scenario.name + ".png")).string()});

@@ -30,6 +30,8 @@ struct Scenario {
   // checks the grid, fed by the same laser, after every message).
   int octomap_publish_every_messages = 10;
   double goal_tolerance_m = 0.3;
+  // occgeo-sim --command-latency: sim seconds between the server's command and its effect on the wheels (0: none).
+  double command_latency_s = 0.0;
   std::string note;  // printed with the table: what the scenario shows
 };
 

@@ -77,6 +77,36 @@ TEST(ScenarioCatalogue, UTrap) {
   });
 }
 
+// Seed 000 §4 Results: "while steering to avoid an obstacle, [the robot] gets itself into a position too close to
+// another obstacle which was not in its view earlier. If the distance is too small for the robot to identify the
+// obstacle and react, it hits the obstacle." The Bearcat turns left round a wall's end towards a barrel that lay
+// outside its frontal rectangle; with the 0.3 s loop latency the seed's robot plausibly had (scan transfer over RS-232,
+// the decision, the command to the motion controller: clients/sim/README.md) it reacts too late and hits the barrel.
+// Every row runs with that latency: the guard stops the Bearcat short, and goto's full stack plans round both
+// obstacles.
+TEST(ScenarioCatalogue, TurnReveal) {
+  constexpr double kLatency_s = 0.3;
+  const auto delayed = [](Scenario s) {
+    s.command_latency_s = kLatency_s;
+    return s;
+  };
+  Scenario guarded = make("turn_reveal_bearcat_guard", "turn_reveal.yaml", "bearcat", "bearcat", 20.0);
+  guarded.note = "Bearcat + guard, 0.3 s latency";
+  run_all({
+      {delayed(seed_only(make("turn_reveal_bearcat", "turn_reveal.yaml", "bearcat", "bearcat", 20.0),
+                         "seed 000 §4 Results, 0.3 s latency, no guard", kNoGuard)),
+       Expect::kCollides},
+      // Lockstep without latency: the same Bearcat just gets past the barrel (printed only).
+      {seed_only(make("turn_reveal_bearcat_no_latency", "turn_reveal.yaml", "bearcat", "bearcat", 20.0),
+                 "as above without latency", kNoGuard),
+       Expect::kReported},
+      {delayed(guarded), Expect::kNoCollisions},
+      {delayed(noted(make("turn_reveal_goto", "turn_reveal.yaml", "bearcat", "goto", 60.0, Eigen::Vector2d(6.0, 0.0)),
+                     "full stack, 0.3 s latency")),
+       Expect::kFullStack},
+  });
+}
+
 // Seed 004 §5: PTEM guidance (waypoints) and PointBug (goto) past a thin pole and a cone.
 TEST(ScenarioCatalogue, PtemStaticObstacles) {
   const Eigen::Vector2d past_obstacle(3.5, 0.0);

@@ -9,13 +9,19 @@ namespace occgeo::sim {
 
 namespace {
 
+// Longest command latency accepted, seconds: beyond this the robot would act on scans older than its own watchdog
+// period many times over, which no real robot survives and is more likely a unit mistake (milliseconds for seconds).
+constexpr double kMaxCommandLatency_s = 5.0;
+static_assert(kPhysicsStep_s == 0.01, "--command-latency's messages name the physics step");
+
 // Flags that take no value.
 const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", "-h"};
 
 // Flags that take one value.
 const std::set<std::string_view> kValueFlags = {
-    "--world",       "--robot", "--id",   "--world-name",  "--server",    "--duration", "--start",
-    "--laser-range", "--noise", "--seed", "--visible-out", "--trace-out", "--drive",    "--png-out"};
+    "--world",       "--robot",     "--id",          "--world-name", "--server",
+    "--duration",    "--start",     "--laser-range", "--noise",      "--seed",
+    "--visible-out", "--trace-out", "--drive",       "--png-out",    "--command-latency"};
 
 [[noreturn]] void fail(std::string_view flag, const std::string& problem) {
   throw ArgsError(std::string(flag) + ": " + problem);
@@ -92,6 +98,15 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
   } else if (flag == "--noise") {
     options.noise_sigma_m = parse_number(flag, value, "a standard deviation in metres");
     if (*options.noise_sigma_m < 0.0) fail(flag, "must not be negative, got '" + std::string(value) + "'");
+  } else if (flag == "--command-latency") {
+    options.command_latency_s = parse_number(flag, value, "a latency in seconds");
+    const double steps = options.command_latency_s / kPhysicsStep_s;
+    if (options.command_latency_s < 0.0 || options.command_latency_s > kMaxCommandLatency_s) {
+      fail(flag, "must be between 0 and 5 s, got '" + std::string(value) + "'");
+    }
+    if (std::abs(steps - std::round(steps)) > 1e-9) {
+      fail(flag, "must be a whole number of 0.01 s physics steps, got '" + std::string(value) + "'");
+    }
   } else if (flag == "--seed") {
     options.seed = parse_seed(flag, value);
   } else if (flag == "--visible-out") {
@@ -193,6 +208,10 @@ std::string usage() {
          "                        arrays at 1 m (their noise grows with range) (default: each preset's)\n"
          "  --drive V,W,T;...     follow this looped script of body velocities (m/s, rad/s, seconds each) and ignore\n"
          "                        the server's motion commands (how robots the server does not steer move)\n"
+         "  --command-latency S   a received motion command takes effect S sim seconds later (a whole number of\n"
+         "                        0.01 s physics steps, at most 5): the loop latency of a real robot, which lockstep\n"
+         "                        otherwise leaves at zero; the wheels' watchdog counts from when it takes effect\n"
+         "                        (default 0)\n"
          "  --seed N              noise seed (default 1)\n"
          "  --json                print the summary as one JSON object on stdout\n"
          "  --visible-out FILE    write the obstacle pixels the sensors hit, one \"col row\" line each\n"

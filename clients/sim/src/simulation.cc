@@ -163,11 +163,30 @@ SensorBatch Simulation::take_batch() {
   return batch;
 }
 
+void Simulation::set_command_latency(double latency_s) {
+  const double steps = latency_s / kPhysicsStep_s;
+  const std::int64_t whole_steps = std::isfinite(steps) ? std::llround(steps) : -1;
+  if (!(whole_steps >= 0 && std::abs(steps - static_cast<double>(whole_steps)) < 1e-9)) {
+    throw std::invalid_argument("command latency " + std::to_string(latency_s) +
+                                " s must be a non-negative whole number of " + std::to_string(kPhysicsStep_s) +
+                                " s physics steps");
+  }
+  command_latency_steps_ = whole_steps;
+}
+
 void Simulation::apply_command(const v1::MotionCommand& command) {
   if (has_drive_script()) {
     ++ignored_command_count_;
     return;
   }
+  if (command_latency_steps_ > 0) {
+    pending_commands_.push_back({robot_.step_count() + command_latency_steps_, command});
+    return;
+  }
+  take_effect(command);
+}
+
+void Simulation::take_effect(const v1::MotionCommand& command) {
   robot_.command(to_wheel_command(command));
   ++command_count_;
   ++state_counts_[command.state()];
@@ -175,6 +194,10 @@ void Simulation::apply_command(const v1::MotionCommand& command) {
 }
 
 void Simulation::step() {
+  while (!pending_commands_.empty() && pending_commands_.front().effect_step <= robot_.step_count()) {
+    take_effect(pending_commands_.front().command);
+    pending_commands_.pop_front();
+  }
   if (has_drive_script()) {
     std::int64_t phase_steps = robot_.step_count() % script_period_steps_;
     const DriveSegment* current = &script_.back();

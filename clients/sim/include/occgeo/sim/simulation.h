@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
@@ -73,10 +74,22 @@ class Simulation {
   // Takes the batch due now: the pose message, then each due sensor's message in the preset's sensor order, seqs of
   // sensor messages counting from 1 in one sequence.
   SensorBatch take_batch();
-  // Applies a motion command received now and records it for the summary (or only counts it when a drive script
-  // steers the robot).
+  // Delays every motion command received from now on by latency_s of sim time before it reaches the wheels: the
+  // loop latency of a real robot (scan transfer, processing, the command's way to the motor controller), which lockstep
+  // otherwise leaves at zero. The robot's watchdog and the command's expiry count from when it takes effect. Throws
+  // std::invalid_argument unless latency_s is finite, non-negative and a whole number of physics steps.
+  void set_command_latency(double latency_s);
+  // The delay set by set_command_latency, seconds (0 by default).
+  [[nodiscard]] double command_latency_s() const {
+    return static_cast<double>(command_latency_steps_) * kPhysicsStep_s;
+  }
+  // Takes a motion command received now: it takes effect after the command latency (at once without one), and is then
+  // recorded for the summary (or only counted when a drive script steers the robot).
   void apply_command(const v1::MotionCommand& command);
-  // Advances sim time by one physics step (following the drive script, if any).
+  // Commands received and not yet in effect (only with a command latency).
+  [[nodiscard]] std::size_t pending_command_count() const { return pending_commands_.size(); }
+  // Advances sim time by one physics step (following the drive script, if any), after the delayed commands due at the
+  // current step have taken effect.
   void step();
 
   [[nodiscard]] const SimWorld& world() const { return *world_; }
@@ -87,7 +100,7 @@ class Simulation {
   // Messages taken so far per kind: "odometry", "laser_scan", "range_array", "servo_range",
   // "point_cloud", "wheel_encoders".
   [[nodiscard]] const std::map<std::string, std::uint64_t>& message_counts() const { return message_counts_; }
-  // Motion commands applied so far.
+  // Motion commands that took effect so far (with a command latency, those still pending are not counted).
   [[nodiscard]] std::uint64_t command_count() const { return command_count_; }
   // Motion commands received and not applied because a drive script steers the robot.
   [[nodiscard]] std::uint64_t ignored_command_count() const { return ignored_command_count_; }
@@ -120,6 +133,16 @@ class Simulation {
   DriveScript script_;
   std::vector<std::int64_t> script_segment_steps_;  // each segment's length in physics steps
   std::int64_t script_period_steps_ = 0;
+  // A received command and the physics step at whose start it takes effect.
+  struct PendingCommand {
+    std::int64_t effect_step = 0;
+    v1::MotionCommand command;
+  };
+  // Puts a command into effect now and records it.
+  void take_effect(const v1::MotionCommand& command);
+
+  std::int64_t command_latency_steps_ = 0;
+  std::deque<PendingCommand> pending_commands_;  // in order of receipt, so in order of effect_step
   std::int64_t last_batch_step_ = -1;
   std::uint64_t sensor_seq_ = 0;
   std::uint64_t odometry_seq_ = 0;
