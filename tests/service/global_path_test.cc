@@ -14,6 +14,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -511,6 +512,96 @@ TEST(PurePursuit, TurnsOnTheSpotTowardAnAimPointBehind) {
   EXPECT_LT(ahead.angular_radps, 0.0);  // left of the path: steer right
   EXPECT_NEAR(ahead.aim_W.x(), 0.5, 1e-9);
   EXPECT_TRUE(pure_pursuit(Pose2{1.95, 0.0, 0.0}, path, params).reached);
+}
+
+// Re-planning hysteresis. An 8 m x 6 m field with a block (x 3-4 m, y 1.5-4.5 m) between start and goal: the ways
+// over and under it are equally long, 1.5 m wide each.
+World block_between(char fill) {
+  World world(80, 60, fill);
+  world.fill(30, 15, 39, 44, '#');
+  return world;
+}
+const Eigen::Vector2d kBlockStart(1.05, 3.05);
+const Eigen::Vector2d kBlockGoal(7.05, 3.05);
+
+double lowest_y(const std::vector<Eigen::Vector2d>& path) {
+  double y = kInfinity;
+  for (const Eigen::Vector2d& p : path) y = std::min(y, p.y());
+  return y;
+}
+
+TEST(GlobalPath, PathCostIsTheLengthWeightedByCellsAndNoneThroughABlockedCell) {
+  const World world = block_between('.');
+  const GlobalPathParams params;
+  const std::vector<Eigen::Vector2d> under{kBlockStart, {2.5, 0.75}, {4.5, 0.75}, kBlockGoal};
+  const std::optional<double> cost = path_cost(world.window(), under, params);
+  ASSERT_TRUE(cost);
+  EXPECT_NEAR(*cost, length(under), 1e-9);  // all seen free, no gradient: the length
+  World unknown = block_between('?');
+  const std::optional<double> unknown_cost = path_cost(unknown.window(), under, params);
+  ASSERT_TRUE(unknown_cost);
+  EXPECT_NEAR(*unknown_cost, (1.0 + params.unknown_extra_cost) * length(under), 1e-9);
+  EXPECT_FALSE(path_cost(world.window(), std::vector<Eigen::Vector2d>{kBlockStart, kBlockGoal}, params));
+  // A start inside the inflated zone may leave it, but a later leg may not touch it.
+  EXPECT_TRUE(path_cost(world.window(), std::vector<Eigen::Vector2d>{{2.85, 3.05}, {1.05, 3.05}}, params));
+  EXPECT_FALSE(
+      path_cost(world.window(), std::vector<Eigen::Vector2d>{{1.05, 3.05}, {2.85, 3.05}, {1.05, 3.05}}, params));
+}
+
+TEST(GlobalPath, KeepsTheCurrentWayRoundUnlessTheNewOneIsClearlyCheaper) {
+  const World world = block_between('.');
+  GlobalPathParams params;
+  const GlobalPathResult fresh = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(fresh.status, GlobalPathStatus::kFound);
+  // The robot follows the other way round, a little longer than the fresh path's: kept.
+  const bool fresh_goes_under = lowest_y(fresh.waypoints_W) < 1.5;
+  const double side_y = fresh_goes_under ? 5.0 : 1.1;
+  params.current_path_W = {kBlockStart, {2.6, side_y}, {4.4, side_y}, kBlockGoal};
+  const GlobalPathResult kept = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(kept.status, GlobalPathStatus::kFound);
+  EXPECT_TRUE(kept.kept_current);
+  EXPECT_EQ(kept.waypoints_W, params.current_path_W);
+  ASSERT_TRUE(kept.current_cost_m);
+  EXPECT_GT(*kept.current_cost_m, fresh.smoothed_cost_m);
+  // A long detour on that side (out to the field's edge and back) is replaced.
+  const double far_y = fresh_goes_under ? 5.8 : 0.2;
+  params.current_path_W = {kBlockStart, {0.3, far_y}, {7.7, far_y}, kBlockGoal};
+  const GlobalPathResult replaced = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(replaced.status, GlobalPathStatus::kFound);
+  EXPECT_FALSE(replaced.kept_current);
+  EXPECT_EQ(replaced.waypoints_W, fresh.waypoints_W);
+  EXPECT_GE(wall_clearance(replaced.waypoints_W, world), params.footprint_radius_m - 1e-9);
+}
+
+TEST(GlobalPath, ABlockedCurrentPathKeepsItsClearPartAndItsSideUnlessTheOtherIsClearlyCheaper) {
+  // The robot goes over the block; a pillar comes into view on the last leg (x 5.0-5.4, y 4.0-4.6). Going past it
+  // costs a little more than going under the block now, but not clearly more: the robot stays on its side.
+  World world = block_between('.');
+  world.fill(50, 40, 53, 45, '#');
+  GlobalPathParams params;
+  const std::vector<Eigen::Vector2d> over{kBlockStart, {2.7, 4.9}, {4.3, 4.9}, kBlockGoal};
+  ASSERT_FALSE(path_cost(world.window(), over, params));
+  const GlobalPathResult fresh = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(fresh.status, GlobalPathStatus::kFound);
+  EXPECT_LT(lowest_y(fresh.waypoints_W), 1.5) << "without a current path: under the block";
+  params.current_path_W = over;
+  const GlobalPathResult kept = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(kept.status, GlobalPathStatus::kFound);
+  EXPECT_TRUE(kept.kept_current);
+  ASSERT_GE(kept.waypoints_W.size(), 4U);
+  EXPECT_TRUE(std::equal(over.begin(), over.begin() + 3, kept.waypoints_W.begin())) << "the clear part is kept";
+  EXPECT_GT(lowest_y(kept.waypoints_W), 3.0) << "over the block";
+  EXPECT_TRUE(kept.waypoints_W.back().isApprox(kBlockGoal));
+  EXPECT_GE(wall_clearance(kept.waypoints_W, world), params.footprint_radius_m - 1e-9);
+
+  // A wall closing the way over (x 4.6-4.7 from the block's height to the field's edge, with the pillar): going back
+  // round is clearly dearer.
+  world.fill(46, 40, 47, 59, '#');
+  const GlobalPathResult turned = plan_global_path(world.window(), kBlockStart, kBlockGoal, params);
+  ASSERT_EQ(turned.status, GlobalPathStatus::kFound);
+  EXPECT_FALSE(turned.kept_current);
+  EXPECT_LT(lowest_y(turned.waypoints_W), 1.5);
+  EXPECT_GE(wall_clearance(turned.waypoints_W, world), params.footprint_radius_m - 1e-9);
 }
 
 TEST(GlobalPath, RejectsBadInputNamingTheField) {

@@ -302,7 +302,12 @@ class EscapeWrapper final : public Behaviour {
     if (input.stamp_s - planned_at_s_ > 3.0) {
       const std::vector<Eigen::Vector2d> previous = path_;
       const std::size_t previous_segment = segment_;
-      if (!plan(input, pose, goal)) {
+      // Keep the path being followed (its clear part, when the grown map blocks it further on) unless the new one is
+      // clearly cheaper (GlobalPathParams::current_path_W).
+      planner_.current_path_W = planned_path();
+      const bool planned = plan(input, pose, goal);
+      planner_.current_path_W.clear();
+      if (!planned) {
         path_ = previous;
         segment_ = previous_segment;
         planned_at_s_ = input.stamp_s;

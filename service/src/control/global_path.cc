@@ -70,29 +70,23 @@ class SearchGrid {
     return {window_.origin.ix + c.col, window_.origin.iy + c.row};
   }
 
-  // Walks the segment between the centres of a and b (Amanatides–Woo, exact) and returns its cost (length in each cell
-  // times the cell's weight), or nullopt when it enters a blocked cell. Every point of the segment lies in a visited
-  // cell, so within half a cell diagonal of a free centre: the inflation margin keeps it footprint_radius_m clear.
-  [[nodiscard]] std::optional<double> line_cost(Local a, Local b) const {
-    const double dx = b.col - a.col;
-    const double dy = b.row - a.row;
-    const double length_m = std::hypot(dx, dy) * cell_size();
+  // Walks the segment from (ax, ay) to (ax + dx, ay + dy) (window cell coordinates: cell (col, row) covers
+  // [col, col + 1) x [row, row + 1)) cell by cell (Amanatides–Woo, exact), calling visit(cell, fraction of the
+  // segment inside it) in order; visit returns false to stop. True when the whole segment was visited.
+  template <typename Visit>
+  bool walk_cells(double ax, double ay, double dx, double dy, Visit&& visit) const {
+    Local c{static_cast<int>(std::floor(ax)), static_cast<int>(std::floor(ay))};
     const int step_x = dx > 0 ? 1 : (dx < 0 ? -1 : 0);
     const int step_y = dy > 0 ? 1 : (dy < 0 ? -1 : 0);
-    // Starting at a centre, the first boundary on each axis is half a cell away.
     const double delta_x = step_x != 0 ? 1.0 / std::abs(dx) : kInfinity;
     const double delta_y = step_y != 0 ? 1.0 / std::abs(dy) : kInfinity;
-    double next_x = 0.5 * delta_x;
-    double next_y = 0.5 * delta_y;
-    Local c = a;
+    double next_x = step_x > 0 ? (c.col + 1 - ax) * delta_x : (step_x < 0 ? (ax - c.col) * delta_x : kInfinity);
+    double next_y = step_y > 0 ? (c.row + 1 - ay) * delta_y : (step_y < 0 ? (ay - c.row) * delta_y : kInfinity);
     double t = 0.0;
-    double cost_m = 0.0;
     while (true) {
-      const std::size_t i = index(c);
-      if (blocked(i)) return std::nullopt;
       const double t_exit = std::min({next_x, next_y, 1.0});
-      cost_m += (t_exit - t) * length_m * weight(i);
-      if (t_exit >= 1.0) break;
+      if (!visit(c, t_exit - t)) return false;
+      if (t_exit >= 1.0) return true;
       t = t_exit;
       if (next_x < next_y) {
         c.col += step_x;
@@ -106,9 +100,69 @@ class SearchGrid {
         next_x += delta_x;
         next_y += delta_y;
       }
-      if (!inside(c)) return std::nullopt;  // cannot happen between two inside cells; guards the indexing
     }
-    return cost_m;
+  }
+
+  // The cost of the segment between the centres of a and b (length in each cell times the cell's weight), or nullopt
+  // when it enters a blocked cell. Every point of the segment lies in a visited cell, so within half a cell diagonal
+  // of a free centre: the inflation margin keeps it footprint_radius_m clear.
+  [[nodiscard]] std::optional<double> line_cost(Local a, Local b) const {
+    const double dx = b.col - a.col;
+    const double dy = b.row - a.row;
+    const double length_m = std::hypot(dx, dy) * cell_size();
+    double cost_m = 0.0;
+    const bool clear = walk_cells(a.col + 0.5, a.row + 0.5, dx, dy, [&](Local c, double fraction) {
+      if (!inside(c)) return false;  // cannot happen between two inside cells; guards the indexing
+      const std::size_t i = index(c);
+      if (blocked(i)) return false;
+      cost_m += fraction * length_m * weight(i);
+      return true;
+    });
+    return clear ? std::optional<double>(cost_m) : std::nullopt;
+  }
+
+  // The cost of the segment from a_W to b_W (world frame, any points) as line_cost gives it, or nullopt when it leaves
+  // the window, enters an occupied cell, or enters a blocked cell while not `escaping`. escaping lets a walk that
+  // starts in the inflated zone leave it: it is cleared at the first free cell.
+  [[nodiscard]] std::optional<double> segment_cost(const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W,
+                                                   bool& escaping) const {
+    const double ax = a_W.x() / cell_size() - window_.origin.ix;
+    const double ay = a_W.y() / cell_size() - window_.origin.iy;
+    const double dx = b_W.x() / cell_size() - window_.origin.ix - ax;
+    const double dy = b_W.y() / cell_size() - window_.origin.iy - ay;
+    if (!(std::abs(ax) < kMaxCellIndex && std::abs(ay) < kMaxCellIndex)) return std::nullopt;
+    const double length_m = (b_W - a_W).norm();
+    double cost_m = 0.0;
+    const bool clear = walk_cells(ax, ay, dx, dy, [&](Local c, double fraction) {
+      if (!inside(c)) return false;
+      const std::size_t i = index(c);
+      if (occupied(i)) return false;
+      if (!blocked(i)) {
+        escaping = false;
+      } else if (!escaping) {
+        return false;
+      }
+      cost_m += fraction * length_m * weight(i);
+      return true;
+    });
+    return clear ? std::optional<double>(cost_m) : std::nullopt;
+  }
+
+  // The cost of the polyline, as path_cost documents it.
+  [[nodiscard]] std::optional<double> polyline_cost(std::span<const Eigen::Vector2d> path_W) const {
+    if (path_W.empty()) return std::nullopt;
+    bool escaping = true;
+    double total_m = 0.0;
+    for (std::size_t k = 0; k + 1 < path_W.size(); ++k) {
+      const std::optional<double> piece = segment_cost(path_W[k], path_W[k + 1], escaping);
+      if (!piece) return std::nullopt;
+      total_m += *piece;
+    }
+    if (path_W.size() == 1) {
+      const std::optional<double> here = segment_cost(path_W[0], path_W[0], escaping);
+      if (!here) return std::nullopt;
+    }
+    return total_m;
   }
 
  private:
@@ -141,6 +195,14 @@ double octile_m(Local a, Local b, double cell_size_m) {
   return cell_size_m * (std::max(dx, dy) + (kSqrt2 - 1.0) * std::min(dx, dy));
 }
 
+void check_path(std::span<const Eigen::Vector2d> path_W, const char* field) {
+  for (std::size_t i = 0; i < path_W.size(); ++i) {
+    if (!path_W[i].allFinite()) {
+      throw std::invalid_argument(std::string(field) + "[" + std::to_string(i) + "] must be finite");
+    }
+  }
+}
+
 }  // namespace
 
 void GlobalPathParams::validate() const {
@@ -156,6 +218,10 @@ void GlobalPathParams::validate() const {
   require(max_window_cells >= 1 && max_window_cells <= 65536, "max_window_cells", "must be in [1, 65536]",
           max_window_cells);
   require(max_expansions >= 1, "max_expansions", "must be at least 1", static_cast<double>(max_expansions));
+  check_path(current_path_W, "current_path_W");
+  require_non_negative("keep_min_gain_m", keep_min_gain_m);
+  require(std::isfinite(keep_min_gain_fraction) && keep_min_gain_fraction >= 0.0 && keep_min_gain_fraction < 1.0,
+          "keep_min_gain_fraction", "must be in [0, 1)", keep_min_gain_fraction);
 }
 
 void PurePursuitParams::validate() const {
@@ -304,18 +370,13 @@ std::vector<float> obstacle_cost(const PlanningWindow& window, const GlobalPathP
   return extra;
 }
 
-GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vector2d& start_W,
-                                  const Eigen::Vector2d& goal_W, const GlobalPathParams& params) {
-  params.validate();
-  check_window(window);
-  require(start_W.allFinite(), "start_W", "must be finite", start_W.x());
-  require(goal_W.allFinite(), "goal_W", "must be finite", goal_W.x());
+namespace {
+
+// A* and shortcuts from start_W to goal_W on the grid (both inside the window); the current path is not looked at.
+GlobalPathResult search_path(const SearchGrid& grid, const PlanningWindow& window, const Eigen::Vector2d& start_W,
+                             const Eigen::Vector2d& goal_W, const GlobalPathParams& params) {
   const std::optional<Local> start = local_of(window, start_W);
   const std::optional<Local> goal = local_of(window, goal_W);
-  require(start.has_value(), "start_W", "must lie inside the window", start_W.x());
-  require(goal.has_value(), "goal_W", "must lie inside the window", goal_W.x());
-
-  const SearchGrid grid(window, params);
   GlobalPathResult result;
   const std::size_t start_index = grid.index(*start);
   const std::size_t goal_index = grid.index(*goal);
@@ -425,7 +486,76 @@ GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vec
     if (k + 1 < kept.size()) result.waypoints_W.push_back(grid.centre_W(path[kept[k]]));
   }
   result.waypoints_W.push_back(goal_W);
+
   return result;
+}
+
+// The part of path_W before its first blocked leg, ending at a vertex (at least the first leg must be clear); empty
+// when even that is blocked.
+std::vector<Eigen::Vector2d> clear_prefix(const SearchGrid& grid, std::span<const Eigen::Vector2d> path_W) {
+  std::vector<Eigen::Vector2d> prefix;
+  bool escaping = true;
+  for (std::size_t k = 0; k + 1 < path_W.size(); ++k) {
+    if (!grid.segment_cost(path_W[k], path_W[k + 1], escaping)) break;
+    if (prefix.empty()) prefix.push_back(path_W[k]);
+    prefix.push_back(path_W[k + 1]);
+  }
+  return prefix;
+}
+
+}  // namespace
+
+GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vector2d& start_W,
+                                  const Eigen::Vector2d& goal_W, const GlobalPathParams& params) {
+  params.validate();
+  check_window(window);
+  require(start_W.allFinite(), "start_W", "must be finite", start_W.x());
+  require(goal_W.allFinite(), "goal_W", "must be finite", goal_W.x());
+  require(local_of(window, start_W).has_value(), "start_W", "must lie inside the window", start_W.x());
+  require(local_of(window, goal_W).has_value(), "goal_W", "must lie inside the window", goal_W.x());
+
+  const SearchGrid grid(window, params);
+  GlobalPathResult result = search_path(grid, window, start_W, goal_W, params);
+  if (result.status != GlobalPathStatus::kFound || params.current_path_W.size() < 2) return result;
+
+  // Hysteresis: the path being followed is kept while it is clear and the new one is not clearly cheaper. When the
+  // growing map blocks it further on, its clear part is kept and only the rest re-planned, so a wall coming into
+  // view does not send the robot back to try the other way round (seen free cells are cheaper than unknown ones, and
+  // the robot has seen most of where it came from), unless that other way is clearly cheaper.
+  std::vector<Eigen::Vector2d> kept_W;
+  result.current_cost_m = grid.polyline_cost(params.current_path_W);
+  std::optional<double> kept_cost_m = result.current_cost_m;
+  if (kept_cost_m) {
+    kept_W = params.current_path_W;
+  } else {
+    std::vector<Eigen::Vector2d> prefix_W = clear_prefix(grid, params.current_path_W);
+    if (prefix_W.size() >= 2 && local_of(window, prefix_W.back())) {
+      const GlobalPathResult rest = search_path(grid, window, prefix_W.back(), goal_W, params);
+      if (rest.status == GlobalPathStatus::kFound) {
+        prefix_W.insert(prefix_W.end(), rest.waypoints_W.begin() + 1, rest.waypoints_W.end());
+        kept_cost_m = grid.polyline_cost(prefix_W);
+        if (kept_cost_m) kept_W = std::move(prefix_W);
+      }
+    }
+  }
+  const double new_cost_m = grid.polyline_cost(result.waypoints_W).value_or(result.smoothed_cost_m);
+  if (kept_cost_m) {
+    const double gain_needed_m = std::max(params.keep_min_gain_m, params.keep_min_gain_fraction * *kept_cost_m);
+    if (new_cost_m > *kept_cost_m - gain_needed_m) {
+      result.waypoints_W = std::move(kept_W);
+      result.kept_current = true;
+    }
+  }
+  return result;
+}
+
+std::optional<double> path_cost(const PlanningWindow& window, std::span<const Eigen::Vector2d> path_W,
+                                const GlobalPathParams& params) {
+  params.validate();
+  check_window(window);
+  check_path(path_W, "path_W");
+  const SearchGrid grid(window, params);
+  return grid.polyline_cost(path_W);
 }
 
 GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <numbers>
+#include <optional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -44,6 +45,16 @@ struct GlobalPathParams {
   std::size_t max_expansions = 400000;
   // Shorten the cell path by line-of-sight shortcuts (never raising its cost).
   bool smooth = true;
+  // Re-planning hysteresis: the path the robot follows now (world frame, from the robot's position on), or empty.
+  // While every point of it still keeps footprint_radius_m (measured like the planned path; its first leg may leave
+  // the inflated zone the robot stands in) it is the kept path; when the map has blocked it further on, the kept path
+  // is its clear part up to the vertex before the first blocked leg, then a path planned from there. The kept path wins
+  // unless the fresh one costs at least keep_min_gain_m and keep_min_gain_fraction of its cost less, both taken on the
+  // same window with the same weights. A fresh path through a growing map otherwise flips between ways round an
+  // obstacle whenever a wall comes into view, and the robot turns back.
+  std::vector<Eigen::Vector2d> current_path_W;
+  double keep_min_gain_m = 0.5;          // >= 0, metres
+  double keep_min_gain_fraction = 0.15;  // in [0, 1)
 
   // Throws std::invalid_argument naming the first field that is not finite or out of range.
   void validate() const;
@@ -88,6 +99,10 @@ struct GlobalPathResult {
   double cost_m = 0.0;           // cost of the cell path (length, unknown steps weighted), metres
   double smoothed_cost_m = 0.0;  // cost of the waypoint path between the first and last cell centres, metres
   std::size_t expansions = 0;    // cells A* expanded
+  // Set when the path of params.current_path_W was kept (waypoints_W is that path, or its clear part and a path on
+  // from there; cells stay those of the fresh search, and the costs above are the fresh path's).
+  bool kept_current = false;
+  std::optional<double> current_cost_m;  // the current path's cost on the window; nullopt when none or blocked
 };
 
 // A* from start_W to goal_W (world frame) on the window; the start may lie within the footprint radius of a wall (the
@@ -99,6 +114,14 @@ GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vec
 // Same on a grid snapshot: the window is the box around start and goal grown by window_margin_m.
 GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,
                                   const Eigen::Vector2d& goal_W, const GlobalPathParams& params);
+
+// The cost of following the polyline path_W (world frame) on the window with the planner's weights (length in each
+// cell times its weight, as the planned path's cost is measured), or nullopt when a point of it lies outside the
+// window or in a blocked cell; the first leg may cross blocked cells until it first reaches a free one (a start in the
+// inflated zone), never an occupied one. Throws std::invalid_argument naming the field when params, the window or a
+// point is invalid.
+std::optional<double> path_cost(const PlanningWindow& window, std::span<const Eigen::Vector2d> path_W,
+                                const GlobalPathParams& params);
 
 // The free/blocked verdict plan_global_path uses for each cell of the window (row-major like cells): true where the
 // centre is closer than footprint_radius_m + half a cell diagonal to an occupied cell's square.
