@@ -259,6 +259,7 @@ void ServerConfig::validate() const {
   require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
   validate_block(octomap, "octomap");
   require(octomap_publish_every_messages <= 1000000, "octomap.publish_every_messages", "must be in [0, 1000000]");
+  validate_block(terrain, "terrain");
   validate_block(distance_field, "distance_field");
   for (const auto& [name, override_params] : ptem.worlds) {
     validate_block(ptem.params_for(name), "ptem.worlds." + name);
@@ -399,6 +400,14 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("outlier_stddev_mul", o.outlier_stddev_mul)
                        .field("min_publish_interval_s", o.min_publish_interval_s)
                        .field("publish_every_messages", config.octomap_publish_every_messages);
+                 })
+        .section("terrain",
+                 [&](Section& s) {
+                   auto& t = config.terrain;
+                   s.field("enabled", t.enabled)
+                       .field("ground_band_m", t.ground_band_m)
+                       .field("max_slope_rad", t.max_slope_rad)
+                       .field("max_step_m", t.max_step_m);
                  })
         .section("guard",
                  [&](Section& s) {

@@ -11,6 +11,8 @@ namespace occgeo::service::control {
 namespace {
 
 constexpr double kSqrt2 = 1.4142135623730951;
+// The longest unseen stretch the planner bridges between surfaces a drivable slope could join, metres.
+constexpr double kUnseenGap_m = 2.0;
 // Cell indices beyond this are refused, as the grid planner refuses them.
 constexpr double kMaxCellIndex = 1073741824.0;  // 2^30
 
@@ -20,20 +22,46 @@ void require(bool ok, const std::string& field, const std::string& what) {
 
 }  // namespace
 
-HeightBandLayer::HeightBandLayer(const mapping::OctoMapSnapshot& octomap, double robot_height_m)
-    : columns_(octomap, robot_height_m) {}
+HeightBandLayer::HeightBandLayer(const mapping::OctoMapSnapshot& octomap, double robot_height_m, double terrain_cell_m)
+    : octomap_(octomap), robot_height_m_(robot_height_m), terrain_cell_m_(terrain_cell_m) {
+  require(std::isfinite(terrain_cell_m) && terrain_cell_m >= 0.001 && terrain_cell_m <= 10.0, "terrain_cell_m",
+          "must be in [0.001, 10] metres");
+}
 
-std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window) const {
-  const double column_m = columns_.cell_size();
+std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window,
+                                           const std::optional<Eigen::Vector2d>& robot_W) const {
   const double cell_m = window.cell_size_m;
+  mapping::TerrainMap terrain(
+      octomap_, cell_m, window.origin,
+      {window.origin.ix + std::max(window.width, 1) - 1, window.origin.iy + std::max(window.height, 1) - 1},
+      robot_height_m_, terrain_params(), robot_W);
+  // Plan as if the far stretch a depth camera has not resolved yet continues the slope it saw: the guard, reading
+  // only what was seen, stops the robot should it turn out otherwise, and the next plan knows better.
+  terrain.bridge_unseen_gaps(kUnseenGap_m);
+  std::size_t marked = 0;
+  for (int row = 0; row < window.height; ++row) {
+    for (int col = 0; col < window.width; ++col) {
+      PlanningCell& cell = window.cells[static_cast<std::size_t>(row) * window.width + col];
+      const geometry::CellIndex index{window.origin.ix + col, window.origin.iy + row};
+      if (cell != PlanningCell::kOccupied) continue;
+      if (terrain.explains_returns(index)) {
+        cell = PlanningCell::kFree;
+        ++marked;
+      } else if (terrain.may_explain_returns(index)) {
+        cell = PlanningCell::kUnknown;  // as dear as unseen ground
+        ++marked;
+      }
+    }
+  }
+  const OctoMapColumns columns(octomap_, robot_height_m_, &terrain, true);
+  const double column_m = columns.cell_size();
   // The window's extent in columns, so the octree is walked only there.
   const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(window.origin.ix * cell_m / column_m)),
                                 static_cast<std::int32_t>(std::floor(window.origin.iy * cell_m / column_m))};
   const geometry::CellIndex max{
       static_cast<std::int32_t>(std::ceil((window.origin.ix + window.width) * cell_m / column_m)) - 1,
       static_cast<std::int32_t>(std::ceil((window.origin.iy + window.height) * cell_m / column_m)) - 1};
-  std::size_t marked = 0;
-  columns_.for_each_occupied(min, max, [&](const geometry::CellIndex& column) {
+  columns.for_each_occupied(min, max, [&](const geometry::CellIndex& column) {
     // The grid cells the column's square [ix c, (ix + 1) c) overlaps; a hair inside its far edge so a column ending
     // on a cell boundary does not spill into the next cell.
     const double x0 = column.ix * column_m;
@@ -61,28 +89,45 @@ bool HeightBandLayer::segment_clear(const Eigen::Vector2d& a_W, const Eigen::Vec
   require(a_W.allFinite(), "a_W", "must be finite");
   require(b_W.allFinite(), "b_W", "must be finite");
   require(std::isfinite(radius_m) && radius_m >= 0.0 && radius_m <= 5.0, "radius_m", "must be in [0, 5] metres");
-  const double column_m = columns_.cell_size();
+  const double column_m = octomap_.resolution();
   const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - column_m;
   const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + column_m;
   for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
     require(std::abs(value / column_m) < kMaxCellIndex, "a_W", "must lie within 2^30 cells of the origin");
   }
-  const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(lo.x() / column_m)),
-                                static_cast<std::int32_t>(std::floor(lo.y() / column_m))};
-  const geometry::CellIndex max{static_cast<std::int32_t>(std::floor(hi.x() / column_m)),
-                                static_cast<std::int32_t>(std::floor(hi.y() / column_m))};
-  const Eigen::Vector2d along = b_W - a_W;
-  const double length_sq = along.squaredNorm();
   // A column's square reaches half a diagonal beyond its centre.
   const double reach_m = radius_m + column_m * kSqrt2 / 2.0;
-  bool clear = true;
-  columns_.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
-    const Eigen::Vector2d centre((c.ix + 0.5) * column_m, (c.iy + 0.5) * column_m);
-    const double t = length_sq > 0.0 ? std::clamp((centre - a_W).dot(along) / length_sq, 0.0, 1.0) : 0.0;
-    if ((a_W + t * along - centre).norm() < reach_m) clear = false;
-    return clear;
-  });
-  return clear;
+  // The terrain is estimated piece by piece along the segment, so a long diagonal costs its corridor, not its box.
+  constexpr double kPiece_m = 4.0;
+  const int pieces = std::max(1, static_cast<int>(std::ceil((b_W - a_W).norm() / kPiece_m)));
+  // Where the robot stands is reachable, and so is each piece's end that the piece before found drivable: a platform
+  // whose ramp lies in an earlier piece stays reachable.
+  std::optional<Eigen::Vector2d> reachable_W = a_W;
+  for (int piece = 0; piece < pieces; ++piece) {
+    const Eigen::Vector2d p_W = a_W + (b_W - a_W) * (static_cast<double>(piece) / pieces);
+    const Eigen::Vector2d q_W = a_W + (b_W - a_W) * (static_cast<double>(piece + 1) / pieces);
+    const Eigen::Vector2d piece_lo = p_W.cwiseMin(q_W).array() - radius_m - column_m;
+    const Eigen::Vector2d piece_hi = p_W.cwiseMax(q_W).array() + radius_m + column_m;
+    const mapping::TerrainMap terrain =
+        terrain_around(octomap_, terrain_cell_m_, piece_lo, piece_hi, robot_height_m_, reachable_W);
+    reachable_W = terrain.drivable(terrain.cell_index(q_W)) ? std::optional<Eigen::Vector2d>(q_W) : std::nullopt;
+    const OctoMapColumns columns(octomap_, robot_height_m_, &terrain);
+    const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(piece_lo.x() / column_m)),
+                                  static_cast<std::int32_t>(std::floor(piece_lo.y() / column_m))};
+    const geometry::CellIndex max{static_cast<std::int32_t>(std::floor(piece_hi.x() / column_m)),
+                                  static_cast<std::int32_t>(std::floor(piece_hi.y() / column_m))};
+    const Eigen::Vector2d along = q_W - p_W;
+    const double length_sq = along.squaredNorm();
+    bool clear = true;
+    columns.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+      const Eigen::Vector2d centre((c.ix + 0.5) * column_m, (c.iy + 0.5) * column_m);
+      const double t = length_sq > 0.0 ? std::clamp((centre - p_W).dot(along) / length_sq, 0.0, 1.0) : 0.0;
+      if ((p_W + t * along - centre).norm() < reach_m) clear = false;
+      return clear;
+    });
+    if (!clear) return false;
+  }
+  return true;
 }
 
 GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const HeightBandLayer* band,
@@ -110,7 +155,7 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Heigh
   PlanningWindow window = planning_window(grid, {static_cast<std::int32_t>(lo.x()), static_cast<std::int32_t>(lo.y())},
                                           {static_cast<std::int32_t>(hi.x()), static_cast<std::int32_t>(hi.y())},
                                           params.occupied_threshold);
-  band->mark_occupied(window);
+  band->mark_occupied(window, start_W);
   return plan_global_path(window, start_W, goal_W, params);
 }
 

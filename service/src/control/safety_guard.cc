@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -10,6 +11,9 @@
 namespace occgeo::service::control {
 
 namespace {
+
+// The terrain around the swept footprint reaches this much farther, so the cells it reads have their neighbours.
+constexpr double kTerrainMargin_m = 0.3;
 
 void require(bool ok, const char* field, const char* what) {
   if (!ok) throw std::invalid_argument(std::string(field) + " " + what);
@@ -27,24 +31,68 @@ geometry::Pose2 advance(const geometry::Pose2& X_WB, double linear_mps, double a
           X_WB.y - radius * (std::cos(theta) - std::cos(X_WB.theta)), geometry::wrap_angle(theta)};
 }
 
+double footprint_height(const geometry::Footprint& footprint) {
+  return std::visit([](const auto& shape) { return shape.height; }, footprint);
+}
+
+// The terrain the guard reads within reach_m of base_link (world frame), when there is an octree to estimate it
+// from: the surfaces the robot can drive on, where neither the grid's returns nor the octree's voxels of the surface
+// are obstacles (the robot climbing a ramp its laser reads as a wall).
+std::optional<mapping::TerrainMap> terrain_near(const GuardModels& models, const geometry::Footprint& footprint,
+                                                const geometry::Pose2& X_WB, const GuardParams& params,
+                                                double reach_m) {
+  if (models.octomap == nullptr || !(params.check_grid || params.check_octomap) || !terrain_params().enabled) {
+    return std::nullopt;
+  }
+  const double cell_m = models.grid != nullptr ? models.grid->cell_size() : 2.0 * models.octomap->resolution();
+  const Eigen::Vector2d position_W = X_WB.position();
+  const Eigen::Vector2d reach(reach_m, reach_m);
+  return terrain_around(*models.octomap, cell_m, position_W - reach, position_W + reach, footprint_height(footprint),
+                        position_W);
+}
+
+// model_in_contact with the terrain's exceptions (none when terrain is null).
+std::string_view contact_on_terrain(const GuardModels& models, const mapping::TerrainMap* terrain,
+                                    const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                    const GuardParams& params) {
+  if (params.check_grid && models.grid != nullptr) {
+    const bool hit = terrain != nullptr
+                         ? geometry::check_collision({footprint, X_WB}, TerrainMaskedCells(*models.grid, *terrain)).hit
+                         : geometry::check_collision({footprint, X_WB}, *models.grid).hit;
+    if (hit) return "grid";
+  }
+  if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
+  if (params.check_octomap && models.octomap != nullptr) {
+    // With a terrain the band follows the surface, which FCL's straight prism cannot: the same voxels as columns.
+    const bool hit = terrain != nullptr
+                         ? geometry::check_collision(
+                               {footprint, X_WB}, OctoMapColumns(*models.octomap, footprint_height(footprint), terrain))
+                               .hit
+                         : collide_octomap(*models.octomap, footprint, X_WB).hit;
+    if (hit) return "octomap";
+  }
+  return "";
+}
+
 // Smallest distance from the footprint at X_WB to any consulted model's obstacle, looking no farther than
 // max_distance_m; returns max_distance_m and model "" when nothing is that close.
-std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, const geometry::Footprint& footprint,
-                                                     const geometry::Pose2& X_WB, const GuardParams& params,
-                                                     double max_distance_m) {
+std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, const mapping::TerrainMap* terrain,
+                                                     const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                                     const GuardParams& params, double max_distance_m) {
   double best = max_distance_m;
   std::string_view model;
   if (params.check_grid && models.grid != nullptr) {
-    const auto clearance = geometry::compute_clearance({footprint, X_WB, max_distance_m}, *models.grid);
+    const auto clearance =
+        terrain != nullptr
+            ? geometry::compute_clearance({footprint, X_WB, max_distance_m}, TerrainMaskedCells(*models.grid, *terrain))
+            : geometry::compute_clearance({footprint, X_WB, max_distance_m}, *models.grid);
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;
       model = "grid";
     }
   }
   if (params.check_octomap && models.octomap != nullptr) {
-    double top_m = 0.0;
-    std::visit([&](const auto& shape) { top_m = shape.height; }, footprint);
-    const OctoMapColumns columns(*models.octomap, top_m);
+    const OctoMapColumns columns(*models.octomap, footprint_height(footprint), terrain);
     const auto clearance = geometry::compute_clearance({footprint, X_WB, max_distance_m}, columns);
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;
@@ -112,14 +160,9 @@ std::string_view guard_action_name(GuardAction action) {
 
 std::string_view model_in_contact(const GuardModels& models, const geometry::Footprint& footprint,
                                   const geometry::Pose2& X_WB, const GuardParams& params) {
-  if (params.check_grid && models.grid != nullptr && geometry::check_collision({footprint, X_WB}, *models.grid).hit) {
-    return "grid";
-  }
-  if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
-  if (params.check_octomap && models.octomap != nullptr && collide_octomap(*models.octomap, footprint, X_WB).hit) {
-    return "octomap";
-  }
-  return "";
+  const auto terrain =
+      terrain_near(models, footprint, X_WB, params, geometry::bounding_radius(footprint) + kTerrainMargin_m);
+  return contact_on_terrain(models, terrain ? &*terrain : nullptr, footprint, X_WB, params);
 }
 
 GuardDecision guard_command(const GuardModels& models, const geometry::Footprint& footprint,
@@ -136,7 +179,13 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
   if (!params.enabled) return decision;
   if (linear_mps == 0.0 && angular_radps == 0.0) return decision;
 
-  if (const std::string_view touching = model_in_contact(models, footprint, X_WB, params); !touching.empty()) {
+  // One terrain estimate for every pose of the sweep and the limit zone around the robot.
+  const auto terrain =
+      terrain_near(models, footprint, X_WB, params,
+                   reach_m + std::max(decision.distance_to_contact_m, params.limit_distance_m) + kTerrainMargin_m);
+  const mapping::TerrainMap* on_terrain = terrain ? &*terrain : nullptr;
+  if (const std::string_view touching = contact_on_terrain(models, on_terrain, footprint, X_WB, params);
+      !touching.empty()) {
     decision.zone = "contact";
     decision.model = touching;
     decision.time_to_contact_s = 0.0;
@@ -159,7 +208,7 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
   for (int k = 1; k <= steps; ++k) {
     const double t = params.horizon_s * k / steps;
     const std::string_view hit =
-        model_in_contact(models, footprint, advance(X_WB, linear_mps, angular_radps, t), params);
+        contact_on_terrain(models, on_terrain, footprint, advance(X_WB, linear_mps, angular_radps, t), params);
     if (hit.empty()) continue;
     decision.model = hit;
     decision.time_to_contact_s = t;
@@ -178,7 +227,8 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
     break;
   }
   if (params.limit_distance_m > 0.0) {
-    const std::string_view model = nearest_obstacle(models, footprint, X_WB, params, params.limit_distance_m).second;
+    const std::string_view model =
+        nearest_obstacle(models, on_terrain, footprint, X_WB, params, params.limit_distance_m).second;
     if (!model.empty()) {
       const GuardDecision capped = limited(decision, params);
       if (capped.action == GuardAction::kLimit && decision.action == GuardAction::kPass) {

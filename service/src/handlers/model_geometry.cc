@@ -1,8 +1,13 @@
 #include "model_geometry.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <mutex>
+#include <tuple>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -10,17 +15,68 @@
 
 namespace occgeo::service {
 
-double octomap_ground_band_m(double resolution_m) { return std::max(0.05, resolution_m) + 0.01; }
+namespace {
 
-OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m)
-    : octomap_(octomap), bottom_m_(octomap_ground_band_m(octomap.resolution())), top_m_(top_m) {}
+// Every footprint query reads the setting, so it is one atomic pointer load, not a lock. A setting, once published,
+// is never freed: readers may hold it, and a process sets it once per server core it builds.
+std::atomic<const mapping::TerrainParams*> terrain_setting{nullptr};
+std::mutex terrain_settings_mutex;
+std::deque<mapping::TerrainParams> terrain_settings;  // guarded by terrain_settings_mutex; owns what is published
+
+}  // namespace
+
+mapping::TerrainParams terrain_params() {
+  const mapping::TerrainParams* setting = terrain_setting.load(std::memory_order_acquire);
+  return setting != nullptr ? *setting : mapping::TerrainParams{};
+}
+
+void set_terrain_params(const mapping::TerrainParams& params) {
+  params.validate();
+  const std::lock_guard lock(terrain_settings_mutex);
+  terrain_settings.push_back(params);
+  terrain_setting.store(&terrain_settings.back(), std::memory_order_release);
+}
+
+double octomap_ground_band_m(double resolution_m) {
+  return std::max(terrain_params().ground_band_m, resolution_m) + 0.01;
+}
+
+mapping::TerrainMap terrain_around(const mapping::OctoMapSnapshot& octomap, double cell_size_m,
+                                   const Eigen::Vector2d& lo_W, const Eigen::Vector2d& hi_W, double height_m,
+                                   const std::optional<Eigen::Vector2d>& robot_W) {
+  const auto index = [&](double v) { return static_cast<std::int32_t>(std::floor(v / cell_size_m)); };
+  return {
+      octomap,          cell_size_m, {index(lo_W.x()), index(lo_W.y())}, {index(hi_W.x()), index(hi_W.y())}, height_m,
+      terrain_params(), robot_W};
+}
+
+void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                                           const std::function<bool(const geometry::CellIndex&)>& visit) const {
+  cells_.for_each_occupied(
+      min, max, [&](const geometry::CellIndex& cell) { return terrain_.explains_returns(cell) || visit(cell); });
+}
+
+OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m,
+                               const mapping::TerrainMap* terrain, bool plausible_surfaces)
+    : octomap_(octomap),
+      bottom_m_(octomap_ground_band_m(octomap.resolution())),
+      top_m_(top_m),
+      terrain_(terrain),
+      plausible_surfaces_(plausible_surfaces) {}
 
 void OctoMapColumns::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
                                        const std::function<bool(const geometry::CellIndex&)>& visit) const {
-  if (top_m_ < bottom_m_) return;
   const double r = octomap_.resolution();
-  const Eigen::Vector3d min_W(min.ix * r, min.iy * r, bottom_m_);
-  const Eigen::Vector3d max_W((max.ix + 1.0) * r, (max.iy + 1.0) * r, top_m_);
+  // The z range any column's band can reach: over the floor, or over the drivable surfaces.
+  double low_m = bottom_m_;
+  double high_m = top_m_;
+  if (terrain_ != nullptr) {
+    low_m = std::min(low_m, terrain_->lowest_drivable_surface_m());
+    high_m = std::max(high_m, terrain_->highest_drivable_surface_m() + top_m_);
+  }
+  if (high_m < low_m) return;
+  const Eigen::Vector3d min_W(min.ix * r, min.iy * r, low_m);
+  const Eigen::Vector3d max_W((max.ix + 1.0) * r, (max.iy + 1.0) * r, high_m);
   octomap_.for_each_occupied(min_W, max_W, [&](const mapping::OctoVoxel& voxel) {
     const double half = voxel.size_m / 2.0;
     // Voxel faces lie on multiples of r: round, not floor, against the centre's float error.
@@ -30,8 +86,18 @@ void OctoMapColumns::for_each_occupied(geometry::CellIndex min, geometry::CellIn
     const std::int32_t x1 = std::min(last(voxel.center_W.x()), max.ix);
     const std::int32_t y0 = std::max(first(voxel.center_W.y()), min.iy);
     const std::int32_t y1 = std::min(last(voxel.center_W.y()), max.iy);
+    const double voxel_bottom = voxel.center_W.z() - half;
+    const double voxel_top = voxel.center_W.z() + half;
     for (std::int32_t ix = x0; ix <= x1; ++ix) {
       for (std::int32_t iy = y0; iy <= y1; ++iy) {
+        auto [band_low, band_high] = std::pair(bottom_m_, top_m_);
+        if (terrain_ != nullptr) {
+          const Eigen::Vector2d column_centre_W((ix + 0.5) * r, (iy + 0.5) * r);
+          std::tie(band_low, band_high) =
+              terrain_->obstacle_band(terrain_->cell_index(column_centre_W), bottom_m_, top_m_, plausible_surfaces_);
+        }
+        // Overlap of the closed band with the voxel, as the z box of the query above decides it.
+        if (band_high < band_low || voxel_top < band_low || voxel_bottom > band_high) continue;
         if (!visit({ix, iy})) return false;
       }
     }

@@ -8,6 +8,7 @@
 #include "occgeo/geometry/pose.h"
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
+#include "occgeo/mapping/terrain.h"
 
 // Collision and clearance of a robot's footprint against the models other than the HIMM grid: the
 // OctoMap (in the footprint's height band) and the PTEM's restricted region. Used by the query
@@ -15,19 +16,52 @@
 
 namespace occgeo::service {
 
+// The terrain rule every reader of the models applies (config section `terrain:`): process-wide, set once from the
+// configuration before robots connect, read by ingest, queries, behaviours and the guard. Defaults until set.
+mapping::TerrainParams terrain_params();
+// params must be valid.
+void set_terrain_params(const mapping::TerrainParams& params);
+
 // The OctoMap's voxels below this height are the floor for footprint queries, metres: a depth
 // camera sees the floor as occupied voxels in [0, resolution) (and, with noise, the one above), so
-// the footprint is checked over z in [ground_band, height]: max(0.05 m, resolution) + 0.01 m.
+// the footprint is checked over z in [ground_band, height]: max(terrain.ground_band_m, resolution) + 0.01 m.
 double octomap_ground_band_m(double resolution_m);
+
+// The terrain of the cells of cell_size_m covering the box [lo_W, hi_W] (world frame, metres) for a robot of
+// height_m standing at robot_W, under terrain_params().
+mapping::TerrainMap terrain_around(const mapping::OctoMapSnapshot& octomap, double cell_size_m,
+                                   const Eigen::Vector2d& lo_W, const Eigen::Vector2d& hi_W, double height_m,
+                                   const std::optional<Eigen::Vector2d>& robot_W);
+
+// The occupied cells of a grid (or any cell source of the terrain's cell size) less those whose drivable surface
+// explains them (TerrainMap::explains_returns): a laser plane meeting a ramp, a depth camera's points on it.
+class TerrainMaskedCells final : public geometry::OccupiedCellSource {
+ public:
+  // Both must outlive this; terrain.cell_size() must equal cells.cell_size().
+  TerrainMaskedCells(const geometry::OccupiedCellSource& cells, const mapping::TerrainMap& terrain)
+      : cells_(cells), terrain_(terrain) {}
+  [[nodiscard]] double cell_size() const override { return cells_.cell_size(); }
+  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                         const std::function<bool(const geometry::CellIndex&)>& visit) const override;
+
+ private:
+  const geometry::OccupiedCellSource& cells_;
+  const mapping::TerrainMap& terrain_;
+};
 
 // The OctoMap's occupied voxels whose z range overlaps [ground_band, top_m], projected on the
 // ground as grid cells of the octree's resolution (cell (ix, iy) covers [ix r, (ix+1) r) x
 // [iy r, (iy+1) r), the same squares as the voxels' columns), so that geometry::compute_clearance
 // and check_collision can measure against them exactly as against the HIMM grid. A pruned voxel
-// covers several cells; a column holding several voxels is visited once per voxel.
+// covers several cells; a column holding several voxels is visited once per voxel. With a terrain,
+// the band over a drivable cell is measured from its surface (TerrainMap::obstacle_band): the
+// surface itself is no obstacle, what stands on it up to top_m above it is.
 class OctoMapColumns final : public geometry::OccupiedCellSource {
  public:
-  OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m);
+  // octomap and terrain (when given) must outlive the columns. plausible_surfaces: measure over the terrain's
+  // plausible cells from their surface too (for planning; see TerrainMap::bridge_unseen_gaps).
+  OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m, const mapping::TerrainMap* terrain = nullptr,
+                 bool plausible_surfaces = false);
   [[nodiscard]] double cell_size() const override { return octomap_.resolution(); }
   void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
                          const std::function<bool(const geometry::CellIndex&)>& visit) const override;
@@ -36,6 +70,8 @@ class OctoMapColumns final : public geometry::OccupiedCellSource {
   const mapping::OctoMapSnapshot& octomap_;
   double bottom_m_;
   double top_m_;
+  const mapping::TerrainMap* terrain_;
+  bool plausible_surfaces_;
 };
 
 // The 3D footprint (box or cylinder standing on base_link's z = 0) at the planar pose X_WB against

@@ -2,15 +2,12 @@
 #include <variant>
 #include <vector>
 
+#include "model_geometry.h"
 #include "sensor_ingest.h"
 
 namespace occgeo::service {
 
 namespace {
-
-// Points lower than this above the ground are taken to be the ground itself (noise on a flat
-// floor), not obstacles, metres.
-constexpr double kGroundClearance_m = 0.05;
 
 double footprint_height_m(const geometry::Footprint& footprint) {
   return std::visit([](const auto& shape) { return shape.height; }, footprint);
@@ -31,12 +28,14 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
   const Eigen::Vector2d origin_W = X_WS.translation().head<2>();
   target.touch(origin_W, cloud.range_max_m);
   const double top_m = footprint_height_m(model.footprint);
+  // Points lower than this above the ground are the ground itself (noise on a flat floor), not obstacles.
+  const double ground_band_m = terrain_params().ground_band_m;
   std::vector<Eigen::Vector3f> points_S;
   points_S.reserve(static_cast<std::size_t>(message.xyz_size() / 3));
   for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
     points_S.emplace_back(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2));
     const Eigen::Vector3d p_W = X_WS.transform * points_S.back().cast<double>();
-    if (p_W.z() < kGroundClearance_m || p_W.z() > top_m) continue;
+    if (p_W.z() < ground_band_m || p_W.z() > top_m) continue;
     target.grid.insert_ray(origin_W, p_W.head<2>(), true);
   }
   target.octomap.insert_cloud(X_WS, points_S);

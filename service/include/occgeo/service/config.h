@@ -12,6 +12,7 @@
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
+#include "occgeo/mapping/terrain.h"
 #include "occgeo/service/control/bearcat.h"
 #include "occgeo/service/control/safety_guard.h"
 
@@ -160,6 +161,9 @@ struct ServerConfig {
   // octomap.publish_every_messages: > 0 publishes each world's octree after every N-th sensor message instead of at
   // most every min_publish_interval_s of wall time, so a lockstep simulation sees the same models on every run.
   std::uint32_t octomap_publish_every_messages = 0;
+  // The terrain rule (section `terrain:`): surfaces the octree shows a robot can drive on (a ramp) are not obstacles
+  // to its behaviour, planner and guard; ground_band_m is the floor's height band for every model.
+  mapping::TerrainParams terrain;
   // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m, max_extent_m,
   // growth_margin_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
   // clearance queries are answered from the field.
