@@ -166,6 +166,39 @@ TEST_F(Handlers, WallAcrossTheFrontIsADeadlockThatStopsTheRobot) {
   EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, "deadlock");
 }
 
+// A driver that reconnects with a new footprint changes what the very next query on the same thread measures: the
+// network threads keep the robot they looked up last and must look again after every registration.
+TEST_F(Handlers, QueriesUseTheFootprintOfTheRobotsLatestRegistration) {
+  auto robot_session = driver("r1");
+  handle_odometry(robot_session, odometry(0.0, 0.0, 0.0, 0.0));
+  handle_laser_scan(robot_session, scan(1, 0.1, 3.0F));
+  ASSERT_TRUE(robot_session->next_of(v1::ServerMessage::kMotionCommand));
+
+  auto query = std::make_shared<FakeSession>(core_);
+  handle_hello(query, testing::hello_message(v1::ROLE_QUERY));
+  ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
+  v1::ClearanceQuery clearance;
+  clearance.set_robot_id("r1");
+  clearance.add_models(v1::MODEL_GRID);
+  const auto clearance_now = [&](std::uint64_t request_id) {
+    clearance.set_request_id(request_id);
+    handle_clearance_query(query, clearance);
+    const auto reply = query->next_of(v1::ServerMessage::kClearance);
+    EXPECT_TRUE(reply && reply->clearance().found());
+    return reply ? reply->clearance().clearance_m() : -1.0;
+  };
+  // The nearest returns start at |y| = 2.9 (CollisionAndClearanceQueriesReadThePublishedMap): 2.5 m from the 0.8 m
+  // wide box's sides.
+  EXPECT_NEAR(clearance_now(1), 2.5, 0.1);
+
+  handle_disconnect(core_, robot_session->info());
+  v1::RobotSpec wider = bearcat_spec();
+  wider.mutable_footprint()->mutable_box()->set_width_m(2.0);
+  const auto reconnected = testing::driver_session(core_, "r1", wider);
+  ASSERT_NE(core_.find_robot("r1"), nullptr);
+  EXPECT_NEAR(clearance_now(2), 1.9, 0.1) << "the 2.0 m wide box's sides are at |y| = 1.0";
+}
+
 TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   auto robot_session = driver("r1");
   handle_odometry(robot_session, odometry(0.0, 0.0, 0.0, 0.0));
