@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "occgeo/mapping/octomap_model.h"
+#include "unfiltered_octomap.h"
 
 namespace occgeo::mapping {
 namespace {
@@ -21,12 +22,7 @@ namespace {
 using geometry::Pose3;
 constexpr double kPi = std::numbers::pi;
 
-OctoMapParams unfiltered() {
-  OctoMapParams params;
-  params.voxel_filter_enabled = false;
-  params.outlier_filter_enabled = false;
-  return params;
-}
+using test_support::unfiltered;
 
 // The room: walls at x = ±3 m and y = ±2 m, floor at z = 0, open to the sky.
 constexpr double kRoomHalfX = 3.0;

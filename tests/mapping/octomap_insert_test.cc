@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "occgeo/mapping/octomap_model.h"
+#include "unfiltered_octomap.h"
 
 namespace occgeo::mapping {
 namespace {
@@ -85,12 +86,7 @@ std::size_t count_differences(const std::vector<LeafTuple>& a, const std::vector
   return only_a.size();
 }
 
-OctoMapParams unfiltered() {
-  OctoMapParams params;
-  params.voxel_filter_enabled = false;
-  params.outlier_filter_enabled = false;
-  return params;
-}
+using test_support::unfiltered;
 
 octomap::OcTree plain_tree(const OctoMapParams& params) {
   octomap::OcTree tree(params.resolution_m);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "occgeo/mapping/octomap_model.h"
+#include "unfiltered_octomap.h"
 
 namespace occgeo::mapping {
 namespace {
@@ -17,12 +18,7 @@ namespace {
 using geometry::Pose3;
 constexpr double kPi = std::numbers::pi;
 
-OctoMapParams unfiltered() {
-  OctoMapParams params;
-  params.voxel_filter_enabled = false;
-  params.outlier_filter_enabled = false;
-  return params;
-}
+using test_support::unfiltered;
 
 // Pose of the sensor that sees the wall below.
 const Pose3 X_WS_wall = Pose3::from_xyz_rpy(0.0, 0.0, 0.5, 0.0, 0.0, 0.0);

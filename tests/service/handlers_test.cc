@@ -24,6 +24,23 @@ class Handlers : public ::testing::Test {
     return testing::driver_session(core_, robot_id, bearcat_spec());
   }
 
+  // A Bearcat driver at the origin whose one scan (every beam 3 m) has been mapped and answered.
+  std::shared_ptr<FakeSession> driver_that_mapped_an_arc(const std::string& robot_id) {
+    auto session = driver(robot_id);
+    handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+    handle_laser_scan(session, scan(1, 0.1, 3.0F));
+    EXPECT_TRUE(session->next_of(v1::ServerMessage::kMotionCommand));
+    return session;
+  }
+
+  // A welcomed query client.
+  std::shared_ptr<FakeSession> query_client() {
+    auto session = std::make_shared<FakeSession>(core_);
+    handle_hello(session, testing::hello_message(v1::ROLE_QUERY));
+    EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
+    return session;
+  }
+
   static v1::LaserScan scan(std::uint64_t seq, double stamp, float range) {
     v1::LaserScan message;
     message.set_sensor("front_laser");
@@ -169,14 +186,8 @@ TEST_F(Handlers, WallAcrossTheFrontIsADeadlockThatStopsTheRobot) {
 // A driver that reconnects with a new footprint changes what the very next query on the same thread measures: the
 // network threads keep the robot they looked up last and must look again after every registration.
 TEST_F(Handlers, QueriesUseTheFootprintOfTheRobotsLatestRegistration) {
-  auto robot_session = driver("r1");
-  handle_odometry(robot_session, odometry(0.0, 0.0, 0.0, 0.0));
-  handle_laser_scan(robot_session, scan(1, 0.1, 3.0F));
-  ASSERT_TRUE(robot_session->next_of(v1::ServerMessage::kMotionCommand));
-
-  auto query = std::make_shared<FakeSession>(core_);
-  handle_hello(query, testing::hello_message(v1::ROLE_QUERY));
-  ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
+  auto robot_session = driver_that_mapped_an_arc("r1");
+  auto query = query_client();
   v1::ClearanceQuery clearance;
   clearance.set_robot_id("r1");
   clearance.add_models(v1::MODEL_GRID);
@@ -200,14 +211,8 @@ TEST_F(Handlers, QueriesUseTheFootprintOfTheRobotsLatestRegistration) {
 }
 
 TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
-  auto robot_session = driver("r1");
-  handle_odometry(robot_session, odometry(0.0, 0.0, 0.0, 0.0));
-  handle_laser_scan(robot_session, scan(1, 0.1, 3.0F));
-  ASSERT_TRUE(robot_session->next_of(v1::ServerMessage::kMotionCommand));
-
-  auto query = std::make_shared<FakeSession>(core_);
-  handle_hello(query, testing::hello_message(v1::ROLE_QUERY));
-  ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
+  auto robot_session = driver_that_mapped_an_arc("r1");
+  auto query = query_client();
   v1::CollisionQuery collision;
   collision.set_request_id(3);
   collision.set_robot_id("r1");
