@@ -311,6 +311,9 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
   bool write_in_progress = false;
   // Set while the frames of one read are handled: requests their handlers submit go out in one write after.
   bool corked = false;
+  // When that read completed, while corked: the completion time of every answer in it, and the submission time of
+  // every request its handlers submit (a little early, so latencies err long), one clock read for the lot.
+  Clock::time_point read_completed_at;
   std::unordered_map<std::uint64_t, Outstanding> outstanding;
   std::uint64_t next_request_id = 1;
   std::size_t max_in_flight;
@@ -375,6 +378,7 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
                                return;
                              }
                              self->decoder.append(self->read_buffer.data(), size);
+                             self->read_completed_at = Clock::now();
                              self->corked = true;
                              self->drain_decoder();
                              self->corked = false;
@@ -412,7 +416,7 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
         reply.request_id = request_id;
         reply.message = std::move(message);
         reply.submitted_at = found->second.submitted_at;
-        reply.completed_at = Clock::now();
+        reply.completed_at = corked ? read_completed_at : Clock::now();
         ReplyHandler handler = std::move(found->second.handler);
         outstanding.erase(found);
         handler(std::move(reply));
@@ -554,7 +558,8 @@ std::uint64_t PipelinedConnection::async_submit_in_place(v1::ClientMessage& requ
                       " message carries no request_id: send it with Connection::send");
   }
   ++impl_->next_request_id;
-  impl_->outstanding.emplace(request_id, Impl::Outstanding{std::move(on_reply), Impl::Clock::now()});
+  const auto submitted_at = impl_->corked ? impl_->read_completed_at : Impl::Clock::now();
+  impl_->outstanding.emplace(request_id, Impl::Outstanding{std::move(on_reply), submitted_at});
   impl_->enqueue(request);
   return request_id;
 }

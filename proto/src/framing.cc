@@ -1,9 +1,7 @@
 #include "occgeo/proto/framing.h"
 
 #include <google/protobuf/io/coded_stream.h>
-#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 #include <google/protobuf/message_lite.h>
-#include <google/protobuf/util/delimited_message_util.h>
 
 namespace occgeo::proto {
 
@@ -42,11 +40,8 @@ FrameStatus FrameDecoder::next(google::protobuf::MessageLite& out) {
   }
   if (available < prefix_bytes + length) return FrameStatus::need_more;
 
-  google::protobuf::io::CodedInputStream frame(bytes, static_cast<int>(prefix_bytes + length));
-  bool clean_eof = false;
-  if (!google::protobuf::util::ParseDelimitedFromCodedStream(&out, &frame, &clean_eof)) {
-    return FrameStatus::malformed;
-  }
+  // Parsed straight from the buffer: protobuf's flat-array path, without a stream wrapped round the bytes.
+  if (!out.ParseFromArray(bytes + prefix_bytes, static_cast<int>(length))) return FrameStatus::malformed;
   start_ += prefix_bytes + length;
   if (start_ == buffer_.size()) {
     buffer_.clear();

@@ -244,6 +244,8 @@ void ServerConfig::validate() const {
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
   require(queries.network_threads >= 1 && queries.network_threads <= 64, "queries.network_threads",
           "must be between 1 and 64");
+  require(queries.network_poll_us >= 0 && queries.network_poll_us <= 10000, "queries.network_poll_us",
+          "must be in [0, 10000] microseconds (0: no polling)");
   require(durability.policy == "every" || durability.policy == "batch" || durability.policy == "none",
           "durability.policy", "must be every, batch or none");
   require(durability.batch_interval_s > 0 && durability.batch_interval_s <= 1, "durability.batch_interval_s",
@@ -329,7 +331,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
         .section("queries",
                  [&](Section& s) {
                    s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m)
-                       .field("network_threads", config.queries.network_threads);
+                       .field("network_threads", config.queries.network_threads)
+                       .field("network_poll_us", config.queries.network_poll_us);
                  })
         .section("durability",
                  [&](Section& s) {

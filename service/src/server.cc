@@ -46,10 +46,11 @@ void restore_worlds(ServerCore& core) {
 // the same core (the client, another network thread) runs before this one looks again; and when a yield did hand the
 // core to another process, the core would not have gone idle anyway: the window closes for the next 256 sleeps, so on
 // a busy machine the loop behaves as run() does.
-void run_network_loop(asio::io_context& loop) {
+void run_network_loop(asio::io_context& loop, double max_poll_us) {
   using Clock = std::chrono::steady_clock;
-  constexpr Clock::duration kMaxPoll = std::chrono::microseconds(200);
-  constexpr Clock::duration kFirstPoll = std::chrono::microseconds(25);
+  const auto kMaxPoll =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::micro>(max_poll_us));
+  const Clock::duration kFirstPoll = std::min<Clock::duration>(std::chrono::microseconds(25), kMaxPoll);
   // A yield that took longer than this ran another thread.
   constexpr Clock::duration kYieldRanOther = std::chrono::microseconds(20);
   // After such a yield, sleeps before the window may open again.
@@ -59,6 +60,10 @@ void run_network_loop(asio::io_context& loop) {
   while (!loop.stopped()) {
     if (loop.poll() > 0) continue;
     if (loop.stopped()) return;  // out of work, as run() returns
+    if (kMaxPoll == Clock::duration{0}) {
+      if (loop.run_one() == 0) return;
+      continue;
+    }
     const auto idle_since = Clock::now();
     bool caught = false;
     while (Clock::now() - idle_since < poll_window) {
@@ -231,8 +236,11 @@ void Server::run() {
               {{"address", impl_->core.config().http.listen}, {"port", static_cast<unsigned>(impl_->http->port())}});
   }
   std::vector<std::thread> more_network_threads;
-  for (auto& loop : impl_->more_loops) more_network_threads.emplace_back([&loop] { run_network_loop(*loop); });
-  run_network_loop(impl_->net);
+  const double poll_us = impl_->core.config().queries.network_poll_us;
+  for (auto& loop : impl_->more_loops) {
+    more_network_threads.emplace_back([&loop, poll_us] { run_network_loop(*loop, poll_us); });
+  }
+  run_network_loop(impl_->net, poll_us);
   for (std::thread& thread : more_network_threads) thread.join();
   if (impl_->http) impl_->http->stop();
   impl_->core.drain();

@@ -1,5 +1,6 @@
 #include "session.h"
 
+#include <google/protobuf/arena.h>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
@@ -15,6 +16,53 @@ namespace {
 std::chrono::steady_clock::duration seconds(double s) {
   return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
 }
+
+// Requests are parsed into an arena that is emptied after each round of frames, so a query's message costs no malloc
+// or free. One per network thread; a handler copies what it keeps (sensor data moved out of an arena message is
+// copied), as it did when the message lived on the stack of dispatch_frames.
+class FrameArena {
+ public:
+  static FrameArena& for_this_thread() {
+    thread_local FrameArena arena;
+    return arena;
+  }
+  FrameArena(const FrameArena&) = delete;
+  FrameArena& operator=(const FrameArena&) = delete;
+
+  v1::ClientMessage* new_message() { return google::protobuf::Arena::CreateMessage<v1::ClientMessage>(&arena_); }
+  // Frees every message of the round once no round is in progress any more on this thread; mid-round when a large
+  // message made it grow beyond its first block.
+  void end_message() {
+    if (arena_.SpaceAllocated() > kFirstBlockBytes && rounds_in_progress_ == 1) arena_.Reset();
+  }
+  // Marks a round of dispatch_frames on this thread (they could nest if a handler ever ran another session's loop).
+  class Round {
+   public:
+    explicit Round(FrameArena& arena) : arena_(arena) { ++arena_.rounds_in_progress_; }
+    Round(const Round&) = delete;
+    Round& operator=(const Round&) = delete;
+    ~Round() {
+      if (--arena_.rounds_in_progress_ == 0) arena_.arena_.Reset();
+    }
+
+   private:
+    FrameArena& arena_;
+  };
+
+ private:
+  static constexpr std::size_t kFirstBlockBytes = std::size_t{64} * 1024;
+  static google::protobuf::ArenaOptions options(char* block) {
+    google::protobuf::ArenaOptions options;
+    options.initial_block = block;
+    options.initial_block_size = kFirstBlockBytes;
+    return options;
+  }
+  FrameArena() : arena_(options(first_block_.data())) {}
+
+  std::array<char, kFirstBlockBytes> first_block_{};  // kept across Reset(): a round of queries allocates nothing
+  google::protobuf::Arena arena_;
+  int rounds_in_progress_ = 0;
+};
 
 }  // namespace
 
@@ -148,6 +196,9 @@ void Session::process_frames() {
 
 bool Session::dispatch_frames() {
   const std::size_t max_pending = core_.config().limits.max_pending_requests;
+  FrameArena& arena = FrameArena::for_this_thread();
+  const FrameArena::Round round(arena);
+  const SessionPtr self = shared_from_this();  // one reference for the round, not one per frame
   for (std::size_t dispatched = 0; !closed_ && !close_after_write_; ++dispatched) {
     if (dispatched == kMaxFramesPerRound) return true;
     if (pending_requests_.load() >= max_pending) {
@@ -155,7 +206,7 @@ bool Session::dispatch_frames() {
       read_paused_ = true;
       return false;
     }
-    v1::ClientMessage message;
+    v1::ClientMessage& message = *arena.new_message();
     const proto::FrameStatus status = decoder_.next(message);
     if (status == proto::FrameStatus::need_more) return false;
     if (status == proto::FrameStatus::too_large) {
@@ -170,7 +221,8 @@ bool Session::dispatch_frames() {
     }
     if (is_request(message.body_case())) ++pending_requests_;
     const bool was_greeted = info_.greeted;
-    dispatch(shared_from_this(), std::move(message));
+    dispatch_message(self, message);
+    arena.end_message();
     if (!was_greeted && info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
   }
   return false;

@@ -266,5 +266,21 @@ TEST(SkidSteer, UgvParamsUseTheThesisFootprint) {
   EXPECT_EQ(ugv.right_slip, 0.0);
 }
 
+// The planar shortcut every octree footprint query takes must be the general 6-DoF pose with zero roll and pitch.
+TEST(Pose3, FromPose2EqualsTheGeneralFormWithoutRollAndPitch) {
+  for (const double theta : {-3.1, -1.5707963267948966, -0.3, 0.0, 0.7, 2.0, 3.14159}) {
+    const Pose2 planar{1.25, -0.5, theta};
+    const Pose3 fast = Pose3::from_pose2(planar);
+    const Pose3 general = Pose3::from_xyz_rpy(1.25, -0.5, 0.0, 0.0, 0.0, theta);
+    EXPECT_TRUE(fast.transform.matrix().isApprox(general.transform.matrix(), 1e-15)) << "theta " << theta;
+    const Eigen::Vector3d p_B(0.4, -0.2, 0.3);
+    const Eigen::Vector2d in_plane = planar.transform({p_B.x(), p_B.y()});
+    EXPECT_NEAR((fast.transform * p_B).x(), in_plane.x(), kTolerance);
+    EXPECT_NEAR((fast.transform * p_B).y(), in_plane.y(), kTolerance);
+    EXPECT_NEAR((fast.transform * p_B).z(), 0.3, kTolerance);
+    EXPECT_NEAR(wrap_angle(fast.to_pose2().theta - theta), 0.0, kTolerance);
+  }
+}
+
 }  // namespace
 }  // namespace occgeo::geometry

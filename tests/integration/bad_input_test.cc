@@ -47,6 +47,21 @@ class RawSocket {
     std::vector<v1::ServerMessage> messages;
     bool closed = false;
   };
+  // Reads until `count` frames arrived or 5 s pass without data.
+  std::vector<v1::ServerMessage> read_messages(std::size_t count) {
+    std::vector<v1::ServerMessage> messages;
+    proto::FrameDecoder decoder(64U * 1024U * 1024U);
+    char buffer[65536];
+    while (messages.size() < count) {
+      const ssize_t n = recv(fd_, buffer, sizeof buffer, 0);
+      if (n <= 0) break;
+      decoder.append(buffer, static_cast<std::size_t>(n));
+      v1::ServerMessage message;
+      while (decoder.next(message) == proto::FrameStatus::frame) messages.push_back(message);
+    }
+    return messages;
+  }
+
   Received read_until_closed() {
     Received received;
     proto::FrameDecoder decoder(64U * 1024U * 1024U);
@@ -270,6 +285,58 @@ TEST_F(BadInput, QueryForUnknownRobotNamesIt) {
   EXPECT_EQ(reply->error().field(), "collision.robot_id");
   EXPECT_EQ(reply->error().request_id(), 5U);
   EXPECT_NE(reply->error().message().find("ghost"), std::string::npos);
+  expect_serving_and_map_unchanged();
+}
+
+// The server decodes the frames of one read into memory it reuses once they are handled; a frame far larger than the
+// rest (a 5000-pose batch, about 140 kB) in the middle of small ones must not disturb the ones before or after it.
+TEST_F(BadInput, FramesOfOneWriteAroundALargeOneAreEachAnswered) {
+  constexpr int kStatusBefore = 10;
+  constexpr int kStatusAfter = 30;
+  constexpr int kPoses = 5000;
+  std::string bytes = proto::encode_frame(hello_message(v1::ROLE_QUERY));
+  const auto append_status = [&](std::uint64_t request_id) {
+    v1::ClientMessage status;
+    status.mutable_status()->set_request_id(request_id);
+    proto::append_frame(status, bytes);
+  };
+  for (int i = 0; i < kStatusBefore; ++i) append_status(100 + i);
+  v1::ClientMessage batch;
+  auto* query = batch.mutable_collision_batch();
+  query->set_request_id(50);
+  query->set_robot_id("robot-a");
+  for (int i = 0; i < kPoses; ++i) {
+    auto* pose = query->add_poses();
+    pose->set_x(-4.0 + 8.0 * i / kPoses);
+    pose->set_y(0.25 * (i % 7));
+    pose->set_theta(0.001 * i);
+  }
+  proto::append_frame(batch, bytes);
+  ASSERT_GT(bytes.size(), 128U * 1024U);
+  for (int i = 0; i < kStatusAfter; ++i) append_status(200 + i);
+
+  RawSocket raw(server_->port());
+  raw.send_bytes(bytes);
+  const auto messages = raw.read_messages(1 + kStatusBefore + 1 + kStatusAfter);
+  ASSERT_EQ(messages.size(), 1U + kStatusBefore + 1 + kStatusAfter);
+  EXPECT_TRUE(messages[0].has_welcome()) << messages[0].DebugString();
+  std::vector<std::uint64_t> status_ids;
+  int batches = 0;
+  for (std::size_t i = 1; i < messages.size(); ++i) {
+    if (messages[i].has_collision_batch()) {
+      ++batches;
+      EXPECT_EQ(messages[i].collision_batch().request_id(), 50U);
+      EXPECT_EQ(messages[i].collision_batch().results_size(), kPoses);
+      continue;
+    }
+    ASSERT_TRUE(messages[i].has_status()) << messages[i].DebugString();
+    status_ids.push_back(messages[i].status().request_id());
+  }
+  EXPECT_EQ(batches, 1);
+  std::vector<std::uint64_t> expected;
+  for (int i = 0; i < kStatusBefore; ++i) expected.push_back(100 + i);
+  for (int i = 0; i < kStatusAfter; ++i) expected.push_back(200 + i);
+  EXPECT_EQ(status_ids, expected) << "status requests are answered in their order, none lost or mixed up";
   expect_serving_and_map_unchanged();
 }
 

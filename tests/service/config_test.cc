@@ -68,6 +68,8 @@ TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
   EXPECT_EQ(loaded.octomap.resolution_m, defaults.octomap.resolution_m);
   EXPECT_EQ(loaded.octomap.clamping_min, defaults.octomap.clamping_min);
   EXPECT_EQ(loaded.distance_field.max_distance_m, defaults.distance_field.max_distance_m);
+  EXPECT_EQ(loaded.queries.network_threads, defaults.queries.network_threads);
+  EXPECT_EQ(loaded.queries.network_poll_us, defaults.queries.network_poll_us);
 }
 
 TEST(Config, FileOverridesDefaults) {
@@ -96,6 +98,16 @@ TEST(Config, BadValuesNameTheField) {
   EXPECT_NE(load_error("control:\n  command_expiry_s: -1\n").find("control.command_expiry_s"), std::string::npos);
   EXPECT_NE(load_error("himm:\n  cell_size_m: -0.1\n").find("cell_size_m"), std::string::npos);
   EXPECT_NE(load_error("listen: nowhere\n").find("listen"), std::string::npos);
+}
+
+TEST(Config, NetworkPollWindowIsReadAndChecked) {
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << "queries:\n  network_poll_us: 0\n";
+  EXPECT_EQ(load_config(file).queries.network_poll_us, 0.0);
+  EXPECT_EQ(ServerConfig{}.queries.network_poll_us, 200.0);
+  EXPECT_NE(load_error("queries:\n  network_poll_us: -5\n").find("queries.network_poll_us"), std::string::npos);
+  EXPECT_NE(load_error("queries:\n  network_poll_us: 1e6\n").find("queries.network_poll_us"), std::string::npos);
 }
 
 TEST(Config, PointCloudLimitIsReadCheckedAndSpelledExactly) {

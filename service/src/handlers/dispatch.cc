@@ -153,7 +153,7 @@ bool require_controller(const SessionPtr& session, const char* field, std::uint6
 }
 }  // namespace
 
-void dispatch(const SessionPtr& session, v1::ClientMessage message) {
+void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
   if (message.body_case() == v1::ClientMessage::BODY_NOT_SET) {
     session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "",
                         "the message has no body this server knows (protocol occgeo.v1); it was ignored");

@@ -70,8 +70,10 @@ void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t
                  const std::function<void()>& work);
 
 // Routes one decoded client message to its handler after the session checks (hello first,
-// role allowed to send it).
-void dispatch(const SessionPtr& session, v1::ClientMessage message);
+// role allowed to send it). Sensor data may be moved out of `message`; nothing refers to it after the call.
+void dispatch_message(const SessionPtr& session, v1::ClientMessage& message);
+// The same for a message the caller gives away.
+inline void dispatch(const SessionPtr& session, v1::ClientMessage message) { dispatch_message(session, message); }
 
 // Client messages answered by exactly one reply or error: the queries, single and batch, map windows and whole-map
 // requests. They are counted in occgeo_queries_total and against limits.max_pending_requests.

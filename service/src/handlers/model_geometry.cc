@@ -122,9 +122,26 @@ mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, 
   return octomap.collide(lifted, X_WL);
 }
 
-Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+namespace {
+
+// X_WB with its rotation's cosine and sine worked out once, for the many points a PTEM check maps in and out of the
+// body frame. The arithmetic is Pose2::inverse().transform() and Pose2::transform() exactly.
+struct PlanarFrame {
+  explicit PlanarFrame(const geometry::Pose2& pose) : c(std::cos(pose.theta)), s(std::sin(pose.theta)), X_WB(pose) {}
+  [[nodiscard]] Eigen::Vector2d to_body(const Eigen::Vector2d& p_W) const {
+    const double x_inv = -c * X_WB.x - s * X_WB.y, y_inv = s * X_WB.x - c * X_WB.y;
+    return {x_inv + c * p_W.x() + s * p_W.y(), y_inv - s * p_W.x() + c * p_W.y()};
+  }
+  [[nodiscard]] Eigen::Vector2d to_world(const Eigen::Vector2d& p_B) const {
+    return {X_WB.x + c * p_B.x() - s * p_B.y(), X_WB.y + s * p_B.x() + c * p_B.y()};
+  }
+  double c, s;
+  geometry::Pose2 X_WB;
+};
+
+Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const PlanarFrame& frame,
                                         const Eigen::Vector2d& p_W) {
-  const Eigen::Vector2d p_B = X_WB.inverse().transform(p_W);
+  const Eigen::Vector2d p_B = frame.to_body(p_W);
   Eigen::Vector2d q_B;
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
     q_B = {std::clamp(p_B.x(), box->center_x - box->length / 2, box->center_x + box->length / 2),
@@ -136,7 +153,14 @@ Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, co
     const double n = p_B.norm();
     q_B = n <= radius ? p_B : Eigen::Vector2d(p_B * (radius / n));
   }
-  return X_WB.transform(q_B);
+  return frame.to_world(q_B);
+}
+
+}  // namespace
+
+Eigen::Vector2d nearest_footprint_point(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                        const Eigen::Vector2d& p_W) {
+  return nearest_footprint_point(footprint, PlanarFrame(X_WB), p_W);
 }
 
 Eigen::Vector2d footprint_center(const geometry::Footprint& footprint, const geometry::Pose2& X_WB) {
@@ -205,20 +229,40 @@ std::vector<Eigen::Vector2d> footprint_samples(const geometry::Footprint& footpr
 
 PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                          const geometry::Pose2& X_WB) {
+  return collide_ptem(ptem, footprint, X_WB, geometry::bounding_radius(footprint));
+}
+
+PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                         const geometry::Pose2& X_WB, double bounding_radius_m) {
   if (!ptem.restricted_threshold()) return {};
+  const double threshold = *ptem.restricted_threshold() * (1.0 - 1e-9);  // covers rounding against PtemSnapshot::threat
   // Each PDF is largest on the footprint at the footprint's point nearest its mean, so the sum of those maxima bounds
   // the threat over the whole footprint. Far from clusters it stays below f_r, and the sampling below (hundreds of
   // points, each summing every PDF) is skipped: that is what makes a query away from obstacles cheap.
+  // First a cheaper bound from the footprint's bounding circle (no point is nearer a mean than the circle is): when
+  // no cluster's circle can reach into the footprint and even this bound stays below f_r, the answer is no.
+  double circle_bound = 0.0;
+  bool may_touch = false;
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    const double gap_m = std::max(0.0, (cluster.centre_W - X_WB.position()).norm() - bounding_radius_m);
+    if (gap_m <= cluster.radius_m) {
+      may_touch = true;
+      break;
+    }
+    const double sigma_sq = cluster.sigma_m * cluster.sigma_m;
+    circle_bound += std::exp(-gap_m * gap_m / (2.0 * sigma_sq)) / (2.0 * M_PI * sigma_sq);
+  }
+  if (!may_touch && circle_bound < threshold) return {};
+  const PlanarFrame frame(X_WB);
   double threat_bound = 0.0;
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, X_WB, cluster.centre_W);
+    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, frame, cluster.centre_W);
     const double distance_sq = (q_W - cluster.centre_W).squaredNorm();
     if (std::sqrt(distance_sq) <= cluster.radius_m) return {true, q_W};
     const double sigma_sq = cluster.sigma_m * cluster.sigma_m;
     threat_bound += std::exp(-distance_sq / (2.0 * sigma_sq)) / (2.0 * M_PI * sigma_sq);
   }
-  // The margin covers rounding between this sum and PtemSnapshot::threat's.
-  if (threat_bound < *ptem.restricted_threshold() * (1.0 - 1e-9)) return {};
+  if (threat_bound < threshold) return {};
   for (const Eigen::Vector2d& p_W : footprint_samples(footprint, X_WB, kPtemSampleStep_m)) {
     if (ptem.restricted(p_W)) return {true, p_W};
   }
@@ -233,8 +277,9 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
   if (const PtemContact contact = collide_ptem(ptem, footprint, X_WB); contact.hit) {
     return {true, 0.0, contact.point_W};
   }
+  const PlanarFrame frame(X_WB);
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, X_WB, cluster.centre_W);
+    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, frame, cluster.centre_W);
     const Eigen::Vector2d away = q_W - cluster.centre_W;
     const double d = std::max(0.0, away.norm() - cluster.radius_m);
     if (d <= out.clearance_m && (!out.found || d < out.clearance_m)) {

@@ -104,6 +104,9 @@ struct PtemContact {
 // missed). Nothing is restricted while f_r is not fixed.
 PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                          const geometry::Pose2& X_WB);
+// The same, given geometry::bounding_radius(footprint) already worked out.
+PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                         const geometry::Pose2& X_WB, double bounding_radius_m);
 
 // Distance from the footprint at X_WB to the PTEM's restricted region, looking no farther than
 // max_distance_m: 0 when collide_ptem hits, else the distance to the nearest cluster circle

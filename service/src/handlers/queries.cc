@@ -155,23 +155,22 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
 template <typename Fill>
 void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, PoseQuery query,
                        Fill fill) {
-  const bool answer_inline = query.poses.size() <= kMaxInlineEntries;
-  run_query(session, kind, request_id, answer_inline,
-            [session, request_id, answer_inline, query = std::move(query), fill] {
-              // Inline answers use the network thread's cached snapshot; the query pool's threads take their own copy
-              // so they keep no stale snapshot alive between batches.
-              const World& world = *query.target.world;
-              if (answer_inline) {
-                v1::ServerMessage reply;
-                fill(world.snapshots_for_this_thread(), query, reply);
-                session->send(std::move(reply));
-                return;
-              }
-              const WorldSnapshot snapshot = world.snapshots();
-              v1::ServerMessage reply;
-              fill(snapshot, query, reply);
-              session->send(std::move(reply));
-            });
+  if (query.poses.size() <= kMaxInlineEntries) {
+    // Answered here, on the network thread's cached snapshot: the work refers to the query and session in place.
+    run_query(session, kind, request_id, true, [&session, &query, &fill] {
+      v1::ServerMessage reply;
+      fill(query.target.world->snapshots_for_this_thread(), query, reply);
+      session->send(std::move(reply));
+    });
+    return;
+  }
+  // The query pool's threads take their own snapshot, so they keep no stale one alive between batches.
+  run_query(session, kind, request_id, false, [session, query = std::move(query), fill] {
+    const WorldSnapshot snapshot = query.target.world->snapshots();
+    v1::ServerMessage reply;
+    fill(snapshot, query, reply);
+    session->send(std::move(reply));
+  });
 }
 
 }  // namespace

@@ -126,7 +126,7 @@ void answer_collision(const WorldSnapshot& snapshot, const geometry::Footprint& 
       out.set_hit(true);
       set_vector(result.contact_W, *out.mutable_contact());
     } else {
-      const PtemContact result = collide_ptem(*snapshot.ptem, footprint, X_WB);
+      const PtemContact result = collide_ptem(*snapshot.ptem, footprint, X_WB, bounding_radius_m);
       if (!result.hit) continue;
       out.set_hit(true);
       set_vector(Eigen::Vector3d(result.point_W.x(), result.point_W.y(), 0.0), *out.mutable_contact());

@@ -92,6 +92,9 @@ struct QueryConfig {
   double clearance_max_distance_m = 5.0;  // search radius when the query leaves it 0
   // Threads reading and writing the sockets; they also answer cheap single queries inline.
   std::size_t network_threads = 2;
+  // The longest a network thread that ran out of work polls its sockets (yielding the core between polls) before it
+  // sleeps, microseconds; 0: it sleeps at once. Waking a halted core costs more than a cheap query on some machines.
+  double network_poll_us = 200.0;
 };
 
 // The HTTP listener: the live web view (/), its WebSocket (/ws) and Prometheus metrics (/metrics).
