@@ -91,7 +91,10 @@ occgeo_load c16 --robots 0 --clients 16 --depth 1 --mix collision
 redis_bench c16 300000 -c 16 -t ping,set,get
 occgeo_load c64 --robots 0 --clients 64 --depth 1 --mix collision
 redis_bench c64 300000 -c 64 -t ping,set,get
-occgeo_load p16 --robots 0 --clients 16 --depth 16 --mix collision
+# Pipelined, occgeo-load runs its 16 clients on 2 threads (redis-benchmark is faster on its one thread: with
+# --threads 2 it loses a quarter), and once more with its threads at the normal scheduling policy for comparison.
+occgeo_load p16 --robots 0 --clients 16 --depth 16 --mix collision --threads 2
+occgeo_load p16_normal --robots 0 --clients 16 --depth 16 --mix collision --threads 2 --client-sched normal
 redis_bench p16 3000000 -c 16 -P 16 -t ping,set,get
 occgeo_load batch --robots 0 --clients 2 --depth 2 --mix collision_batch --batch 1000
 # Ingest: one robot in lockstep (each scan sent when the previous one was answered), idle and under query load.
@@ -194,7 +197,7 @@ add("")
 add("| shape | occgeo queries/s | occgeo p50 / p99 µs | redis PING/s | redis GET/s | redis GET p50 µs | occgeo ÷ GET |")
 add("|---|---|---|---|---|---|---|")
 shapes = [("c1", "1 client, sequential"), ("c16", "16 clients"), ("c64", "64 clients"),
-          ("p16", "16 clients, 16 in flight each (redis -P 16)")]
+          ("p16", "16 clients, 16 in flight each (redis -P 16; occgeo-load on 2 threads)")]
 figures = {}
 for name, label in shapes:
     ours = occgeo(name)
@@ -217,7 +220,14 @@ for name, _ in shapes:
         if "server_cpu_cores" in ours and ours["queries_per_s"] > 0:
             per_query = ours["server_cpu_cores"] * 1e6 / ours["queries_per_s"]
             server = f"server {ours['server_cpu_cores']:.2f} cores ({per_query:.1f} µs CPU per query), "
-        add(f"- `{name}`: {server}occgeo-load {ours.get('client_cpu_cores', 0):.2f} cores, errors {ours['errors']}.")
+        threads = f" on {ours['client_threads']} thread(s), {ours['client_sched']} policy" if "client_threads" in ours else ""
+        add(f"- `{name}`: {server}occgeo-load {ours.get('client_cpu_cores', 0):.2f} cores{threads}, errors {ours['errors']}.")
+normal = occgeo("p16_normal")
+if normal and figures["p16"][3]:
+    add(f"- `p16` again with occgeo-load's threads at the normal policy (`--client-sched normal`): "
+        f"{fmt(normal['queries_per_s'])} queries/s = {normal['queries_per_s'] / figures['p16'][3]:.2f}× redis GET; at the "
+        f"normal policy a client thread woken by a reply preempts the server thread on the same core after nearly every "
+        f"burst, and both pay for the context switches.")
 batch = occgeo("batch")
 if batch:
     kind = batch["kinds"].get("collision_batch", {})
@@ -313,20 +323,23 @@ except ValueError:
 add("")
 add("## Where a single query's time goes in the server")
 add("")
-add("A session reads what the socket holds and handles every whole frame of it before reading again. A single")
-add("`CollisionQuery` (or clearance, raycast, occupancy of at most 8 entries) is answered inline on the session's")
-add("network thread from the world's published snapshot and the robot's model, which each network thread takes again")
-add("only when a newer one was published (no lock and no shared reference count per query); the reply is serialised")
-add("straight into the session's output buffer, and the replies of one read go out in one `send`. Each network thread")
-add("(`queries.network_threads`, 2) runs its own event loop alone, so a session needs no strand, and per-query metrics")
-add("update a cache line of the updating thread's own. Between bursts a network thread polls its loop for up to 200 µs")
-add("before it sleeps (the window follows how soon the next request came), because on a virtual machine waking a halted")
-add("vCPU for every request of a sequential client costs more than the query. Batches, swept motions and windows still")
-add("go to the query pool. What remains of a collision query's server time is the loopback system calls and the three")
-add("models' checks themselves: in a profile of the pipelined run (perf) the kernel's TCP path and scheduling took about")
-add("a quarter of the server's CPU, the checks about a third (FCL itself 3 %: the octree's coarse summary of the")
-add("occupied voxels proves most poses free; compare `bench_octomap/BM_CollideBox` with `BM_CollideBoxFclOnly`), protobuf")
-add("parsing and serialising 8 %. Pipelined, occgeo-load's own CPU per query is about half the server's.")
+add("A session reads what the socket holds and handles every whole frame of it before reading again. Requests are")
+add("parsed straight from the read buffer into a per-thread arena that is emptied after each read's frames, so a query")
+add("message costs no allocation. A single `CollisionQuery` (or clearance, raycast, occupancy of at most 8 entries) is")
+add("answered inline on the session's network thread from the world's published snapshot and the robot's model, which")
+add("each network thread takes again only when a newer one was published (no lock and no shared reference count per")
+add("query); the reply is the thread's own message, reused, serialised straight into the session's output buffer, and")
+add("the replies of one read go out in one `send`. Each network thread (`queries.network_threads`, 2) runs its own event")
+add("loop alone, so a session needs no strand, and per-query metrics update a cache line of the updating thread's own.")
+add("Between bursts a network thread polls its loop for up to `queries.network_poll_us` (200 µs) before it sleeps (the")
+add("window follows how soon the next request came), because on a virtual machine waking a halted vCPU for every request")
+add("of a sequential client costs more than the query. Batches, swept motions and windows go to the query pool. The")
+add("three models' checks take about a third of a pipelined query's server time: one sine and cosine per pose, the")
+add("octree's coarse summary of the occupied voxels proving most poses free before FCL (compare")
+add("`bench_octomap/BM_CollideBox` with `BM_CollideBoxFclOnly`), and PTEM's clusters first tested against the")
+add("footprint's bounding circle. The rest is the loopback system calls and the context switches between the server's")
+add("and occgeo-load's threads, which share the 2 cores: with the load tool's threads at the normal scheduling policy")
+add("each reply wakes a client thread that preempts the server mid-burst (`p16` at the normal policy above).")
 
 with open(out, "w") as f:
     f.write("\n".join(lines) + "\n")

@@ -8,8 +8,10 @@
 #include <boost/asio.hpp>
 #include <charconv>
 #include <deque>
+#include <optional>
 #include <unordered_map>
 #include <utility>
+#include <vector>
 
 #include "occgeo/client/pipeline.h"
 #include "occgeo/proto/framing.h"
@@ -287,6 +289,78 @@ std::string Reply::error_text() const {
   return {};
 }
 
+namespace {
+
+// The requests awaiting an answer, by request_id. Ids are handed out in order, so id modulo a power of two at least
+// twice the pipelining depth finds a free slot almost always: no node allocated and freed per request, as a hash map
+// does. A request still waiting when its slot comes round again (a slow batch among fast singles) goes to the
+// overflow map.
+template <typename Value>
+class RequestTable {
+ public:
+  explicit RequestTable(std::size_t max_in_flight) {
+    std::size_t slots = 16;
+    while (slots < 2 * max_in_flight && slots < kMaxSlots) slots *= 2;
+    slots_.resize(slots);
+    mask_ = slots - 1;
+  }
+  [[nodiscard]] std::size_t size() const { return size_; }
+  [[nodiscard]] bool empty() const { return size_ == 0; }
+  void insert(std::uint64_t request_id, Value value) {
+    Slot& slot = slots_[request_id & mask_];
+    if (slot.request_id == 0) {
+      slot.request_id = request_id;
+      slot.value = std::move(value);
+    } else {
+      overflow_.emplace(request_id, std::move(value));
+    }
+    ++size_;
+  }
+  // Removes and returns the request's entry; nullopt when it is not waiting.
+  std::optional<Value> take(std::uint64_t request_id) {
+    Slot& slot = slots_[request_id & mask_];
+    if (slot.request_id == request_id && request_id != 0) {
+      slot.request_id = 0;
+      --size_;
+      return std::move(slot.value);
+    }
+    const auto found = overflow_.find(request_id);
+    if (found == overflow_.end()) return std::nullopt;
+    std::optional<Value> value(std::move(found->second));
+    overflow_.erase(found);
+    --size_;
+    return value;
+  }
+  // Removes and returns every entry.
+  std::vector<std::pair<std::uint64_t, Value>> take_all() {
+    std::vector<std::pair<std::uint64_t, Value>> all;
+    all.reserve(size_);
+    for (Slot& slot : slots_) {
+      if (slot.request_id == 0) continue;
+      all.emplace_back(slot.request_id, std::move(slot.value));
+      slot.request_id = 0;
+    }
+    for (auto& [request_id, value] : overflow_) all.emplace_back(request_id, std::move(value));
+    overflow_.clear();
+    size_ = 0;
+    return all;
+  }
+  void clear() { take_all(); }
+
+ private:
+  static constexpr std::size_t kMaxSlots = std::size_t{1} << 16;
+  struct Slot {
+    std::uint64_t request_id = 0;  // 0: free (ids start at 1)
+    Value value{};
+  };
+  std::vector<Slot> slots_;
+  std::size_t mask_ = 0;
+  std::unordered_map<std::uint64_t, Value> overflow_;
+  std::size_t size_ = 0;
+};
+
+}  // namespace
+
 // Shared with the asynchronous operations in flight (they hold a shared_ptr), so the connection object may go away
 // while the io_context still holds completions for its socket.
 struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnection::Impl> {
@@ -297,9 +371,11 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
   };
 
   Impl(asio::io_context& io_in, std::unique_ptr<asio::io_context> own_in, std::size_t max_in_flight_in)
-      : own_io(std::move(own_in)), io(io_in), socket(io_in), max_in_flight(max_in_flight_in) {
-    outstanding.reserve(std::min<std::size_t>(max_in_flight, 4096));
-  }
+      : own_io(std::move(own_in)),
+        io(io_in),
+        socket(io_in),
+        outstanding(max_in_flight_in),
+        max_in_flight(max_in_flight_in) {}
 
   std::unique_ptr<asio::io_context> own_io;  // set when the connection runs its own io_context
   asio::io_context& io;
@@ -314,7 +390,7 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
   // When that read completed, while corked: the completion time of every answer in it, and the submission time of
   // every request its handlers submit (a little early, so latencies err long), one clock read for the lot.
   Clock::time_point read_completed_at;
-  std::unordered_map<std::uint64_t, Outstanding> outstanding;
+  RequestTable<Outstanding> outstanding;
   std::uint64_t next_request_id = 1;
   std::size_t max_in_flight;
   bool failed = false;
@@ -410,16 +486,13 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
   void deliver(v1::ServerMessage&& message) {
     const std::uint64_t request_id = reply_request_id(message);
     if (request_id != 0) {
-      const auto found = outstanding.find(request_id);
-      if (found != outstanding.end()) {
+      if (std::optional<Outstanding> waiting = outstanding.take(request_id)) {
         Reply reply;
         reply.request_id = request_id;
         reply.message = std::move(message);
-        reply.submitted_at = found->second.submitted_at;
+        reply.submitted_at = waiting->submitted_at;
         reply.completed_at = corked ? read_completed_at : Clock::now();
-        ReplyHandler handler = std::move(found->second.handler);
-        outstanding.erase(found);
-        handler(std::move(reply));
+        waiting->handler(std::move(reply));
         return;
       }
     }
@@ -459,8 +532,7 @@ struct PipelinedConnection::Impl : std::enable_shared_from_this<PipelinedConnect
     failure_text = reason;
     boost::system::error_code ignored;
     socket.close(ignored);
-    auto orphans = std::move(outstanding);
-    outstanding.clear();
+    auto orphans = outstanding.take_all();
     for (auto& [request_id, entry] : orphans) {
       Reply reply;
       reply.request_id = request_id;
@@ -559,7 +631,7 @@ std::uint64_t PipelinedConnection::async_submit_in_place(v1::ClientMessage& requ
   }
   ++impl_->next_request_id;
   const auto submitted_at = impl_->corked ? impl_->read_completed_at : Impl::Clock::now();
-  impl_->outstanding.emplace(request_id, Impl::Outstanding{std::move(on_reply), submitted_at});
+  impl_->outstanding.insert(request_id, Impl::Outstanding{std::move(on_reply), submitted_at});
   impl_->enqueue(request);
   return request_id;
 }

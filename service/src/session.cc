@@ -228,7 +228,7 @@ bool Session::dispatch_frames() {
   return false;
 }
 
-void Session::send(v1::ServerMessage message) {
+void Session::send(const v1::ServerMessage& message) {
   // A driver's ack is what watchers follow. The driver's role, robot and world are fixed at its hello, before any
   // scan is posted to an ingest strand, so reading them here (on that strand) is safe.
   if (message.has_scan_ack() && info_.role == v1::ROLE_DRIVER) {
@@ -272,7 +272,7 @@ void Session::watch(const v1::WatchRequest& request) {
   shared_.watch.subscribe(shared_from_this(), request.world(), request.robot_id());
   v1::ServerMessage reply;
   reply.mutable_watch()->set_request_id(request.request_id());
-  send(std::move(reply));
+  send(reply);
   log::info("session_watch", {{"session", info_.id}, {"world", request.world()}, {"robot", request.robot_id()}});
 }
 

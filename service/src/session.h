@@ -64,7 +64,7 @@ class Session final : public SessionContext, public std::enable_shared_from_this
 
   ServerCore& core() override { return core_; }
   SessionInfo& info() override { return info_; }
-  void send(v1::ServerMessage message) override;
+  void send(const v1::ServerMessage& message) override;
   void close_after_send() override;
   HelloThrottle* hello_throttle() override { return &shared_.hello_throttle; }
   void watch(const v1::WatchRequest& request) override;

@@ -144,6 +144,47 @@ TEST_F(PipelinedConnectionTest, InFlightNeverExceedsTheBound) {
   EXPECT_EQ(most_in_flight, kDepth);
 }
 
+// Requests are filed by request_id in a table of slots twice the depth; a slow batch still unanswered when its slot
+// comes round again must keep its own handler, and the fast requests after it theirs.
+TEST_F(PipelinedConnectionTest, ASlowBatchOutlastingManyFastQueriesGetsItsOwnAnswer) {
+  constexpr std::size_t kDepth = 4;
+  constexpr int kPoses = 50000;
+  auto connection = client::PipelinedConnection::open(endpoint_, query_hello(), kDepth);
+  v1::ClientMessage batch;
+  for (int i = 0; i < kPoses; ++i) {
+    auto* pose = batch.mutable_collision_batch()->add_poses();
+    pose->set_x(-20.0 + 40.0 * i / kPoses);
+    pose->set_theta(0.01 * i);
+  }
+  batch.mutable_collision_batch()->set_robot_id("probe");
+  int batch_answers = 0;
+  const std::uint64_t batch_id = connection->async_submit(batch, [&](client::Reply&& reply) {
+    ++batch_answers;
+    ASSERT_TRUE(reply.ok()) << reply.error_text();
+    ASSERT_TRUE(reply.message.has_collision_batch()) << reply.message.ShortDebugString();
+    EXPECT_EQ(reply.message.collision_batch().results_size(), kPoses);
+  });
+  std::size_t fast_answers = 0;
+  std::size_t submitted = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while ((fast_answers < 200 || batch_answers == 0) && std::chrono::steady_clock::now() < deadline) {
+    while (submitted < 200 && connection->can_submit()) {
+      const double x = 0.1 * static_cast<double>(submitted % 50);
+      connection->async_submit(collision_at("probe", x, 0.0, 0.0), [&](client::Reply&& reply) {
+        ASSERT_TRUE(reply.ok()) << reply.error_text();
+        EXPECT_TRUE(reply.message.has_collision()) << reply.message.ShortDebugString();
+        EXPECT_NE(reply.request_id, batch_id);
+        ++fast_answers;
+      });
+      ++submitted;
+    }
+    connection->next(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(fast_answers, 200U);
+  EXPECT_EQ(batch_answers, 1);
+  EXPECT_EQ(connection->in_flight(), 0U);
+}
+
 TEST_F(PipelinedConnectionTest, EachErrorReachesTheRequestItAnswers) {
   auto connection = client::PipelinedConnection::open(endpoint_, query_hello(), 16);
   std::vector<v1::ClientMessage> requests;

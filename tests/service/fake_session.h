@@ -15,9 +15,9 @@ class FakeSession final : public SessionContext {
   explicit FakeSession(ServerCore& core) : core_(core) {}
   ServerCore& core() override { return core_; }
   SessionInfo& info() override { return info_; }
-  void send(v1::ServerMessage message) override {
+  void send(const v1::ServerMessage& message) override {
     const std::lock_guard lock(mutex_);
-    sent_.push_back(std::move(message));
+    sent_.push_back(message);
     arrived_.notify_all();
   }
 

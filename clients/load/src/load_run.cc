@@ -1,6 +1,7 @@
 #include "occgeo/load/load_run.h"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/resource.h>
@@ -11,6 +12,7 @@
 #include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/steady_timer.hpp>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -661,6 +663,13 @@ struct ClientThread {
   }
 
   void run(ClientShared& shared, const std::atomic<bool>& go) {
+    if (shared.options.client_sched_batch) {
+      // On Linux this sets the calling thread's policy only; the server and the robots' threads keep theirs.
+      const sched_param no_priority{};
+      if (sched_setscheduler(0, SCHED_BATCH, &no_priority) != 0) {
+        shared.errors.add(std::string("--client-sched batch: ") + std::strerror(errno));
+      }
+    }
     while (!go.load()) std::this_thread::sleep_for(milliseconds(1));
     for (auto& client : clients) client->start();
     for (auto& observer : observers) observer->start();
@@ -826,6 +835,8 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   report.clients = options.clients;
   report.depth = options.depth;
   report.observers = options.observers;
+  report.client_threads = static_cast<std::uint32_t>(threads.size());
+  report.client_sched_batch = options.client_sched_batch;
   if (server_pid) {
     const auto ticks_end = process_cpu_ticks(*server_pid);
     if (server_ticks_start && ticks_end) {
@@ -920,6 +931,8 @@ std::string report_json(const LoadReport& report) {
   std::ostringstream out;
   out << "{\"duration_s\":" << json_number(report.duration_s) << ",\"robots\":" << report.robots
       << ",\"clients\":" << report.clients << ",\"depth\":" << report.depth << ",\"observers\":" << report.observers
+      << ",\"client_threads\":" << report.client_threads
+      << ",\"client_sched\":" << (report.client_sched_batch ? "\"batch\"" : "\"normal\"")
       << ",\"queries\":" << report.queries << ",\"queries_per_s\":" << json_number(report.queries_per_s)
       << ",\"p50_us\":" << json_number(report.p50_us) << ",\"p99_us\":" << json_number(report.p99_us)
       << ",\"p999_us\":" << json_number(report.p999_us) << ",\"errors\":" << report.errors << ",\"error_samples\":[";

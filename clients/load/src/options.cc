@@ -213,6 +213,12 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
       options.area_half_size_m = parse_positive(flag, value(), 1000.0);
     } else if (flag == "--threads") {
       options.threads = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 1, 64));
+    } else if (flag == "--client-sched") {
+      const std::string policy(value());
+      if (policy != "batch" && policy != "normal") {
+        throw LoadArgsError("--client-sched: expected batch or normal, got '" + policy + "'");
+      }
+      options.client_sched_batch = policy == "batch";
     } else if (flag == "--seed") {
       options.seed = parse_unsigned(flag, value(), 0, UINT64_MAX);
     } else if (flag == "--json") {
@@ -260,6 +266,9 @@ std::string load_usage() {
   --warmup-scans N        lockstep scans mapped by a seeding robot before measuring (default 100)
   --area A                query poses uniformly in [-A, A] x [-A, A] metres (default 5)
   --threads T             threads running the query clients and observers (default 1)
+  --client-sched batch|normal   their scheduling policy (default batch: SCHED_BATCH, so that a client thread
+                          woken by a reply waits for its turn instead of preempting the server it measures on a
+                          shared core; the server and the simulated robots keep the normal policy)
   --seed S                random seed (default 1)
   --json                  print one JSON object (queries_per_s, p50_us, p99_us, errors, ...)
   --quiet                 no progress lines on stderr

@@ -18,7 +18,7 @@ void SessionContext::send_error(v1::ErrorCode code, const std::string& field, co
   error->set_message(message);
   error->set_request_id(request_id);
   error->set_seq(seq);
-  send(std::move(reply));
+  send(reply);
 }
 
 void SessionContext::watch(const v1::WatchRequest& request) {

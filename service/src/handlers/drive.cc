@@ -92,7 +92,7 @@ void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& req
   out->set_linear_mps(velocity.body.linear_mps);
   out->set_angular_radps(velocity.body.angular_radps);
   out->set_estop(estop);
-  session->send(std::move(reply));
+  session->send(reply);
   log::info("drive", {{"robot", request.robot_id()},
                       {"session", info.id},
                       {"behaviour", request.behaviour()},

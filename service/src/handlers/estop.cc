@@ -41,7 +41,7 @@ void handle_estop(const SessionPtr& session, const v1::EStop& request) {
   out->set_robot_id(request.robot_id());
   out->set_engaged(request.engage());
   if (lease) fill_holder(lease, *out->mutable_holder());
-  session->send(std::move(reply));
+  session->send(reply);
   if (request.engage() ? engaged_now : true) {
     log::warn("estop", {{"robot", request.robot_id()},
                         {"session", info.id},

@@ -48,8 +48,9 @@ class SessionContext {
   virtual ServerCore& core() = 0;
   // Only from the session's own network strand.
   virtual SessionInfo& info() = 0;
-  // Queues a message to the client; thread-safe, never blocks.
-  virtual void send(v1::ServerMessage message) = 0;
+  // Queues a message to the client (serialised before it returns, so the caller may reuse it); thread-safe, never
+  // blocks.
+  virtual void send(const v1::ServerMessage& message) = 0;
 
   void send_error(v1::ErrorCode code, const std::string& field, const std::string& message,
                   std::uint64_t request_id = 0, std::uint64_t seq = 0);

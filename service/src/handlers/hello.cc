@@ -129,7 +129,7 @@ void handle_hello(const SessionPtr& session, const v1::Hello& hello) {
   welcome->set_protocol_version(kProtocolVersion);
   welcome->set_server_version(kServerVersion);
   welcome->set_session_id(info.id);
-  session->send(std::move(reply));
+  session->send(reply);
   log::info("session_hello", {{"session", info.id},
                               {"role", v1::Role_Name(hello.role())},
                               {"robot", info.robot_id},

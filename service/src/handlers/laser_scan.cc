@@ -169,7 +169,7 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   }
   v1::ServerMessage reply;
   *reply.mutable_motion_command() = std::move(command);
-  session->send(std::move(reply));
+  session->send(reply);
 }
 
 }  // namespace

@@ -88,7 +88,7 @@ void handle_lease_request(const SessionPtr& session, const v1::LeaseRequest& req
   out->set_granted(granted);
   if (lease) fill_holder(lease, *out->mutable_holder());
   out->set_expires_in_s(seconds_left(lease, now));
-  session->send(std::move(reply));
+  session->send(reply);
   log::info("lease", {{"robot", request.robot_id()},
                       {"session", info.id},
                       {"action", v1::LeaseRequest::Action_Name(action)},

@@ -85,7 +85,7 @@ void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& 
           block->set_cells(cells.data(), cells.size());
         }
       }
-      session->send(std::move(reply));
+      session->send(reply);
     });
   });
 }
@@ -139,7 +139,7 @@ void handle_octree_window(const SessionPtr& session, const v1::OctreeWindowReque
                             request_id);
         return;
       }
-      session->send(std::move(reply));
+      session->send(reply);
     });
   });
 }

@@ -75,7 +75,7 @@ void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& r
       log::info("octree_exported",
                 {{"world", world->name()}, {"bytes", bytes.size()}, {"nodes", snapshot->node_count()}});
       out->set_bt(std::move(bytes));
-      session->send(std::move(reply));
+      session->send(reply);
     });
   });
 }

@@ -79,7 +79,7 @@ void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query) {
                      c->set_threshold_reachable(cluster.threshold_reachable);
                    }
                  }
-                 session->send(std::move(reply));
+                 session->send(reply);
                });
              });
 }

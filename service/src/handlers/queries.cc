@@ -152,15 +152,38 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
 
 // Answers a validated pose query on one snapshot of the robot's world: `fill(snapshot, query, reply)` builds the
 // reply from the shared kernels.
+// Empties a reply for the next answer. The body's message stays allocated when it is one a pose query answers
+// with: filling the same kind again then allocates nothing (a hit's contact point aside).
+void clear_keeping_body(v1::ServerMessage& reply) {
+  switch (reply.body_case()) {
+    case v1::ServerMessage::kCollision:
+      reply.mutable_collision()->Clear();
+      return;
+    case v1::ServerMessage::kClearance:
+      reply.mutable_clearance()->Clear();
+      return;
+    case v1::ServerMessage::kCollisionBatch:
+      reply.mutable_collision_batch()->Clear();
+      return;
+    case v1::ServerMessage::kClearanceBatch:
+      reply.mutable_clearance_batch()->Clear();
+      return;
+    default:
+      reply.Clear();
+  }
+}
+
 template <typename Fill>
 void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, PoseQuery query,
                        Fill fill) {
   if (query.poses.size() <= kMaxInlineEntries) {
-    // Answered here, on the network thread's cached snapshot: the work refers to the query and session in place.
+    // Answered here, on the network thread's cached snapshot: the work refers to the query and session in place, and
+    // the reply is this thread's own, kept between answers (send() serialises it before returning).
     run_query(session, kind, request_id, true, [&session, &query, &fill] {
-      v1::ServerMessage reply;
+      thread_local v1::ServerMessage reply;
+      clear_keeping_body(reply);
       fill(query.target.world->snapshots_for_this_thread(), query, reply);
-      session->send(std::move(reply));
+      session->send(reply);
     });
     return;
   }
@@ -169,7 +192,7 @@ void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_
     const WorldSnapshot snapshot = query.target.world->snapshots();
     v1::ServerMessage reply;
     fill(snapshot, query, reply);
-    session->send(std::move(reply));
+    session->send(reply);
   });
 }
 
@@ -296,7 +319,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_octomap_leaves(snapshots.octomap->leaf_count());
     out->set_octomap_resolution_m(snapshots.octomap->resolution());
   }
-  session->send(std::move(reply));
+  session->send(reply);
 }
 
 void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request) {
@@ -336,7 +359,7 @@ void handle_grid_request(const SessionPtr& session, const v1::GridRequest& reque
             snapshot->window(box->min, static_cast<int>(width), static_cast<int>(height));
         out->set_cells(cells.data(), cells.size());
       }
-      session->send(std::move(reply));
+      session->send(reply);
     });
   });
 }

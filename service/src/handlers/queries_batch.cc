@@ -57,7 +57,7 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
               for (const geometry::Pose2& ray : rays) {
                 answer_raycast(snapshot, ray, max_range, height, models, *out->add_results());
               }
-              session->send(std::move(reply));
+              session->send(reply);
             });
 }
 
@@ -100,7 +100,7 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
               for (const Eigen::Vector3d& p_W : points) {
                 answer_occupancy(snapshot, p_W, models, *out->add_samples());
               }
-              session->send(std::move(reply));
+              session->send(reply);
             });
 }
 
@@ -164,7 +164,7 @@ void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) 
               for (const v1::SweptMotion& motion : query.motions()) {
                 answer_swept(snapshot, target.footprint(), models, motion, *out->add_results());
               }
-              session->send(std::move(reply));
+              session->send(reply);
             });
 }
 

@@ -275,7 +275,7 @@ void send_stop_to_driver(Robot& robot, const std::string& state, double expiry_s
   if (!driver) return;
   v1::ServerMessage message;
   *message.mutable_motion_command() = stop_command(robot, control.behaviour, state, expiry_s);
-  driver->send(std::move(message));
+  driver->send(message);
 }
 
 void fill_holder(const std::optional<Lease>& lease, v1::LeaseHolder& holder) {

@@ -41,7 +41,7 @@ bool ingest_sensor_message_on_strand(
     world_journal->when_durable(
         world_journal->last_lsn(), [session, ack = std::move(ack)](const std::string* error) mutable {
           if (!error) {
-            session->send(std::move(ack));
+            session->send(ack);
             return;
           }
           session->send_error(v1::ERROR_INTERNAL, "durability", *error + "; the resent message is not acknowledged", 0,
@@ -117,12 +117,12 @@ bool ingest_sensor_message_on_strand(
   ack.mutable_scan_ack()->set_seq(header.seq);
   ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
   if (!journal) {
-    session->send(std::move(ack));
+    session->send(ack);
     return true;
   }
   journal->when_durable(lsn, [session, ack = std::move(ack), seq = header.seq](const std::string* error) mutable {
     if (!error) {
-      session->send(std::move(ack));
+      session->send(ack);
       return;
     }
     session->send_error(v1::ERROR_INTERNAL, "durability",

@@ -29,6 +29,8 @@ struct LoadReport {
   std::uint32_t clients = 0;
   std::uint32_t depth = 0;
   std::uint32_t observers = 0;
+  std::uint32_t client_threads = 0;
+  bool client_sched_batch = false;  // the query-client threads ran as SCHED_BATCH (--client-sched)
 
   // Query clients, all kinds together.
   std::uint64_t queries = 0;

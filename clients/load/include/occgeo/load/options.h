@@ -72,9 +72,12 @@ struct LoadOptions {
   std::uint32_t warmup_scans = 100;                    // --warmup-scans: lockstep scans mapped before measuring
   double area_half_size_m = 5.0;                       // --area: query poses in [-A, A]², metres
   std::uint32_t threads = 1;                           // --threads: threads running the query clients
-  std::uint64_t seed = 1;                              // --seed
-  bool json = false;                                   // --json
-  bool progress = true;                                // --quiet turns progress lines off
+  // --client-sched: the query-client threads' scheduling policy. Batch (SCHED_BATCH) keeps a client thread woken by a
+  // reply from preempting the server mid-burst on a shared core; normal leaves them as the OS starts them.
+  bool client_sched_batch = true;
+  std::uint64_t seed = 1;  // --seed
+  bool json = false;       // --json
+  bool progress = true;    // --quiet turns progress lines off
   bool help = false;
 };
 
