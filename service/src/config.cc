@@ -246,6 +246,8 @@ void ServerConfig::validate() const {
           "must be between 1 and 64");
   require(queries.network_poll_us >= 0 && queries.network_poll_us <= 10000, "queries.network_poll_us",
           "must be in [0, 10000] microseconds (0: no polling)");
+  require(queries.network_nice >= 0 && queries.network_nice <= 19, "queries.network_nice",
+          "must be between 0 and 19 (added to the network threads' niceness)");
   require(durability.policy == "every" || durability.policy == "batch" || durability.policy == "none",
           "durability.policy", "must be every, batch or none");
   require(durability.batch_interval_s > 0 && durability.batch_interval_s <= 1, "durability.batch_interval_s",
@@ -332,7 +334,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                  [&](Section& s) {
                    s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m)
                        .field("network_threads", config.queries.network_threads)
-                       .field("network_poll_us", config.queries.network_poll_us);
+                       .field("network_poll_us", config.queries.network_poll_us)
+                       .field("network_nice", config.queries.network_nice);
                  })
         .section("durability",
                  [&](Section& s) {

@@ -1,5 +1,8 @@
 #include "occgeo/service/server.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
@@ -7,8 +10,10 @@
 #include <boost/asio/signal_set.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstring>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -34,6 +39,18 @@ void restore_worlds(ServerCore& core) {
   // A journal write beyond RLIMIT_FSIZE must fail with EFBIG (reported, not acknowledged), not kill the server.
   std::signal(SIGXFSZ, SIG_IGN);
   durability::restore_worlds(core);
+}
+
+// Lowers the calling thread's priority by `nice` (queries.network_nice). On Linux a thread's niceness is its own, so
+// the ingest and control threads keep the process's. Raising niceness needs no privilege.
+void lower_this_threads_priority(int nice) {
+  if (nice == 0) return;
+  const auto thread = static_cast<id_t>(gettid());
+  errno = 0;
+  const int current = getpriority(PRIO_PROCESS, thread);
+  if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+    log::warn("network_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
+  }
 }
 
 // Runs one network thread's event loop until it stops or runs out of work, as io_context::run() does, but looks for
@@ -237,9 +254,15 @@ void Server::run() {
   }
   std::vector<std::thread> more_network_threads;
   const double poll_us = impl_->core.config().queries.network_poll_us;
+  const int nice = impl_->core.config().queries.network_nice;
   for (auto& loop : impl_->more_loops) {
-    more_network_threads.emplace_back([&loop, poll_us] { run_network_loop(*loop, poll_us); });
+    more_network_threads.emplace_back([&loop, poll_us, nice] {
+      lower_this_threads_priority(nice);
+      run_network_loop(*loop, poll_us);
+    });
   }
+  // The calling thread serves `net` too. Threads it starts later inherit its niceness; every pool exists by now.
+  lower_this_threads_priority(nice);
   run_network_loop(impl_->net, poll_us);
   for (std::thread& thread : more_network_threads) thread.join();
   if (impl_->http) impl_->http->stop();

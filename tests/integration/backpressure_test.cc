@@ -3,6 +3,7 @@
 // run (figures, not assertions); what is asserted is what a user relies on: every scan acknowledged, every event
 // accounted for, memory bounded, the robot stopped.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <atomic>
@@ -15,7 +16,9 @@
 #include <cstdlib>
 #include <fstream>
 #include <numbers>
+#include <sstream>
 #include <thread>
+#include <vector>
 
 #include "occgeo/proto/framing.h"
 #include "process.h"
@@ -425,6 +428,49 @@ TEST(Backpressure, AQueryFloodDoesNotStarveIngestOrOtherClients) {
       "another client's worst status reply %.1f ms\n",
       static_cast<unsigned long long>(flood_sent.load()), flooded.percentile_us(0.5), quiet_p50, polite_worst_ms);
   EXPECT_TRUE(server->running());
+}
+
+// The niceness of each of the process's threads, from /proc (field 19 of each task's stat, counted after the
+// command name, which may hold spaces).
+std::vector<int> thread_niceness(pid_t pid) {
+  std::vector<int> niceness;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
+    std::ifstream stat(task.path() / "stat");
+    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+    std::istringstream after_name(text.substr(text.rfind(')') + 2));
+    std::string field;
+    for (int i = 3; i <= 19 && after_name >> field; ++i) {
+      if (i == 19) niceness.push_back(std::stoi(field));
+    }
+  }
+  return niceness;
+}
+
+// The network threads answer queries inline at queries.network_nice below the process's priority; every other thread
+// (ingest, control, pools) keeps the process's own, so a query flood yields the CPU to the robot's data.
+TEST(Backpressure, OnlyTheNetworkThreadsRunAtTheLowerQueryPriority) {
+  const int own = getpriority(PRIO_PROCESS, 0);
+  for (const int nice : {0, 7}) {
+    TempDir dir;
+    auto server = start_server(dir, "queries:\n  network_threads: 3\n  network_nice: " + std::to_string(nice) + "\n");
+    // The network threads lower their own priority as they start serving, just after the server listens.
+    std::vector<int> niceness;
+    long lowered = 0;
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      niceness = thread_niceness(server->pid());
+      lowered = std::count(niceness.begin(), niceness.end(), std::min(own + nice, 19));
+      if (nice == 0 || lowered == 3) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ASSERT_GT(niceness.size(), 4U);
+    const auto kept = std::count(niceness.begin(), niceness.end(), own);
+    if (nice == 0) {
+      EXPECT_EQ(kept, static_cast<long>(niceness.size()));
+    } else {
+      EXPECT_EQ(lowered, 3) << "one lowered thread per network thread";
+      EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 3);
+    }
+  }
 }
 
 TEST(Backpressure, AControllerThatVanishesLeavesTheRobotStopped) {

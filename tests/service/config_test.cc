@@ -70,6 +70,7 @@ TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
   EXPECT_EQ(loaded.distance_field.max_distance_m, defaults.distance_field.max_distance_m);
   EXPECT_EQ(loaded.queries.network_threads, defaults.queries.network_threads);
   EXPECT_EQ(loaded.queries.network_poll_us, defaults.queries.network_poll_us);
+  EXPECT_EQ(loaded.queries.network_nice, defaults.queries.network_nice);
 }
 
 TEST(Config, FileOverridesDefaults) {
@@ -108,6 +109,16 @@ TEST(Config, NetworkPollWindowIsReadAndChecked) {
   EXPECT_EQ(ServerConfig{}.queries.network_poll_us, 200.0);
   EXPECT_NE(load_error("queries:\n  network_poll_us: -5\n").find("queries.network_poll_us"), std::string::npos);
   EXPECT_NE(load_error("queries:\n  network_poll_us: 1e6\n").find("queries.network_poll_us"), std::string::npos);
+}
+
+TEST(Config, NetworkNicenessIsReadAndChecked) {
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << "queries:\n  network_nice: 0\n";
+  EXPECT_EQ(load_config(file).queries.network_nice, 0);
+  EXPECT_EQ(ServerConfig{}.queries.network_nice, 5);
+  EXPECT_NE(load_error("queries:\n  network_nice: -1\n").find("queries.network_nice"), std::string::npos);
+  EXPECT_NE(load_error("queries:\n  network_nice: 20\n").find("queries.network_nice"), std::string::npos);
 }
 
 TEST(Config, PointCloudLimitIsReadCheckedAndSpelledExactly) {

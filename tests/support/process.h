@@ -39,6 +39,7 @@ class BackgroundProcess {
   BackgroundProcess& operator=(const BackgroundProcess&) = delete;
 
   [[nodiscard]] bool running();
+  [[nodiscard]] pid_t pid() const { return pid_; }
   // Sends `signal` and waits up to `limit` for exit; returns the exit code, or nullopt if it did
   // not exit in time (it is then killed).
   std::optional<int> stop(int signal, std::chrono::seconds limit);
@@ -62,6 +63,7 @@ class ServerProcess {
   [[nodiscard]] std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
   [[nodiscard]] std::string log() const;
   [[nodiscard]] bool running() { return process_->running(); }
+  [[nodiscard]] pid_t pid() const { return process_->pid(); }
   // SIGTERM and wait; returns the exit code.
   std::optional<int> stop() { return process_->stop(SIGTERM_VALUE, std::chrono::seconds(20)); }
 

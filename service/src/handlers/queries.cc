@@ -150,8 +150,6 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   return out;
 }
 
-// Answers a validated pose query on one snapshot of the robot's world: `fill(snapshot, query, reply)` builds the
-// reply from the shared kernels.
 // Empties a reply for the next answer. The body's message stays allocated when it is one a pose query answers
 // with: filling the same kind again then allocates nothing (a hit's contact point aside).
 void clear_keeping_body(v1::ServerMessage& reply) {
@@ -173,6 +171,8 @@ void clear_keeping_body(v1::ServerMessage& reply) {
   }
 }
 
+// Answers a validated pose query on one snapshot of the robot's world: `fill(snapshot, query, reply)` builds the
+// reply from the shared kernels.
 template <typename Fill>
 void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_t request_id, PoseQuery query,
                        Fill fill) {

@@ -95,6 +95,9 @@ struct QueryConfig {
   // The longest a network thread that ran out of work polls its sockets (yielding the core between polls) before it
   // sleeps, microseconds; 0: it sleeps at once. Waking a halted core costs more than a cheap query on some machines.
   double network_poll_us = 200.0;
+  // Niceness the network threads add to their own (Linux, 0-19). They answer queries inline; at a lower priority than
+  // the ingest and control threads, a flood of queries slows the queries, not the robot's map updates and commands.
+  int network_nice = 5;
 };
 
 // The HTTP listener: the live web view (/), its WebSocket (/ws) and Prometheus metrics (/metrics).
