@@ -409,22 +409,24 @@ TEST(ResendAfterRestart, JournalledScansAreAcknowledgedAsDurableAndAppliedOnce) 
   std::mt19937 random(21);
   std::vector<Step> steps;
   for (std::uint64_t i = 1; i <= 8; ++i) steps.push_back(make_step(0, i, random));
-  const auto expect_ack = [](const std::optional<v1::ServerMessage>& reply, std::uint64_t seq) {
+  // A resent scan's ack says it was a duplicate (durable, not applied again, answered by no command).
+  const auto expect_ack = [](const std::optional<v1::ServerMessage>& reply, std::uint64_t seq, bool duplicate) {
     ASSERT_TRUE(reply) << "no reply to seq " << seq;
     ASSERT_TRUE(reply->has_scan_ack()) << reply->DebugString();
     EXPECT_EQ(reply->scan_ack().seq(), seq);
+    EXPECT_EQ(reply->scan_ack().duplicate(), duplicate) << "seq " << seq;
   };
   {
     FaultServer server(data, config);
     Drivers drivers(server.address());
-    for (std::size_t k = 0; k < 5; ++k) expect_ack(drivers.send(steps[k]), k + 1);
+    for (std::size_t k = 0; k < 5; ++k) expect_ack(drivers.send(steps[k]), k + 1, false);
     server.kill9();
   }
   {
     FaultServer restarted(data, config, {}, "after-kill");
     Drivers drivers(restarted.address());
     // Scans 3-5 again (their acks "lost"), then the new scan 6.
-    for (std::size_t k = 2; k < 6; ++k) expect_ack(drivers.send(steps[k]), k + 1);
+    for (std::size_t k = 2; k < 6; ++k) expect_ack(drivers.send(steps[k]), k + 1, k < 5);
     EXPECT_EQ(differing_cells(observed_cells(restarted.address()),
                               reference_cells(dir.path() / "reference-6", {steps.begin(), steps.begin() + 6})),
               0U)
@@ -434,7 +436,7 @@ TEST(ResendAfterRestart, JournalledScansAreAcknowledgedAsDurableAndAppliedOnce) 
   FaultServer again(data, config, {}, "after-clean-stop");
   Drivers drivers(again.address());
   // Now from the snapshot the clean stop wrote: scan 6 again, then 7 and 8.
-  for (std::size_t k = 5; k < 8; ++k) expect_ack(drivers.send(steps[k]), k + 1);
+  for (std::size_t k = 5; k < 8; ++k) expect_ack(drivers.send(steps[k]), k + 1, k == 5);
   EXPECT_EQ(differing_cells(observed_cells(again.address()), reference_cells(dir.path() / "reference-8", steps)), 0U)
       << "a resent scan was applied twice after the snapshot";
   // A scan with a journalled seq but other content is not the same message: it is refused as out of order.

@@ -40,6 +40,24 @@ TEST(LoadTest, RobotsClientsAndObserversRunWithoutAnyErrorAndTheServerSurvives) 
   EXPECT_GT(json_value(run.out, "p99_us"), 0.0) << run.out;
 }
 
+// A long-running server measured again and again: each run's simulated robots must be mapped and answered, not taken
+// for resends of the previous run's identical scans (which the server acknowledges without applying or answering).
+TEST(LoadTest, RunsAgainAgainstTheSameServerWithoutErrors) {
+  TempDir dir;
+  ServerProcess server(dir.path());
+  for (int run = 0; run < 3; ++run) {
+    const ProcessResult result =
+        run_process({binary("clients/load/occgeo-load").string(), "--server", server.address(), "--robots", "1",
+                     "--robot-pace", "lockstep", "--clients", "2", "--mix", "collision", "--warmup-scans", "10",
+                     "--duration", "1", "--json", "--quiet"},
+                    std::chrono::seconds(60));
+    ASSERT_FALSE(result.timed_out) << "run " << run << ": " << result.err;
+    EXPECT_EQ(result.exit_code, 0) << "run " << run << ": " << result.out << result.err;
+    EXPECT_EQ(json_value(result.out, "errors"), 0.0) << "run " << run << ": " << result.out;
+    EXPECT_GT(json_value(result.out, "scans"), 10.0) << "run " << run << ": " << result.out;
+  }
+}
+
 TEST(LoadTest, RefusesServersOffThisMachine) {
   const ProcessResult run =
       run_process({binary("clients/load/occgeo-load").string(), "--server", "192.0.2.7:7700", "--duration", "1"},

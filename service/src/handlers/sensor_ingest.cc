@@ -38,6 +38,7 @@ bool ingest_sensor_message_on_strand(
     v1::ServerMessage ack;
     ack.mutable_scan_ack()->set_seq(header.seq);
     ack.mutable_scan_ack()->set_world_version(world_of_robot.grid_on_strand().version());
+    ack.mutable_scan_ack()->set_duplicate(true);
     world_journal->when_durable(
         world_journal->last_lsn(), [session, ack = std::move(ack)](const std::string* error) mutable {
           if (!error) {
