@@ -40,8 +40,8 @@ TEST(LoadTest, RobotsClientsAndObserversRunWithoutAnyErrorAndTheServerSurvives) 
   EXPECT_GT(json_value(run.out, "p99_us"), 0.0) << run.out;
 }
 
-// A long-running server measured again and again: each run's simulated robots must be mapped and answered, not taken
-// for resends of the previous run's identical scans (which the server acknowledges without applying or answering).
+// A long-running server measured again and again. Each run's simulated robots send the previous run's scans again,
+// which the server acknowledges as duplicates and answers with no command; the lockstep must go on, not stall.
 TEST(LoadTest, RunsAgainAgainstTheSameServerWithoutErrors) {
   TempDir dir;
   ServerProcess server(dir.path());
