@@ -37,12 +37,6 @@ std::string format_point(const Eigen::Vector2d& p) {
   return "(" + format_number(p.x()) + ", " + format_number(p.y()) + ")";
 }
 
-// Eq 4.1 for one isotropic term at distance² d2 from its mean: exp(−d²/(2σ²)) / (2πσ²).
-double gaussian_2d(double d2, double sigma) {
-  const double s2 = sigma * sigma;
-  return std::exp(-d2 / (2.0 * s2)) / (kTwoPi * s2);
-}
-
 // Distance from q (relative to a segment's start) to the segment of the given length along unit direction u.
 double distance_to_segment(const Eigen::Vector2d& q, const Eigen::Vector2d& u, double length) {
   const double t = std::clamp(q.dot(u), 0.0, length);
@@ -133,6 +127,11 @@ PtemCircle enclose_circle_and_point(const PtemCircle& circle, const Eigen::Vecto
   ++centre;
   const double y = *centre;
   return PtemCircle{Eigen::Vector2d(x, y), min_circle.radius()};
+}
+
+double ptem_term_density(double distance_sq, double sigma_m) {
+  const double sigma_sq = sigma_m * sigma_m;
+  return std::exp(-distance_sq / (2.0 * sigma_sq)) / (kTwoPi * sigma_sq);
 }
 
 double max_cluster_radius(double f_r) { return 1.0 / std::sqrt(std::numbers::pi * std::numbers::e * f_r); }
@@ -290,7 +289,7 @@ void PtemModel::insert_scan(const PtemScan& scan) {
     // that f_r is the value the threat f itself takes on the first cluster's circle.
     const double sigma = *params_.first_cluster_sigma_m;
     const double r_ca = clusters.front().radius_m;
-    f_r_ = gaussian_2d(r_ca * r_ca, sigma);
+    f_r_ = ptem_term_density(r_ca * r_ca, sigma);
   }
   for (std::size_t i = 0; i < clusters.size(); ++i) {
     if (!grown[i]) continue;

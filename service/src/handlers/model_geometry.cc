@@ -249,8 +249,7 @@ PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Foot
       may_touch = true;
       break;
     }
-    const double sigma_sq = cluster.sigma_m * cluster.sigma_m;
-    circle_bound += std::exp(-gap_m * gap_m / (2.0 * sigma_sq)) / (2.0 * M_PI * sigma_sq);
+    circle_bound += mapping::ptem_term_density(gap_m * gap_m, cluster.sigma_m);
   }
   if (!may_touch && circle_bound < threshold) return {};
   const PlanarFrame frame(X_WB);
@@ -259,8 +258,7 @@ PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Foot
     const Eigen::Vector2d q_W = nearest_footprint_point(footprint, frame, cluster.centre_W);
     const double distance_sq = (q_W - cluster.centre_W).squaredNorm();
     if (std::sqrt(distance_sq) <= cluster.radius_m) return {true, q_W};
-    const double sigma_sq = cluster.sigma_m * cluster.sigma_m;
-    threat_bound += std::exp(-distance_sq / (2.0 * sigma_sq)) / (2.0 * M_PI * sigma_sq);
+    threat_bound += mapping::ptem_term_density(distance_sq, cluster.sigma_m);
   }
   if (threat_bound < threshold) return {};
   for (const Eigen::Vector2d& p_W : footprint_samples(footprint, X_WB, kPtemSampleStep_m)) {

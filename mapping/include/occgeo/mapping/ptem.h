@@ -96,6 +96,10 @@ struct PtemCluster {
   double age_s = 0.0;
 };
 
+// Eq 4.1 for one cluster's isotropic term at squared distance distance_sq (m²) from its mean:
+// exp(−d²/(2σ²)) / (2πσ²), 1/m².
+double ptem_term_density(double distance_sq, double sigma_m);
+
 // Threat density and its gradient at one point.
 struct PtemThreat {
   // f(r) of eq 4.1, 1/m².
