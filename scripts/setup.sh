@@ -10,10 +10,11 @@ packages=(
   libeigen3-dev libccd-dev libfcl-dev liboctomap-dev libdynamicedt3d-dev
   libcgal-dev libgmp-dev libmpfr-dev
   libpcl-dev
-  libyaml-cpp-dev zlib1g-dev
+  libyaml-cpp-dev zlib1g-dev libzstd-dev liblz4-dev
+  libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3
-  python3-protobuf
+  python3-protobuf python3-venv
   libssl-dev libsqlite3-dev
   clang libclang-rt-14-dev
   redis-server redis-tools
