@@ -405,5 +405,36 @@ TEST(SlowClient, StuckReaderIsDroppedWhileTheRobotKeepsDriving) {
   EXPECT_NE(log().find("session_slow_client_dropped"), std::string::npos) << "the stuck client should be dropped";
 }
 
+
+// limits.max_batch_queries bounds every batch: one entry more is refused naming the field and the limit, and a batch
+// at the limit is answered in full.
+TEST(BatchLimit, ConfiguredLimitRefusesALargerBatchNamingIt) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "limits:\n  max_batch_queries: 4\n";
+  ServerProcess server(dir.path(), {"--config", config.string()});
+  auto driver = open_driver_session(server.address(), "robot-a");
+  auto query = open_query_session(server.address());
+  for (const int poses : {5, 4}) {
+    v1::ClientMessage request;
+    auto* batch = request.mutable_collision_batch();
+    batch->set_request_id(static_cast<std::uint64_t>(poses));
+    batch->set_robot_id("robot-a");
+    for (int i = 0; i < poses; ++i) batch->add_poses()->set_x(0.1 * i);
+    query.send(request);
+    const auto reply = query.receive(std::chrono::seconds(5));
+    ASSERT_TRUE(reply) << poses << " poses: no answer";
+    if (poses == 5) {
+      ASSERT_TRUE(reply->has_error()) << reply->DebugString();
+      EXPECT_EQ(reply->error().code(), v1::ERROR_INVALID_ARGUMENT);
+      EXPECT_EQ(reply->error().field(), "collision_batch.poses");
+      EXPECT_NE(reply->error().message().find("1 to 4 entries, got 5"), std::string::npos) << reply->error().message();
+    } else {
+      ASSERT_TRUE(reply->has_collision_batch()) << reply->DebugString();
+      EXPECT_EQ(reply->collision_batch().results_size(), 4);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace occgeo::testing

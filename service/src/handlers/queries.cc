@@ -110,7 +110,7 @@ struct PoseQuery {
 };
 
 // Validates the fields the four pose queries share, in this order: robot and footprint, the poses (one, or a list of
-// 1..kMaxBatchEntries), max_distance_m (clearance only), models. `kind` names the request in error fields.
+// 1..limits.max_batch_queries), max_distance_m (clearance only), models. `kind` names the request in error fields.
 template <typename Query>
 std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std::string& kind, const Query& query) {
   constexpr bool kBatch = requires(const Query& q) { q.poses(); };
@@ -123,7 +123,8 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   if (!target) return std::nullopt;
   PoseQuery out{std::move(*target), {}, {}, 0.0, {}};
   if constexpr (kBatch) {
-    if (!check_count(session, static_cast<std::size_t>(query.poses_size()), kMaxBatchEntries, kind + ".poses",
+    if (!check_count(session, static_cast<std::size_t>(query.poses_size()),
+                     session->core().config().limits.max_batch_queries, kind + ".poses",
                      request_id)) {
       return std::nullopt;
     }

@@ -15,7 +15,8 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
   const std::uint64_t request_id = query.request_id();
   auto world = resolve_world(session, "raycast", request_id, query.world());
   if (!world) return;
-  if (!check_count(session, static_cast<std::size_t>(query.rays_size()), kMaxBatchEntries, "raycast.rays",
+  if (!check_count(session, static_cast<std::size_t>(query.rays_size()),
+                   session->core().config().limits.max_batch_queries, "raycast.rays",
                    request_id)) {
     return;
   }
@@ -65,7 +66,8 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
   const std::uint64_t request_id = query.request_id();
   auto world = resolve_world(session, "occupancy", request_id, query.world());
   if (!world) return;
-  if (!check_count(session, static_cast<std::size_t>(query.points_size()), kMaxBatchEntries, "occupancy.points",
+  if (!check_count(session, static_cast<std::size_t>(query.points_size()),
+                   session->core().config().limits.max_batch_queries, "occupancy.points",
                    request_id)) {
     return;
   }

@@ -16,8 +16,6 @@
 
 namespace occgeo::service {
 
-// Entries (poses, rays, points) per batch request.
-inline constexpr std::size_t kMaxBatchEntries = 100000;
 // Motions per SweptQuery, and poses per motion path.
 inline constexpr std::size_t kMaxSweptMotions = 1000;
 inline constexpr std::size_t kMaxSweptPathPoses = 100000;

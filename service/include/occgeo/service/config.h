@@ -39,7 +39,7 @@ struct LimitsConfig {
   std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
   std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
                                                                // max_send_queue_bytes / 2) is refused
-  std::size_t max_batch_queries = 1024;                        // queries in one batch request
+  std::size_t max_batch_queries = 100000;  // entries (poses, rays, points) in one batch request
   std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
   std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
   double write_timeout_s = 60.0;  // a client that accepts no bytes for this long while some wait is dropped
