@@ -29,7 +29,7 @@ using occgeo::client::Connection;
 using occgeo::client::Endpoint;
 namespace v1 = occgeo::v1;
 
-constexpr const char* kUsage = R"(usage: occgeo COMMAND [options]
+constexpr const char* kUsage = R"(usage: occgeo [--server HOST:PORT] [--json] COMMAND [options]
 commands:
   status                                     robots, worlds and clients of the server
   query collision --robot ID --x X --y Y [--theta T] [--models grid,octomap,ptem] [--footprint SHAPE]
@@ -81,7 +81,7 @@ commands:
                                              (as a controller: acquires the lease, releases, returns it)
   replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
                                              stream a recorded laser log as a driver (occgeo replay --help)
-common options:
+common options (before or after the command):
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print the reply as one JSON object
 Units: metres and radians; poses are base_link in the world frame.
@@ -1175,9 +1175,36 @@ int run_estop(const Options& options) {
 
 }  // namespace
 
+// The common options (--server HOST:PORT, --json) may come before the command, as in `occgeo --server H:P status`
+// (git, kubectl and redis-cli users type that); they are moved behind the command words, where every command reads
+// them. Anything else before the command is left for the command dispatch to refuse.
+std::vector<std::string> common_options_last(std::vector<std::string> args) {
+  std::vector<std::string> common;
+  std::size_t i = 0;
+  while (i < args.size()) {
+    if (args[i] == "--json") {
+      common.push_back(args[i++]);
+    } else if (args[i] == "--server") {
+      if (i + 1 >= args.size()) throw UsageError("option '--server' needs a value");
+      common.push_back(args[i++]);
+      common.push_back(args[i++]);
+    } else if (args[i].rfind("--server=", 0) == 0) {
+      common.emplace_back("--server");
+      common.push_back(args[i++].substr(9));
+    } else {
+      break;
+    }
+  }
+  if (i == 0) return args;
+  std::vector<std::string> out(args.begin() + static_cast<std::ptrdiff_t>(i), args.end());
+  if (out.empty()) throw UsageError("no command after the common options");
+  out.insert(out.end(), common.begin(), common.end());
+  return out;
+}
+
 int main(int argc, char** argv) {
-  const std::vector<std::string> args(argv + 1, argv + argc);
   try {
+    const std::vector<std::string> args = common_options_last({argv + 1, argv + argc});
     if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
       std::fputs(kUsage, args.empty() ? stderr : stdout);
       return args.empty() ? 2 : 0;

@@ -59,7 +59,8 @@ double resident_mb() {
 class TruthWorld {
  public:
   explicit TruthWorld(double side_m)
-      : side_m_(side_m), cells_(static_cast<int>(std::ceil(side_m / kTruthCell_m))),
+      : side_m_(side_m),
+        cells_(static_cast<int>(std::ceil(side_m / kTruthCell_m))),
         occupied_(static_cast<std::size_t>(cells_) * static_cast<std::size_t>(cells_), false) {
     const auto fill = [&](double x0, double y0, double x1, double y1) {
       for (int y = cell(y0); y <= cell(y1); ++y) {
@@ -242,10 +243,11 @@ int main(int argc, char** argv) {
   for (const int side : sides) {
     GrownWorld& grown = grown_world(side);
     const double per_scan = cpu_per_scan_s(grown, 32);
-    std::printf("growth: %3d x %3d m: %.2f ms CPU per scan (all models, published every scan), %.0f MB resident, "
-                "fill %d scans at %.2f ms each\n",
-                side, side, 1e3 * per_scan, grown.rss_mb, grown.fill_scans,
-                1e3 * grown.fill_cpu_s / std::max(1, grown.fill_scans));
+    std::printf(
+        "growth: %3d x %3d m: %.2f ms CPU per scan (all models, published every scan), %.0f MB resident, "
+        "fill %d scans at %.2f ms each\n",
+        side, side, 1e3 * per_scan, grown.rss_mb, grown.fill_scans,
+        1e3 * grown.fill_cpu_s / std::max(1, grown.fill_scans));
     if (first == 0.0) first = per_scan;
     last = per_scan;
   }

@@ -141,6 +141,26 @@ TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
   const ProcessResult status = cli({"status"});
   ASSERT_EQ(status.exit_code, 0) << status.err;
   EXPECT_NE(status.out.find("\"id\":\"probe\""), std::string::npos) << status.out;
+
+  // The common options may also come before the command, as git, kubectl and redis-cli users type them.
+  const std::string occgeo = binary("clients/occgeo").string();
+  const ProcessResult options_first =
+      run_process({occgeo, "--server", server_->address(), "status", "--json"}, std::chrono::seconds(30));
+  ASSERT_EQ(options_first.exit_code, 0) << options_first.err;
+  EXPECT_NE(options_first.out.find("\"id\":\"probe\""), std::string::npos) << options_first.out;
+  const ProcessResult all_first = run_process({occgeo, "--json", "--server=" + server_->address(), "query", "collision",
+                                               "--robot", "probe", "--x", "0", "--y", "0"},
+                                              std::chrono::seconds(30));
+  ASSERT_EQ(all_first.exit_code, 0) << all_first.err;
+  EXPECT_NE(all_first.out.find("\"hit\":false"), std::string::npos) << all_first.out;
+  // A mistake names itself, wherever the options stand.
+  const ProcessResult bad =
+      run_process({occgeo, "--server", server_->address(), "status", "--bogus", "1"}, std::chrono::seconds(30));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("unknown option '--bogus'"), std::string::npos) << bad.err;
+  const ProcessResult dangling = run_process({occgeo, "--server"}, std::chrono::seconds(30));
+  EXPECT_EQ(dangling.exit_code, 2);
+  EXPECT_NE(dangling.err.find("'--server' needs a value"), std::string::npos) << dangling.err;
 }
 
 TEST_F(QueriesOnKnownWorld, BatchOverLoopbackAnswersLikeSingleQueriesAndTheTrueGeometry) {
