@@ -4,7 +4,7 @@
 #include <boost/asio/post.hpp>
 
 #include "durability/world_store.h"
-#include "handlers/model_geometry.h"
+#include "model_geometry.h"
 
 namespace occgeo::service {
 

@@ -1,7 +1,7 @@
 // The height band layer: a depth sensor's cloud of a kerb and an overhang (seed 000 Fig 5.2) inserted into a real
 // OctoMap blocks the straight way and bends the global path round them for a robot of the Bearcat's height, while the
 // floor's returns and an overhang above the robot's top do not; with no octree the planner is the grid's own.
-#include "control/height_band_layer.h"
+#include "height_band_layer.h"
 
 #include <gtest/gtest.h>
 

@@ -9,8 +9,8 @@
 #include <memory>
 #include <vector>
 
-#include "control/height_band_layer.h"
-#include "handlers/model_geometry.h"
+#include "height_band_layer.h"
+#include "model_geometry.h"
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/service/control/safety_guard.h"
 

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "fake_session.h"
-#include "handlers/model_geometry.h"
+#include "model_geometry.h"
 #include "occgeo/geometry/collision.h"
 #include "sensor_robot_spec.h"
 #include "test_robots.h"

@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "handlers/model_geometry.h"
+#include "model_geometry.h"
 #include "handlers/query_kernels.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/mapping/distance_field.h"

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "control/param_checks.h"
+#include "param_checks.h"
 
 namespace occgeo::service::control {
 namespace {

@@ -4,7 +4,7 @@
 #include <cstddef>
 #include <optional>
 
-#include "../handlers/model_geometry.h"
+#include "model_geometry.h"
 #include "occgeo/mapping/grid_snapshot.h"
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/service/control/global_path.h"

@@ -5,7 +5,7 @@
 #include <limits>
 #include <numbers>
 
-#include "control/param_checks.h"
+#include "param_checks.h"
 
 namespace occgeo::service::control {
 namespace {

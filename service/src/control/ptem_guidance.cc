@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include "control/param_checks.h"
+#include "param_checks.h"
 
 namespace occgeo::service::control {
 namespace {

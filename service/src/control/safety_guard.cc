@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "../handlers/model_geometry.h"
+#include "model_geometry.h"
 
 namespace occgeo::service::control {
 

@@ -1,0 +1,5 @@
+// A behaviour reaching up into the handlers, both ways of spelling it: through the service's source root, and
+// relative to this file. The layer check refuses both (tests/CMakeLists.txt, Layers.*).
+#include "handlers/robot_control.h"
+#include "../../service/src/http/live_view.h"
+#include "occgeo/geometry/pose.h"
