@@ -64,8 +64,8 @@ std::optional<double> occupancy_in(const octomap::OcTree& tree, const Eigen::Vec
 // ---------------------------------------------------------------------------------------------------------------------
 // Snapshot
 
-OctoMapSnapshot::OctoMapSnapshot(std::unique_ptr<Impl> impl, std::uint64_t version)
-    : impl_(std::move(impl)), version_(version) {}
+OctoMapSnapshot::OctoMapSnapshot(std::unique_ptr<Impl> impl, std::uint64_t version, const TerrainParams& terrain)
+    : impl_(std::move(impl)), version_(version), terrain_(terrain) {}
 
 OctoMapSnapshot::~OctoMapSnapshot() = default;
 
@@ -494,7 +494,7 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   snapshot_impl->fcl_view = make_fcl_view(copy);
   snapshot_impl->columns = OccupiedColumns::build(*copy);
   snapshot_impl->tree = std::move(copy);
-  std::shared_ptr<const OctoMapSnapshot> snapshot{new OctoMapSnapshot(std::move(snapshot_impl), version_)};
+  std::shared_ptr<const OctoMapSnapshot> snapshot{new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
   {
     const std::lock_guard lock(snapshot_mutex_);
     snapshot_ = snapshot;

@@ -41,6 +41,7 @@ void OctoMapParams::validate() const {
           outlier_stddev_mul);
   require(std::isfinite(min_publish_interval_s) && min_publish_interval_s >= 0.0, "min_publish_interval_s",
           "a finite number >= 0", min_publish_interval_s);
+  terrain.validate();
 }
 
 }  // namespace occgeo::mapping

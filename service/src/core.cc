@@ -154,10 +154,7 @@ RobotState Robot::state() const {
 }
 
 ServerCore::ServerCore(ServerConfig config)
-    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
-  // Ingest, queries, behaviours and the guard read the terrain rule process-wide (model_geometry.h).
-  set_terrain_params(config_.terrain);
-}
+    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {}
 
 ServerCore::~ServerCore() { drain(); }
 
@@ -204,8 +201,10 @@ std::shared_ptr<World> ServerCore::add_world(const std::string& name, mapping::H
 }
 
 WorldParams ServerCore::world_params(const std::string& name) const {
-  return {config_.ptem.params_for(name), config_.octomap, config_.distance_field,
-          config_.octomap_publish_every_messages};
+  // The terrain rule travels with each world's octree (OctoMapParams::terrain): no setting is shared between servers.
+  mapping::OctoMapParams octomap = config_.octomap;
+  octomap.terrain = config_.terrain;
+  return {config_.ptem.params_for(name), octomap, config_.distance_field, config_.octomap_publish_every_messages};
 }
 
 std::shared_ptr<Robot> ServerCore::find_robot(const std::string& id) const {

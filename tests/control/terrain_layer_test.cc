@@ -48,9 +48,12 @@ std::vector<Eigen::Vector3f> ramp_world(bool box_on_ramp) {
 }
 
 // An octree of the points seen from 3 m above the ramp's middle, so every ray crosses free space first.
-std::shared_ptr<const mapping::OctoMapSnapshot> octree_of(const std::vector<Eigen::Vector3f>& points_W) {
+// The octree of points_W; terrain_enabled false builds it under the rule "every voxel in the band is an obstacle".
+std::shared_ptr<const mapping::OctoMapSnapshot> octree_of(const std::vector<Eigen::Vector3f>& points_W,
+                                                          bool terrain_enabled = true) {
   mapping::OctoMapParams params;
   params.outlier_filter_enabled = false;
+  params.terrain.enabled = terrain_enabled;
   mapping::OctoMapModel model(params);
   const Eigen::Vector3f sensor_W(5.0F, 0.0F, 3.0F);
   std::vector<Eigen::Vector3f> points_S;
@@ -73,16 +76,7 @@ std::shared_ptr<const mapping::GridSnapshot> laser_grid() {
   return grid.snapshot();
 }
 
-// Sets the process-wide terrain rule for one test and restores the default after it.
-class TerrainLayer : public ::testing::Test {
- protected:
-  void TearDown() override { set_terrain_params({}); }
-  static void disable_terrain() {
-    mapping::TerrainParams off;
-    off.enabled = false;
-    set_terrain_params(off);
-  }
-};
+class TerrainLayer : public ::testing::Test {};
 
 GlobalPathParams bearcat_planner() {
   GlobalPathParams params;
@@ -114,10 +108,12 @@ TEST_F(TerrainLayer, GlobalPathGoesUpTheRampTheLaserReadsAsAWall) {
   EXPECT_LT(length_m, 9.5);
   EXPECT_TRUE(band.segment_clear(start, goal, 0.4));
   EXPECT_TRUE(band.segment_clear({8.0, 0.0}, {8.5, 0.5}, 0.4)) << "standing on the platform";
-  disable_terrain();
-  EXPECT_NE(plan_global_path(*grid, &band, start, goal, bearcat_planner()).status, GlobalPathStatus::kFound)
+  const auto octree_without_rule = octree_of(ramp_world(false), false);
+  const HeightBandLayer band_without_rule(*octree_without_rule, kBearcatHeight_m);
+  EXPECT_NE(plan_global_path(*grid, &band_without_rule, start, goal, bearcat_planner()).status,
+            GlobalPathStatus::kFound)
       << "without the terrain rule the slope is in the height band";
-  EXPECT_FALSE(band.segment_clear(start, goal, 0.4));
+  EXPECT_FALSE(band_without_rule.segment_clear(start, goal, 0.4));
 }
 
 TEST_F(TerrainLayer, BoxStandingOnTheRampStillBlocks) {
@@ -144,8 +140,9 @@ TEST_F(TerrainLayer, GuardLetsTheRobotClimbTheRampButNotIntoABoxOnIt) {
   EXPECT_NE(into_box.action, GuardAction::kPass);
   EXPECT_EQ(into_box.model, "octomap");
 
-  disable_terrain();
-  const GuardDecision wall = guard_command({grid.get(), ramp.get(), nullptr}, kBearcat, on_the_ramp, 0.5, 0.0, params);
+  const auto ramp_without_rule = octree_of(ramp_world(false), false);
+  const GuardDecision wall =
+      guard_command({grid.get(), ramp_without_rule.get(), nullptr}, kBearcat, on_the_ramp, 0.5, 0.0, params);
   EXPECT_NE(wall.action, GuardAction::kPass) << "without the terrain rule the laser's wall and the slope stop it";
 }
 

@@ -626,7 +626,7 @@ TEST(QueriesBruteForce, PolygonOctomapCollisionAgreesWithExactGeometry) {
   for (int i = 0; i < 300; ++i) points_S.emplace_back(across(rng), across(rng), up(rng));
   model.insert_cloud(geometry::Pose3::from_xyz_rpy(3.0, 3.0, 0.5, 0.0, 0.0, 0.0), points_S);
   const auto octomap = model.publish();
-  const double band = octomap_ground_band_m(octomap->resolution());
+  const double band = octomap_ground_band_m(*octomap);
   const std::vector<mapping::OctoVoxel> voxels =
       octomap->occupied_in_box(Eigen::Vector3d(-1.0, -1.0, -1.0), Eigen::Vector3d(7.0, 7.0, 3.0));
   ASSERT_GT(voxels.size(), 100U);

@@ -34,7 +34,7 @@ std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window,
   mapping::TerrainMap terrain(
       octomap_, cell_m, window.origin,
       {window.origin.ix + std::max(window.width, 1) - 1, window.origin.iy + std::max(window.height, 1) - 1},
-      robot_height_m_, terrain_params(), robot_W);
+      robot_height_m_, octomap_.terrain(), robot_W);
   // Plan as if the far stretch a depth camera has not resolved yet continues the slope it saw: the guard, reading
   // only what was seen, stops the robot should it turn out otherwise, and the next plan knows better.
   terrain.bridge_unseen_gaps(kUnseenGap_m);

@@ -41,7 +41,7 @@ double footprint_height(const geometry::Footprint& footprint) {
 std::optional<mapping::TerrainMap> terrain_near(const GuardModels& models, const geometry::Footprint& footprint,
                                                 const geometry::Pose2& X_WB, const GuardParams& params,
                                                 double reach_m) {
-  if (models.octomap == nullptr || !(params.check_grid || params.check_octomap) || !terrain_params().enabled) {
+  if (models.octomap == nullptr || !(params.check_grid || params.check_octomap) || !models.octomap->terrain().enabled) {
     return std::nullopt;
   }
   const double cell_m = models.grid != nullptr ? models.grid->cell_size() : 2.0 * models.octomap->resolution();

@@ -1,11 +1,8 @@
 #include "model_geometry.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <deque>
 #include <limits>
-#include <mutex>
 #include <tuple>
 #include <utility>
 #include <variant>
@@ -15,30 +12,8 @@
 
 namespace occgeo::service {
 
-namespace {
-
-// Every footprint query reads the setting, so it is one atomic pointer load, not a lock. A setting, once published,
-// is never freed: readers may hold it, and a process sets it once per server core it builds.
-std::atomic<const mapping::TerrainParams*> terrain_setting{nullptr};
-std::mutex terrain_settings_mutex;
-std::deque<mapping::TerrainParams> terrain_settings;  // guarded by terrain_settings_mutex; owns what is published
-
-}  // namespace
-
-mapping::TerrainParams terrain_params() {
-  const mapping::TerrainParams* setting = terrain_setting.load(std::memory_order_acquire);
-  return setting != nullptr ? *setting : mapping::TerrainParams{};
-}
-
-void set_terrain_params(const mapping::TerrainParams& params) {
-  params.validate();
-  const std::lock_guard lock(terrain_settings_mutex);
-  terrain_settings.push_back(params);
-  terrain_setting.store(&terrain_settings.back(), std::memory_order_release);
-}
-
-double octomap_ground_band_m(double resolution_m) {
-  return std::max(terrain_params().ground_band_m, resolution_m) + 0.01;
+double octomap_ground_band_m(const mapping::OctoMapSnapshot& octomap) {
+  return std::max(octomap.terrain().ground_band_m, octomap.resolution()) + 0.01;
 }
 
 mapping::TerrainMap terrain_around(const mapping::OctoMapSnapshot& octomap, double cell_size_m,
@@ -46,8 +21,8 @@ mapping::TerrainMap terrain_around(const mapping::OctoMapSnapshot& octomap, doub
                                    const std::optional<Eigen::Vector2d>& robot_W) {
   const auto index = [&](double v) { return static_cast<std::int32_t>(std::floor(v / cell_size_m)); };
   return {
-      octomap,          cell_size_m, {index(lo_W.x()), index(lo_W.y())}, {index(hi_W.x()), index(hi_W.y())}, height_m,
-      terrain_params(), robot_W};
+      octomap,           cell_size_m, {index(lo_W.x()), index(lo_W.y())}, {index(hi_W.x()), index(hi_W.y())}, height_m,
+      octomap.terrain(), robot_W};
 }
 
 void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
@@ -59,7 +34,7 @@ void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::Ce
 OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m,
                                const mapping::TerrainMap* terrain, bool plausible_surfaces)
     : octomap_(octomap),
-      bottom_m_(octomap_ground_band_m(octomap.resolution())),
+      bottom_m_(octomap_ground_band_m(octomap)),
       top_m_(top_m),
       terrain_(terrain),
       plausible_surfaces_(plausible_surfaces) {}
@@ -107,7 +82,7 @@ void OctoMapColumns::for_each_occupied(geometry::CellIndex min, geometry::CellIn
 
 mapping::OctoCollision collide_octomap(const mapping::OctoMapSnapshot& octomap, const geometry::Footprint& footprint,
                                        const geometry::Pose2& X_WB) {
-  const double band = octomap_ground_band_m(octomap.resolution());
+  const double band = octomap_ground_band_m(octomap);
   geometry::Footprint lifted = footprint;
   bool too_short = false;
   std::visit(

@@ -16,19 +16,14 @@
 
 namespace occgeo::service {
 
-// The terrain rule every reader of the models applies (config section `terrain:`): process-wide, set once from the
-// configuration before robots connect, read by ingest, queries, behaviours and the guard. Defaults until set.
-mapping::TerrainParams terrain_params();
-// params must be valid.
-void set_terrain_params(const mapping::TerrainParams& params);
-
 // The OctoMap's voxels below this height are the floor for footprint queries, metres: a depth
 // camera sees the floor as occupied voxels in [0, resolution) (and, with noise, the one above), so
-// the footprint is checked over z in [ground_band, height]: max(terrain.ground_band_m, resolution) + 0.01 m.
-double octomap_ground_band_m(double resolution_m);
+// the footprint is checked over z in [ground_band, height]: max(terrain.ground_band_m, resolution) + 0.01 m, under
+// the octree's own terrain rule (OctoMapSnapshot::terrain).
+double octomap_ground_band_m(const mapping::OctoMapSnapshot& octomap);
 
 // The terrain of the cells of cell_size_m covering the box [lo_W, hi_W] (world frame, metres) for a robot of
-// height_m standing at robot_W, under terrain_params().
+// height_m standing at robot_W, under the octree's terrain rule (OctoMapSnapshot::terrain).
 mapping::TerrainMap terrain_around(const mapping::OctoMapSnapshot& octomap, double cell_size_m,
                                    const Eigen::Vector2d& lo_W, const Eigen::Vector2d& hi_W, double height_m,
                                    const std::optional<Eigen::Vector2d>& robot_W);

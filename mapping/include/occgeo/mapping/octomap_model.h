@@ -14,6 +14,7 @@
 
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/terrain_params.h"
 
 // A 3D occupancy octree (OctoMap) per world. OctoMap, FCL and PCL stay inside octomap_*.cc: this header names none of
 // their types, so users of the model do not pay for their headers.
@@ -55,6 +56,9 @@ struct OctoMapParams {
   // Shortest time between two snapshots taken by OctoMapModel::maybe_publish, seconds; finite, >= 0. A snapshot
   // deep-copies the tree (see OctoMapModel::publish), so this bounds the copying cost per second of ingest.
   double min_publish_interval_s = 0.2;
+  // How the octree's readers tell the floor and drivable surfaces from obstacles (config section `terrain:`): every
+  // snapshot carries it, so footprint queries, the guard and the planner of one world all apply the same rule.
+  TerrainParams terrain;
 
   // Throws std::invalid_argument naming the first field that breaks its documented range.
   void validate() const;
@@ -130,6 +134,8 @@ class OctoMapSnapshot {
 
   // Edge of a leaf voxel, metres.
   [[nodiscard]] double resolution() const;
+  // The terrain rule the model was made with (OctoMapParams::terrain).
+  [[nodiscard]] const TerrainParams& terrain() const { return terrain_; }
   // Number of leaves (pruned leaves count once).
   [[nodiscard]] std::size_t leaf_count() const;
   // Number of nodes of the tree, inner ones included.
@@ -140,10 +146,11 @@ class OctoMapSnapshot {
  private:
   friend class OctoMapModel;
   struct Impl;
-  OctoMapSnapshot(std::unique_ptr<Impl> impl, std::uint64_t version);
+  OctoMapSnapshot(std::unique_ptr<Impl> impl, std::uint64_t version, const TerrainParams& terrain);
 
   std::unique_ptr<Impl> impl_;
   std::uint64_t version_;
+  TerrainParams terrain_;
 };
 
 // A 3D occupancy octree of one world. Not thread-safe for writing: one thread (the world's strand) inserts, saves and

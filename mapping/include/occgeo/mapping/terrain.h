@@ -8,27 +8,13 @@
 
 #include "occgeo/geometry/cell.h"
 #include "occgeo/mapping/octomap_model.h"
+#include "occgeo/mapping/terrain_params.h"
 
 // A terrain estimate from the octree: which ground cells hold a surface a robot can drive on (a floor, a ramp, a
 // platform reached by one), so that what a range sensor returns from that surface is not taken for an obstacle
 // (seed 000 Fig 5.1: one laser plane reads a ramp as a wall). Everything else (unseen cells, steps, steep slopes,
 // anything standing on a surface) stays an obstacle wherever the models say so.
 namespace occgeo::mapping {
-
-// Tuning of the terrain estimate (config section `terrain:`).
-struct TerrainParams {
-  bool enabled = true;
-  // Returns less than this above z = 0 are the floor itself (noise on a flat floor), not obstacles, metres.
-  double ground_band_m = 0.05;
-  // Steepest drivable slope, radians (0.25 rad is about 14°).
-  double max_slope_rad = 0.25;
-  // Largest drivable height change between neighbouring cells beyond what max_slope_rad explains, metres. Surface
-  // heights are voxel tops, so this should be at least one octree resolution: 0.08 m drives a 0.2 m/m ramp mapped
-  // at 5 cm and refuses a 0.15 m kerb.
-  double max_step_m = 0.08;
-  // Throws std::invalid_argument naming the first field out of range.
-  void validate() const;
-};
 
 // The estimate for one ground cell.
 struct TerrainCell {

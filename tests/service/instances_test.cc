@@ -1,0 +1,64 @@
+// Two servers in one process keep their own settings: nothing the server reads while it runs is process-wide. Here
+// the terrain rule (config section `terrain:`), which decides how high above the floor the octree's voxels start to
+// count as obstacles for a footprint.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "core.h"
+#include "model_geometry.h"
+#include "occgeo/service/config.h"
+
+namespace occgeo::service {
+namespace {
+
+// A 0.5 x 0.5 m slab of points 0.15 m above the floor, 1 m ahead of the origin: a kerb-like obstacle.
+std::vector<Eigen::Vector3f> slab_points() {
+  std::vector<Eigen::Vector3f> points;
+  for (float x = 0.75F; x <= 1.25F; x += 0.02F) {
+    for (float y = -0.25F; y <= 0.25F; y += 0.02F) points.emplace_back(x, y, 0.15F);
+  }
+  return points;
+}
+
+ServerConfig config_with_ground_band(double ground_band_m) {
+  ServerConfig config;
+  config.terrain.ground_band_m = ground_band_m;
+  config.terrain.enabled = false;  // every voxel in the band is an obstacle: only the band's floor differs
+  config.octomap.outlier_filter_enabled = false;
+  return config;
+}
+
+// The world's octree after the slab was seen from 2 m above the origin, as its readers get it.
+std::shared_ptr<const mapping::OctoMapSnapshot> octree_with_slab(ServerCore& core) {
+  auto world = core.add_world("yard", mapping::HimmGrid(core.config().himm));
+  world->octomap_on_strand().insert_cloud(geometry::Pose3::from_xyz_rpy(0.0, 0.0, 2.0, 0.0, 0.0, 0.0), [] {
+    std::vector<Eigen::Vector3f> points_S;
+    for (const Eigen::Vector3f& p : slab_points()) points_S.emplace_back(p - Eigen::Vector3f(0.0F, 0.0F, 2.0F));
+    return points_S;
+  }());
+  return world->publish_octomap_on_strand();
+}
+
+TEST(ServerInstances, TwoServersInOneProcessKeepTheirOwnTerrainSettings) {
+  ServerCore low_band(config_with_ground_band(0.05));
+  const auto low_octree = octree_with_slab(low_band);
+  // Built second: with a process-wide setting it would have replaced the first server's.
+  ServerCore high_band(config_with_ground_band(0.30));
+  const auto high_octree = octree_with_slab(high_band);
+
+  const geometry::Footprint box = geometry::BoxFootprint{0.6, 0.6, 1.0, 0.0};
+  const geometry::Pose2 over_the_slab{1.0, 0.0, 0.0};
+  EXPECT_NEAR(octomap_ground_band_m(*low_octree), 0.06, 1e-9);
+  EXPECT_NEAR(octomap_ground_band_m(*high_octree), 0.31, 1e-9);
+  EXPECT_TRUE(collide_octomap(*low_octree, box, over_the_slab).hit)
+      << "a 0.15 m slab is an obstacle to the server whose floor band ends at 0.05 m";
+  EXPECT_FALSE(collide_octomap(*high_octree, box, over_the_slab).hit)
+      << "the same slab is floor to the server whose band ends at 0.30 m";
+  // And a fresh publication of the first server's world still follows its own rule.
+  const auto low_again = octree_with_slab(low_band);
+  EXPECT_TRUE(collide_octomap(*low_again, box, over_the_slab).hit);
+}
+
+}  // namespace
+}  // namespace occgeo::service
