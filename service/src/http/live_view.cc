@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <vector>
 
 #include "../handlers/robot_control.h"
@@ -181,26 +182,18 @@ void append_robots(std::string& out, ServerCore& core, const std::string& shown_
 }
 
 // The string value of "key":"value" in a flat JSON object (the page's messages have no escapes); nullopt if absent.
-std::optional<std::string> string_field(std::string_view text, std::string_view key) {
-  const std::string needle = "\"" + std::string(key) + "\"";
-  auto at = text.find(needle);
-  if (at == std::string_view::npos) return std::nullopt;
-  at = text.find_first_not_of(" \t:", at + needle.size());
-  if (at == std::string_view::npos || text[at] != '"') return std::nullopt;
-  const auto end = text.find('"', at + 1);
-  if (end == std::string_view::npos) return std::nullopt;
-  return std::string(text.substr(at + 1, end - at - 1));
+// The value of a message's key as a string or a finite number; nullopt when absent or of another type.
+std::optional<std::string> string_field(const nlohmann::json& message, const char* key) {
+  const auto it = message.find(key);
+  if (it == message.end() || !it->is_string()) return std::nullopt;
+  return it->get<std::string>();
 }
 
-std::optional<double> number_field(std::string_view text, std::string_view key) {
-  const std::string needle = "\"" + std::string(key) + "\"";
-  auto at = text.find(needle);
-  if (at == std::string_view::npos) return std::nullopt;
-  at = text.find_first_not_of(" \t:", at + needle.size());
-  if (at == std::string_view::npos) return std::nullopt;
-  double value = 0.0;
-  const auto result = std::from_chars(text.data() + at, text.data() + text.size(), value);
-  if (result.ec != std::errc() || !std::isfinite(value)) return std::nullopt;
+std::optional<double> number_field(const nlohmann::json& message, const char* key) {
+  const auto it = message.find(key);
+  if (it == message.end() || !it->is_number()) return std::nullopt;
+  const double value = it->get<double>();
+  if (!std::isfinite(value)) return std::nullopt;
   return value;
 }
 
@@ -405,22 +398,25 @@ std::string LiveViewState::next_frame() {
 }
 
 std::string LiveViewState::handle_message(std::string_view text) {
-  const auto type = string_field(text, "type");
+  // Any valid JSON object, whatever its key order, spacing, escapes or extra keys.
+  const nlohmann::json message = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!message.is_object()) return error_reply("message", "not a JSON object");
+  const auto type = string_field(message, "type");
   if (!type) return error_reply("type", "every message needs a \"type\": \"select\" or \"estop\"");
   if (*type == "select") {
-    if (const auto world = string_field(text, "world")) {
+    if (const auto world = string_field(message, "world")) {
       if (!core_.find_world(*world)) return error_reply("world", "no world '" + *world + "' exists");
       select_world(*world);
     }
-    if (text.find("\"slice_z_m\"") != std::string_view::npos) {
-      const auto z = number_field(text, "slice_z_m");
+    if (message.contains("slice_z_m")) {
+      const auto z = number_field(message, "slice_z_m");
       if (!z || std::abs(*z) > 1000.0) return error_reply("slice_z_m", "must be a finite height in metres");
       slice_z_m_ = *z;
     }
     return R"({"type":"selected"})";
   }
   if (*type == "estop") {
-    const auto robot = string_field(text, "robot");
+    const auto robot = string_field(message, "robot");
     if (!robot || !valid_name(*robot)) return error_reply("robot", "name the robot whose e-stop to engage");
     if (!engage_estop_from_web(core_, *robot)) return error_reply("robot", "no robot '" + *robot + "' exists");
     std::string out = R"({"type":"estop","robot":)";
