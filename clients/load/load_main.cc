@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
   try {
     options = occgeo::load::parse_load_args(args);
   } catch (const occgeo::load::LoadArgsError& error) {
-    std::cerr << "occgeo-load: " << error.what() << '\n';
+    std::cerr << "occgeo-load: " << error.what() << "\nrun 'occgeo-load --help' for usage\n";
     return 2;
   }
   if (options.help) {
@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
     }
     return report.errors == 0 && report.server_alive ? 0 : 1;
   } catch (const occgeo::load::LoadArgsError& error) {
-    std::cerr << "occgeo-load: " << error.what() << '\n';
+    std::cerr << "occgeo-load: " << error.what() << "\nrun 'occgeo-load --help' for usage\n";
     return 2;
   } catch (const std::exception& error) {
     std::cerr << "occgeo-load: " << error.what() << '\n';

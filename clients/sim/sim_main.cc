@@ -208,7 +208,7 @@ int main(int argc, char** argv) {
       files.trajectory.emplace();
     }
   } catch (const occgeo::sim::ArgsError& error) {
-    std::cerr << "occgeo-sim: " << error.what() << "\n(see occgeo-sim --help)\n";
+    std::cerr << "occgeo-sim: " << error.what() << "\nrun 'occgeo-sim --help' for usage\n";
     return kExitUsage;
   }
 

@@ -1256,7 +1256,7 @@ int main(int argc, char** argv) {
     }
     throw UsageError("unknown command '" + args[0] + (args.size() > 1 ? " " + args[1] : "") + "'");
   } catch (const UsageError& e) {
-    std::cerr << "occgeo: " << e.what() << "\n" << kUsage;
+    std::cerr << "occgeo: " << e.what() << "\nrun 'occgeo --help' for usage\n";
     return 2;
   } catch (const std::exception& e) {
     std::cerr << "occgeo: " << e.what() << "\n";

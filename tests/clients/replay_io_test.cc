@@ -69,14 +69,16 @@ TEST(ReplayArgs, ParsesOptionsAndNamesMistakes) {
     }
     return std::string("no error");
   };
-  EXPECT_EQ(message({"f.log"}), "missing required option --format");
-  EXPECT_EQ(message({"--format", "rosbag", "f.log"}), "--format must be carmen, dpslam or urg, not 'rosbag'");
+  EXPECT_EQ(message({"f.log"}), "option '--format' is required");
+  EXPECT_EQ(message({"--format", "rosbag", "f.log"}), "option '--format' needs carmen, dpslam or urg, got 'rosbag'");
   EXPECT_EQ(message({"--format", "carmen"}), "missing the log FILE");
-  EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "2", "--max"}), "give --speed or --max, not both");
-  EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "-1"}), "option --speed needs a positive number, not '-1'");
+  EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "2", "--max"}),
+            "options '--speed' and '--max' exclude each other");
+  EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "-1"}),
+            "option '--speed' needs a positive number, got '-1'");
   EXPECT_EQ(message({"--format", "carmen", "f", "--bogus"}), "unknown option '--bogus'");
   EXPECT_EQ(message({"--format", "carmen", "f", "g"}), "unexpected argument 'g' (one log file only)");
-  EXPECT_EQ(message({"--format", "carmen", "f", "--out"}), "option --out needs a value");
+  EXPECT_EQ(message({"--format", "carmen", "f", "--out"}), "option '--out' needs a value");
 }
 
 TEST(Consistency, CountsEndpointsWithinOneCellOfAnOccupiedCell) {

@@ -437,7 +437,7 @@ TEST(DriveScript, ParsesSegmentsAndNamesTheFlagInErrors) {
       parse_args({"--world", "w.yaml", "--drive", bad});
       ADD_FAILURE() << "accepted";
     } catch (const ArgsError& error) {
-      EXPECT_EQ(std::string(error.what()).rfind("--drive: ", 0), 0U) << error.what();
+      EXPECT_EQ(std::string(error.what()).rfind("option '--drive' ", 0), 0U) << error.what();
     }
   }
 }
@@ -448,7 +448,7 @@ TEST(ConfiguredPreset, LaserRangeNeedsALaserAndNoiseReachesEverySensor) {
     configured_preset(options);
     ADD_FAILURE() << "accepted";
   } catch (const ArgsError& error) {
-    EXPECT_EQ(std::string(error.what()), "--laser-range: robot 'scout' has no laser");
+    EXPECT_EQ(std::string(error.what()), "option '--laser-range' needs a robot with a laser; 'scout' has none");
   }
   options = parse_args({"--world", "w.yaml", "--robot", "activitybot", "--noise", "0"});
   const auto& lidar = std::get<ServoRangePreset>(configured_preset(options).sensors[0]);

@@ -18,11 +18,11 @@ std::uint64_t parse_unsigned(std::string_view flag, std::string_view text, std::
   std::uint64_t value = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (error != std::errc() || end != text.data() + text.size()) {
-    throw LoadArgsError(std::string(flag) + ": '" + std::string(text) + "' is not a whole number");
+    throw LoadArgsError("option '" + std::string(flag) + "' needs a whole number, got '" + std::string(text) + "'");
   }
   if (value < min || value > max) {
-    throw LoadArgsError(std::string(flag) + ": " + std::to_string(value) + " is outside " + std::to_string(min) + ".." +
-                        std::to_string(max));
+    throw LoadArgsError("option '" + std::string(flag) + "' needs a value in " + std::to_string(min) + ".." +
+                        std::to_string(max) + ", got " + std::to_string(value));
   }
   return value;
 }
@@ -34,10 +34,11 @@ double parse_positive(std::string_view flag, std::string_view text, double max) 
     value = std::stod(std::string(text), &used);
     if (used != text.size()) throw std::invalid_argument("trailing text");
   } catch (const std::exception&) {
-    throw LoadArgsError(std::string(flag) + ": '" + std::string(text) + "' is not a number");
+    throw LoadArgsError("option '" + std::string(flag) + "' needs a number, got '" + std::string(text) + "'");
   }
   if (!std::isfinite(value) || value <= 0.0 || value > max) {
-    throw LoadArgsError(std::string(flag) + ": " + std::string(text) + " must be > 0 and <= " + std::to_string(max));
+    throw LoadArgsError("option '" + std::string(flag) + "' needs a number > 0 and <= " + std::to_string(max) +
+                        ", got " + std::string(text));
   }
   return value;
 }
@@ -55,7 +56,7 @@ std::map<QueryKind, std::uint32_t> parse_mix(std::string_view text) {
       std::string names;
       for (const QueryKind known : all_query_kinds())
         names += (names.empty() ? "" : ", ") + std::string(query_kind_name(known));
-      throw LoadArgsError("--mix: unknown query kind '" + std::string(name) + "' (" + names + ")");
+      throw LoadArgsError("option '--mix' names an unknown query kind '" + std::string(name) + "' (" + names + ")");
     }
     const std::uint32_t weight =
         equals == std::string_view::npos
@@ -66,7 +67,7 @@ std::map<QueryKind, std::uint32_t> parse_mix(std::string_view text) {
   }
   std::uint64_t total = 0;
   for (const auto& [kind, weight] : mix) total += weight;
-  if (total == 0) throw LoadArgsError("--mix: every weight is 0");
+  if (total == 0) throw LoadArgsError("option '--mix' needs a weight above 0");
   return mix;
 }
 
@@ -152,7 +153,7 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string_view flag = args[i];
     const auto value = [&]() -> std::string_view {
-      if (i + 1 >= args.size()) throw LoadArgsError(std::string(flag) + ": missing value");
+      if (i + 1 >= args.size()) throw LoadArgsError("option '" + std::string(flag) + "' needs a value");
       return args[++i];
     };
     if (flag == "--help" || flag == "-h") {
@@ -161,11 +162,11 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
       try {
         options.server = client::Endpoint::parse(value());
       } catch (const client::ClientError& error) {
-        throw LoadArgsError(std::string("--server: ") + error.what());
+        throw LoadArgsError(std::string("option '--server' ") + error.what());
       }
       if (!is_loopback_host(options.server->host)) {
-        throw LoadArgsError("--server: '" + options.server->host +
-                            "' is not a loopback address; occgeo-load only loads servers on this machine "
+        throw LoadArgsError("option '--server' needs a loopback address, got '" + options.server->host +
+                            "'; occgeo-load only loads servers on this machine "
                             "(127.0.0.0/8, ::1, localhost)");
       }
     } else if (flag == "--occgeod") {
@@ -187,7 +188,7 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
       } else if (pace == "lockstep") {
         options.robot_pace = RobotPace::lockstep;
       } else {
-        throw LoadArgsError("--robot-pace: '" + std::string(pace) + "' is not realtime or lockstep");
+        throw LoadArgsError("option '--robot-pace' needs realtime or lockstep, got '" + std::string(pace) + "'");
       }
     } else if (flag == "--clients") {
       options.clients = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, kMaxClients));
@@ -216,7 +217,7 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
     } else if (flag == "--client-sched") {
       const std::string policy(value());
       if (policy != "batch" && policy != "normal") {
-        throw LoadArgsError("--client-sched: expected batch or normal, got '" + policy + "'");
+        throw LoadArgsError("option '--client-sched' needs batch or normal, got '" + policy + "'");
       }
       options.client_sched_batch = policy == "batch";
     } else if (flag == "--seed") {
@@ -226,14 +227,14 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
     } else if (flag == "--quiet") {
       options.progress = false;
     } else {
-      throw LoadArgsError(std::string(flag) + ": unknown option (see --help)");
+      throw LoadArgsError("unknown option '" + std::string(flag) + "'");
     }
   }
   if (options.server_pid && !options.server) {
-    throw LoadArgsError("--server-pid: only with --server (a server this tool starts is measured anyway)");
+    throw LoadArgsError("option '--server-pid' needs --server (a server this tool starts is measured anyway)");
   }
   if (options.server_config && options.server) {
-    throw LoadArgsError("--server-config: only when occgeo-load starts the server (no --server)");
+    throw LoadArgsError("option '--server-config' only applies when occgeo-load starts the server (no --server)");
   }
   return options;
 }

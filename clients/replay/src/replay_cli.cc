@@ -15,7 +15,7 @@ double positive_number(const std::string& option, const std::string& value) {
     used = 0;
   }
   if (used != value.size() || !std::isfinite(number) || number <= 0.0) {
-    throw std::invalid_argument("option " + option + " needs a positive number, not '" + value + "'");
+    throw std::invalid_argument("option '" + option + "' needs a positive number, got '" + value + "'");
   }
   return number;
 }
@@ -49,13 +49,13 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
     const auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw std::invalid_argument("option " + arg + " needs a value");
+      if (i + 1 >= args.size()) throw std::invalid_argument("option '" + arg + "' needs a value");
       return args[++i];
     };
     if (arg == "--format") {
       const std::string& name = value();
       const auto format = parse_format(name);
-      if (!format) throw std::invalid_argument("--format must be carmen, dpslam or urg, not '" + name + "'");
+      if (!format) throw std::invalid_argument("option '--format' needs carmen, dpslam or urg, got '" + name + "'");
       options.format = *format;
       have_format = true;
     } else if (arg == "--server") {
@@ -85,9 +85,10 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
       throw std::invalid_argument("unexpected argument '" + arg + "' (one log file only)");
     }
   }
-  if (!have_format) throw std::invalid_argument("missing required option --format");
+  if (!have_format) throw std::invalid_argument("option '--format' is required");
   if (options.file.empty()) throw std::invalid_argument("missing the log FILE");
-  if (have_speed && options.as_fast_as_possible) throw std::invalid_argument("give --speed or --max, not both");
+  if (have_speed && options.as_fast_as_possible)
+    throw std::invalid_argument("options '--speed' and '--max' exclude each other");
   return options;
 }
 
@@ -96,7 +97,7 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   try {
     options = parse_replay_args(args);
   } catch (const std::invalid_argument& e) {
-    err << "occgeo replay: " << e.what() << "\n" << kReplayUsage;
+    err << "occgeo replay: " << e.what() << "\nrun 'occgeo replay --help' for usage\n";
     return 2;
   }
   Diagnostics diagnostics(&err);

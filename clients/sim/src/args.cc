@@ -23,15 +23,16 @@ const std::set<std::string_view> kValueFlags = {
     "--duration",    "--start",     "--laser-range", "--noise",      "--seed",
     "--visible-out", "--trace-out", "--drive",       "--png-out",    "--command-latency"};
 
+// Every tool words its command-line errors alike: "option '--flag' <problem>", "unknown option '--flag'".
 [[noreturn]] void fail(std::string_view flag, const std::string& problem) {
-  throw ArgsError(std::string(flag) + ": " + problem);
+  throw ArgsError("option '" + std::string(flag) + "' " + problem);
 }
 
 double parse_number(std::string_view flag, std::string_view text, const std::string& what) {
   double value = 0.0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (error != std::errc() || end != text.data() + text.size() || !std::isfinite(value)) {
-    fail(flag, "expected " + what + ", got '" + std::string(text) + "'");
+    fail(flag, "needs " + what + ", got '" + std::string(text) + "'");
   }
   return value;
 }
@@ -46,7 +47,7 @@ std::uint64_t parse_seed(std::string_view flag, std::string_view text) {
   std::uint64_t value = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (error != std::errc() || end != text.data() + text.size()) {
-    fail(flag, "expected a non-negative integer, got '" + std::string(text) + "'");
+    fail(flag, "needs a non-negative integer, got '" + std::string(text) + "'");
   }
   return value;
 }
@@ -62,7 +63,7 @@ geometry::Pose2 parse_pose(std::string_view flag, std::string_view text) {
     if (comma == std::string_view::npos) break;
     begin = comma + 1;
   }
-  if (values.size() != 3) fail(flag, "expected " + expected + ", got '" + std::string(text) + "'");
+  if (values.size() != 3) fail(flag, "needs " + expected + ", got '" + std::string(text) + "'");
   return {values[0], values[1], values[2]};
 }
 
@@ -76,7 +77,7 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
     options.world_file = parse_name(flag, value);
   } else if (flag == "--robot") {
     if (find_robot_preset(value) == nullptr) {
-      fail(flag, "unknown robot '" + std::string(value) + "' (known: " + robot_preset_names() + ")");
+      fail(flag, "needs a known robot, got '" + std::string(value) + "' (known: " + robot_preset_names() + ")");
     }
     options.robot = std::string(value);
   } else if (flag == "--id") {
@@ -125,7 +126,7 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
 DriveScript parse_drive_script(std::string_view text) {
   constexpr std::string_view kFlag = "--drive";
   const std::string expected = "V,W,T (m/s, rad/s, s)";
-  if (text.empty()) fail(kFlag, "expected segments " + expected + " separated by ';', got nothing");
+  if (text.empty()) fail(kFlag, "needs segments " + expected + " separated by ';', got nothing");
   DriveScript script;
   std::size_t begin = 0;
   while (begin <= text.size()) {
@@ -160,8 +161,8 @@ SimOptions parse_args(const std::vector<std::string_view>& args) {
     const std::size_t equals = arg.find('=');
     const std::string_view flag = arg.substr(0, equals);
     if (!kSwitches.contains(flag) && !kValueFlags.contains(flag)) {
-      if (flag.starts_with("-")) fail(flag, "unknown flag (see --help)");
-      throw ArgsError("unexpected argument '" + std::string(arg) + "' (see --help)");
+      if (flag.starts_with("-")) throw ArgsError("unknown option '" + std::string(flag) + "'");
+      throw ArgsError("unexpected argument '" + std::string(arg) + "'");
     }
     if (!seen.insert(flag).second) fail(flag, "given more than once");
     if (kSwitches.contains(flag)) {
@@ -182,7 +183,7 @@ SimOptions parse_args(const std::vector<std::string_view>& args) {
     apply(options, flag, value);
   }
   if (!options.help && options.world_file.empty())
-    fail("--world", "required: a ROS map_server or shape world YAML file");
+    fail("--world", "is required: a ROS map_server or shape world YAML file");
   return options;
 }
 
@@ -225,11 +226,12 @@ std::string usage() {
 
 RobotPreset configured_preset(const SimOptions& options) {
   const RobotPreset* named = find_robot_preset(options.robot);
-  if (named == nullptr) throw ArgsError("--robot: unknown robot '" + options.robot + "'");
+  if (named == nullptr) throw ArgsError("option '--robot' names no known robot: '" + options.robot + "'");
   RobotPreset preset = *named;
   if (options.laser_range_m) {
     LaserPreset* laser = preset.laser();
-    if (laser == nullptr) throw ArgsError("--laser-range: robot '" + preset.name + "' has no laser");
+    if (laser == nullptr)
+      throw ArgsError("option '--laser-range' needs a robot with a laser; '" + preset.name + "' has none");
     laser->range_max_m = *options.laser_range_m;
   }
   if (options.noise_sigma_m) {

@@ -1,0 +1,51 @@
+// The four command-line tools (occgeo, occgeo replay, occgeo-sim, occgeo-load) word a bad option alike: the tool's
+// name, the option named in quotes, one line pointing at --help, and exit code 2, with nothing started.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "../support/process.h"
+
+namespace occgeo::testing {
+namespace {
+
+struct Tool {
+  std::string name;                  // as the error names it
+  std::vector<std::string> command;  // the program and any command words
+};
+
+std::vector<Tool> tools() {
+  const std::string occgeo = binary("clients/occgeo").string();
+  return {{"occgeo", {occgeo, "status"}},
+          {"occgeo replay", {occgeo, "replay", "--format", "carmen", "log.txt"}},
+          {"occgeo-sim", {binary("clients/sim/occgeo-sim").string(), "--world", "w.yaml"}},
+          {"occgeo-load", {binary("clients/load/occgeo-load").string()}}};
+}
+
+ProcessResult run_with(const Tool& tool, const std::vector<std::string>& extra) {
+  std::vector<std::string> argv = tool.command;
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return run_process(argv, std::chrono::seconds(30));
+}
+
+TEST(CommandLine, EveryToolNamesAnUnknownOptionTheSameWay) {
+  for (const Tool& tool : tools()) {
+    const ProcessResult result = run_with(tool, {"--bogus", "1"});
+    EXPECT_EQ(result.exit_code, 2) << tool.name;
+    EXPECT_EQ(result.err, tool.name + ": unknown option '--bogus'\nrun '" + tool.name + " --help' for usage\n")
+        << tool.name;
+  }
+}
+
+TEST(CommandLine, EveryToolNamesAMissingValueTheSameWay) {
+  for (const Tool& tool : tools()) {
+    const ProcessResult result = run_with(tool, {"--server"});
+    EXPECT_EQ(result.exit_code, 2) << tool.name;
+    EXPECT_EQ(result.err, tool.name + ": option '--server' needs a value\nrun '" + tool.name + " --help' for usage\n")
+        << tool.name;
+  }
+}
+
+}  // namespace
+}  // namespace occgeo::testing
