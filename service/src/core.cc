@@ -153,6 +153,21 @@ RobotState Robot::state() const {
   return state_;
 }
 
+control::BearcatParams bearcat_params_for(const RobotModel& model, control::BearcatParams configured) {
+  std::visit(
+      [&](const auto& drive) {
+        double separation_m = 0.0;
+        if constexpr (requires { drive.wheel_separation_m; }) {
+          separation_m = drive.wheel_separation_m;
+        } else {
+          separation_m = drive.track_separation_m;
+        }
+        if (separation_m > 0.0) configured.wheel_separation_m = separation_m;
+      },
+      model.drive);
+  return configured;
+}
+
 ServerCore::ServerCore(ServerConfig config)
     : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {}
 
@@ -257,7 +272,8 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
     control = std::make_shared<RobotControl>();
     control->update([&](ControlState& c) { c.behaviour = config_.control.initial_behaviour; });
   }
-  auto robot = std::make_shared<Robot>(model, std::move(target_world), config_.bearcat, std::move(control));
+  auto robot = std::make_shared<Robot>(model, std::move(target_world), bearcat_params_for(*model, config_.bearcat),
+                                       std::move(control));
   robots_[model->id] = robot;
   robots_generation_.store(next_snapshot_generation(), std::memory_order_release);
   return robot;

@@ -194,6 +194,10 @@ struct RobotModel {
   [[nodiscard]] bool has_sensor(const std::string& name) const;
 };
 
+// The Bearcat behaviour's parameters for one robot: the configured ones (section `bearcat:`), with the wheel (or
+// track) separation the robot's own drive declares, which turns the behaviour's wheel speeds into its body velocity.
+control::BearcatParams bearcat_params_for(const RobotModel& model, control::BearcatParams configured);
+
 class SessionContext;
 
 // Which controller session holds a robot's lease, and until when.

@@ -60,5 +60,27 @@ TEST(ServerInstances, TwoServersInOneProcessKeepTheirOwnTerrainSettings) {
   EXPECT_TRUE(collide_octomap(*low_again, box, over_the_slab).hit);
 }
 
+// Each robot's Bearcat behaviour turns wheel speeds into motion with its own wheel (or track) separation, not the one
+// robot's in the configuration: a small differential robot and a tracked one on the same server differ.
+TEST(ServerInstances, EveryRobotsBearcatUsesItsOwnWheelSeparation) {
+  ServerCore core{ServerConfig{}};
+  auto small = std::make_shared<RobotModel>();
+  small->id = "small";
+  small->drive = geometry::DifferentialDriveParams{0.3, 0.05, 0.5};
+  auto tracked = std::make_shared<RobotModel>();
+  tracked->id = "tracked";
+  geometry::SkidSteerParams tracks = geometry::ugv_skid_steer_params();
+  tracks.track_separation_m = 0.55;
+  tracked->drive = tracks;
+  std::string error;
+  const auto small_robot = core.register_robot(small, "default", error);
+  const auto tracked_robot = core.register_robot(tracked, "default", error);
+  ASSERT_TRUE(small_robot && tracked_robot) << error;
+  EXPECT_DOUBLE_EQ(small_robot->behaviour_on_strand().params().wheel_separation_m, 0.3);
+  EXPECT_DOUBLE_EQ(tracked_robot->behaviour_on_strand().params().wheel_separation_m, 0.55);
+  EXPECT_DOUBLE_EQ(bearcat_params_for(*small, core.config().bearcat).wheel_separation_m, 0.3);
+  EXPECT_DOUBLE_EQ(core.config().bearcat.wheel_separation_m, 0.7) << "the configuration itself is left alone";
+}
+
 }  // namespace
 }  // namespace occgeo::service

@@ -146,7 +146,7 @@ void fill_guard(const control::GuardDecision& decision, double requested_linear_
 std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
                                                    const RobotModel& model, const ServerConfig& config) {
   const control::RobotShape shape = robot_shape(model);
-  if (name == "bearcat") return control::make_bearcat(config.bearcat);
+  if (name == "bearcat") return control::make_bearcat(bearcat_params_for(model, config.bearcat));
   if (name == "wander") return control::make_wander(control::WanderParams{}, shape);
   if ((name == "goto" || name == "waypoints") && request.escape()) {
     v1::DriveRequest plain = request;
