@@ -236,6 +236,24 @@ if batch:
         f"errors {batch['errors']}.")
 add("")
 
+# ---- growth
+add("## Cost per scan as the map grows")
+add("")
+add("`bench_growth`: one 360-beam, 80 m lidar scan through every model (PTEM, HIMM grid, octree, distance field), every")
+add("model published after it, on outdoor worlds of 20, 100 and 300 m a side already mapped from a lattice of poses 8 m")
+add("apart (one box per 16 m²). Goal: the largest world's cost per scan within 1.5× of the smallest's.")
+add("")
+try:
+    growth_text = open(os.path.join(work, "inprocess", "bench_growth.json")).read()
+    growth_lines = [line for line in growth_text.splitlines() if line.startswith("growth:")]
+except OSError:
+    growth_lines = []
+for line in growth_lines:
+    add(f"- {line[len('growth:'):].strip()}")
+if not growth_lines:
+    add("- (bench_growth did not run)")
+add("")
+
 # ---- ingest
 add("## Ingest under query load")
 add("")
