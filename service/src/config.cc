@@ -261,6 +261,7 @@ void ServerConfig::validate() const {
   validate_block(guard, "guard");
   validate_block(ptem.params, "ptem");
   require(limits.max_octree_reply_bytes > 0, "limits.max_octree_reply_bytes", "must be positive");
+  require(limits.max_scan_voxels > 0, "limits.max_scan_voxels", "must be positive");
   validate_block(octomap, "octomap");
   require(octomap_publish_every_messages <= 1000000, "octomap.publish_every_messages", "must be in [0, 1000000]");
   validate_block(terrain, "terrain");
@@ -299,6 +300,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_point_cloud_points", config.limits.max_point_cloud_points)
                        .field("max_ptem_query_points", config.limits.max_ptem_query_points)
                        .field("max_octree_reply_bytes", config.limits.max_octree_reply_bytes)
+                       .field("max_scan_voxels", config.limits.max_scan_voxels)
                        .field("max_batch_queries", config.limits.max_batch_queries)
                        .field("max_pending_requests", config.limits.max_pending_requests)
                        .field("max_watch_queue_messages", config.limits.max_watch_queue_messages)

@@ -418,6 +418,34 @@ std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel
   return std::nullopt;
 }
 
+std::uint64_t scan_voxel_estimate(const v1::LaserScan& scan, const LaserModel& laser, double octree_max_range_m,
+                                  double resolution_m) {
+  const double cut_m = std::min(octree_max_range_m, laser.range_max_m);
+  std::uint64_t voxels = 0;
+  for (const float range : scan.ranges()) {
+    const double length_m = std::min(static_cast<double>(range), cut_m);
+    voxels += static_cast<std::uint64_t>(std::ceil(length_m / resolution_m)) + 1;
+  }
+  return voxels;
+}
+
+std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, double octree_max_range_m, double resolution_m) {
+  std::uint64_t voxels = 0;
+  for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
+    const double length_m =
+        std::min(Eigen::Vector3d(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2)).norm(), octree_max_range_m);
+    voxels += static_cast<std::uint64_t>(std::ceil(length_m / resolution_m)) + 1;
+  }
+  return voxels;
+}
+
+std::optional<FieldError> check_voxel_budget(std::uint64_t voxels, std::uint64_t limit, const std::string& field) {
+  if (voxels <= limit) return std::nullopt;
+  return field_error(field, "would touch about " + std::to_string(voxels) +
+                                " octree voxels, more than limits.max_scan_voxels (" + std::to_string(limit) +
+                                "); send fewer or shorter rays, or raise the limit");
+}
+
 namespace {
 
 // Every sensor message's ranges: finite and non-negative metres, each one named when it is not.

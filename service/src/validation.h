@@ -30,6 +30,15 @@ std::optional<FieldError> check_odometry(const v1::Odometry& odometry, const Lim
 // Checks a scan against its robot's spec: known sensor, beam count, finite non-negative ranges.
 std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel& model);
 
+// The octree voxels a sensor message's rays would touch at most: per ray, its length (cut at the octree's
+// max_range_m; a no-return beam counts as cut) over the resolution, plus its end voxel. For an already checked scan
+// or cloud of the robot's spec.
+std::uint64_t scan_voxel_estimate(const v1::LaserScan& scan, const LaserModel& laser, double octree_max_range_m,
+                                  double resolution_m);
+std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, double octree_max_range_m, double resolution_m);
+// An error naming limits.max_scan_voxels when `voxels` exceeds it (field: the message's ranges or points).
+std::optional<FieldError> check_voxel_budget(std::uint64_t voxels, std::uint64_t limit, const std::string& field);
+
 // How far outside the spec's [servo_min_rad, servo_max_rad] a reported servo angle may be, radians:
 // drivers compute angles as min + k * step in floating point and may round past the end.
 inline constexpr double kServoAngleTolerance_rad = 1e-4;

@@ -405,7 +405,6 @@ TEST(SlowClient, StuckReaderIsDroppedWhileTheRobotKeepsDriving) {
   EXPECT_NE(log().find("session_slow_client_dropped"), std::string::npos) << "the stuck client should be dropped";
 }
 
-
 // limits.max_batch_queries bounds every batch: one entry more is refused naming the field and the limit, and a batch
 // at the limit is answered in full.
 TEST(BatchLimit, ConfiguredLimitRefusesALargerBatchNamingIt) {
@@ -434,6 +433,54 @@ TEST(BatchLimit, ConfiguredLimitRefusesALargerBatchNamingIt) {
       EXPECT_EQ(reply->collision_batch().results_size(), 4);
     }
   }
+}
+
+// A scan whose rays would touch more octree voxels than limits.max_scan_voxels is refused naming the limit; the
+// server stays up, and the robot's next ordinary scan is taken and answered.
+TEST(ScanVoxelLimit, ScanOverTheLimitIsRefusedNamingItAndTheRobotCarriesOn) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  // The Bearcat's LMS200: 181 beams; at 4 m each touches 81 voxels of 5 cm, 14661 in all; at 1 m, 3801.
+  std::ofstream(config) << "limits:\n  max_scan_voxels: 10000\n";
+  ServerProcess server(dir.path(), {"--config", config.string()});
+  auto driver = open_driver_session(server.address(), "robot-a");
+  v1::ClientMessage odometry;
+  odometry.mutable_odometry()->set_seq(1);
+  odometry.mutable_odometry()->set_stamp_s(0.1);
+  odometry.mutable_odometry()->mutable_pose()->set_x(0.0);
+  driver.send(odometry);
+  const auto scan_of = [](std::uint64_t seq, float range_m) {
+    v1::ClientMessage scan;
+    scan.mutable_laser_scan()->set_sensor("front_laser");
+    scan.mutable_laser_scan()->set_seq(seq);
+    scan.mutable_laser_scan()->set_stamp_s(0.1 * static_cast<double>(seq));
+    for (int beam = 0; beam < 181; ++beam) scan.mutable_laser_scan()->add_ranges(range_m);
+    return scan;
+  };
+  driver.send(scan_of(2, 4.0F));
+  bool refused = false;
+  for (int i = 0; i < 10 && !refused; ++i) {
+    const auto reply = driver.receive(std::chrono::seconds(5));
+    ASSERT_TRUE(reply) << "no answer to the oversized scan";
+    if (reply->has_error()) {
+      refused = true;
+      EXPECT_EQ(reply->error().code(), v1::ERROR_INVALID_ARGUMENT);
+      EXPECT_EQ(reply->error().field(), "laser_scan.ranges");
+      EXPECT_NE(reply->error().message().find("14661 octree voxels, more than limits.max_scan_voxels (10000)"),
+                std::string::npos)
+          << reply->error().message();
+    }
+    EXPECT_FALSE(reply->has_scan_ack()) << "the oversized scan must not be acknowledged";
+  }
+  ASSERT_TRUE(refused);
+  driver.send(scan_of(3, 1.0F));
+  bool answered = false;
+  for (int i = 0; i < 10 && !answered; ++i) {
+    const auto reply = driver.receive(std::chrono::seconds(5));
+    ASSERT_TRUE(reply) << "no answer to the ordinary scan";
+    answered = reply->has_motion_command() && reply->motion_command().answers_scan_seq() == 3;
+  }
+  EXPECT_TRUE(answered);
 }
 
 }  // namespace

@@ -188,6 +188,14 @@ void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
     reject_sensor_message(session, *robot, *error, scan.seq());
     return;
   }
+  // A scan that would cost the world's strand far more than a sensor's normal scan is refused before it is queued.
+  const ServerConfig& config = session->core().config();
+  const std::uint64_t voxels = scan_voxel_estimate(scan, *robot->model().find_laser(scan.sensor()),
+                                                   config.octomap.max_range_m, config.octomap.resolution_m);
+  if (auto error = check_voxel_budget(voxels, config.limits.max_scan_voxels, "laser_scan.ranges")) {
+    reject_sensor_message(session, *robot, *error, scan.seq());
+    return;
+  }
   const double expiry_s = session->core().config().control.command_expiry_s;
   asio::post(robot->world().strand(), [session, robot, scan = std::move(scan), expiry_s] {
     run_guarded(session, "laser_scan", 0, [&] { ingest_on_strand(session, robot, scan, expiry_s); });

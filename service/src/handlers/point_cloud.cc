@@ -47,6 +47,12 @@ void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
     reject_sensor_message(session, *robot, *error, message.seq());
     return;
   }
+  const ServerConfig& config = session->core().config();
+  const std::uint64_t voxels = cloud_voxel_estimate(message, config.octomap.max_range_m, config.octomap.resolution_m);
+  if (auto error = check_voxel_budget(voxels, config.limits.max_scan_voxels, "point_cloud.xyz")) {
+    reject_sensor_message(session, *robot, *error, message.seq());
+    return;
+  }
   asio::post(robot->world().strand(), [session, robot, message = std::move(message)] {
     run_guarded(session, "point_cloud", 0, [&] {
       const RobotModel& model = robot->model();

@@ -37,6 +37,8 @@ struct LimitsConfig {
   std::size_t max_grid_reply_cells = std::size_t{16} << 20;    // whole-grid replies larger than this are refused
   std::size_t max_point_cloud_points = 200000;                 // larger point clouds are rejected (each is a ray)
   std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
+  // Octree voxels one laser scan or point cloud may touch (scan_voxel_estimate): more is refused naming the limit.
+  std::uint64_t max_scan_voxels = 25000000;
   std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
                                                                // max_send_queue_bytes / 2) is refused
   std::size_t max_batch_queries = 100000;  // entries (poses, rays, points) in one batch request
