@@ -70,13 +70,24 @@ TEST(ReplayArgs, ParsesOptionsAndNamesMistakes) {
     return std::string("no error");
   };
   EXPECT_EQ(message({"f.log"}), "missing required option --format");
-  EXPECT_EQ(message({"--format", "rosbag", "f.log"}), "--format must be carmen, dpslam or urg, not 'rosbag'");
+  EXPECT_EQ(message({"--format", "rosbag", "f.log"}), "--format must be carmen, dpslam, urg or mcap, not 'rosbag'");
   EXPECT_EQ(message({"--format", "carmen"}), "missing the log FILE");
   EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "2", "--max"}), "give --speed or --max, not both");
   EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "-1"}), "option --speed needs a positive number, not '-1'");
   EXPECT_EQ(message({"--format", "carmen", "f", "--bogus"}), "unknown option '--bogus'");
   EXPECT_EQ(message({"--format", "carmen", "f", "g"}), "unexpected argument 'g' (one log file only)");
   EXPECT_EQ(message({"--format", "carmen", "f", "--out"}), "option --out needs a value");
+  EXPECT_EQ(message({"--format", "mcap", "f", "--laser-pose", "1,2,3"}),
+            "option --laser-pose needs x,y,z,roll,pitch,yaw, not '1,2,3'");
+  EXPECT_EQ(message({"--format", "mcap", "f", "--laser-pose", "1,2,3,4,5,x"}),
+            "option --laser-pose needs six numbers x,y,z,roll,pitch,yaw, not '1,2,3,4,5,x'");
+  const ReplayOptions mcap = parse_replay_args({"--format", "mcap", "bag.mcap", "--topic-scan", "/front/scan",
+                                                "--topic-odom", "/wheel/odom", "--laser-pose", "0.1,0,0.2,0,0,1.5"});
+  EXPECT_EQ(mcap.format, LogFormat::mcap);
+  EXPECT_EQ(mcap.mcap.topic_scan, "/front/scan");
+  EXPECT_EQ(mcap.mcap.topic_odom, "/wheel/odom");
+  ASSERT_TRUE(mcap.mcap.laser_pose);
+  EXPECT_DOUBLE_EQ((*mcap.mcap.laser_pose)[5], 1.5);
 }
 
 TEST(Consistency, CountsEndpointsWithinOneCellOfAnOccupiedCell) {

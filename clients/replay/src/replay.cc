@@ -90,7 +90,8 @@ class Progress {
   int last_decile_ = 0;
 };
 
-v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_max_m) {
+v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_min_m,
+                        double range_max_m) {
   v1::RobotSpec spec;
   spec.set_model("replay-" + format_name(format));
   const bool urg = format == LogFormat::urg;
@@ -114,7 +115,7 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
   laser.set_angle_min_rad(first.angle_min_rad);
   laser.set_angle_increment_rad(first.angle_increment_rad);
   laser.set_beam_count(static_cast<std::uint32_t>(first.ranges_m.size()));
-  laser.set_range_min_m(traits.range_min_m);
+  laser.set_range_min_m(range_min_m);
   laser.set_range_max_m(range_max_m);
   laser.set_scan_period_s(traits.nominal_period_s);
   spec.set_command_timeout_s(1.0);
@@ -154,23 +155,25 @@ class Pass {
         diagnostics_(diagnostics),
         err_(err),
         traits_(traits_of(options.format)),
+        range_min_m_(traits_.range_min_m),
         range_max_m_(options.max_range_m.value_or(traits_.default_range_max_m)),
         stamps_(traits_.nominal_period_s, traits_.wrap_period_s) {}
 
   PassResult run() {
-    LineSource source(options_.file);
-    auto parser = make_parser(options_.format, diagnostics_);
+    auto source = open_scan_source(options_.format, options_.file, options_.mcap, diagnostics_,
+                                   config_.even_only ? nullptr : &err_);
     std::optional<ScanRecord> spec_scan;
     std::optional<client::Connection> connection;
     Progress progress(err_, ::isatty(STDERR_FILENO) == 1 && &err_ == &std::cerr, config_.label);
     const auto start = Clock::now();
     std::optional<double> first_stamp;
     std::uint64_t index = 0;  // scan number in the log, 0-based
-    while (const auto line = source.next()) {
-      auto scan = parser->parse_line(*line, source.line_number());
-      if (!scan) continue;
+    while (auto scan = source->next()) {
       if (!spec_scan) {
         spec_scan = *scan;
+        // A ROS LaserScan states its own limits; an explicit --max-range still wins.
+        if (scan->sensor_range_min_m) range_min_m_ = *scan->sensor_range_min_m;
+        if (scan->sensor_range_max_m && !options_.max_range_m) range_max_m_ = *scan->sensor_range_max_m;
         connection.emplace(connect(*spec_scan));
       } else if (!same_geometry(*spec_scan, *scan)) {
         diagnostics_.warn("scan_geometry_mismatch", scan->line_number,
@@ -181,7 +184,7 @@ class Pass {
       const std::uint64_t this_index = index++;
       const bool even = this_index % 2 == 0;
       if (config_.consistency_grid != nullptr && !even) {
-        result_.consistency.add_scan(*config_.consistency_grid, *scan, traits_.range_min_m, range_max_m_);
+        result_.consistency.add_scan(*config_.consistency_grid, *scan, range_min_m_, range_max_m_);
       }
       if (config_.even_only && !even) continue;
       if (!first_stamp) first_stamp = stamp;
@@ -193,7 +196,7 @@ class Pass {
       send_scan(*connection, this_index + 1, stamp, *scan);
       result_.trajectory.push_back({scan->X_WB.x, scan->X_WB.y, scan->X_WB.theta});
       ++result_.scans;
-      progress.update(source.progress(), result_.scans, seconds_since(start));
+      progress.update(source->progress(), result_.scans, seconds_since(start));
     }
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
@@ -216,7 +219,7 @@ class Pass {
     hello.set_client_name("occgeo-replay");
     connection.hello(hello);
     v1::ClientMessage spec;
-    *spec.mutable_robot_spec() = make_spec(options_.format, first, traits_, range_max_m_);
+    *spec.mutable_robot_spec() = make_spec(options_.format, first, traits_, range_min_m_, range_max_m_);
     connection.send(spec);
     return connection;
   }
@@ -276,6 +279,7 @@ class Pass {
   Diagnostics& diagnostics_;
   std::ostream& err_;
   FormatTraits traits_;
+  double range_min_m_;
   double range_max_m_;
   TimestampSanitizer stamps_;
   PassResult result_;

@@ -11,6 +11,7 @@
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/replay/diagnostics.h"
 #include "occgeo/replay/parsers.h"
+#include "occgeo/replay/scan_source.h"
 
 namespace occgeo::replay {
 
@@ -28,6 +29,7 @@ struct ReplayOptions {
   std::string out_prefix;             // empty: write no map files
   std::optional<double> max_range_m;  // nullopt: the format's default
   double ack_timeout_s = 30.0;        // longest wait for one scan's answer before giving up
+  McapOptions mcap;                   // --format mcap: topics and laser mount
 };
 
 // Parses the arguments after "replay"; throws std::invalid_argument with a message naming the option.
