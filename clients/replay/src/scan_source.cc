@@ -193,10 +193,10 @@ class McapScanSource : public ScanSource {
     record.stamp_s = scan.header.stamp_s > 0.0 ? scan.header.stamp_s : static_cast<double>(message.log_time_ns) * 1e-9;
     record.X_WB = *X_WB;
     record.X_BS = X_BS.pose;
-    record.angle_min_rad = scan.angle_min;
-    record.angle_increment_rad = scan.angle_increment;
-    record.sensor_range_min_m = scan.range_min;
-    record.sensor_range_max_m = scan.range_max;
+    record.angle_min_rad = static_cast<double>(scan.angle_min);
+    record.angle_increment_rad = static_cast<double>(scan.angle_increment);
+    record.sensor_range_min_m = static_cast<double>(scan.range_min);
+    record.sensor_range_max_m = static_cast<double>(scan.range_max);
     record.ranges_m.reserve(scan.ranges.size());
     std::size_t invalid = 0;
     for (const float r : scan.ranges) {
