@@ -129,6 +129,9 @@ TEST_F(McapReplay, NamedTopicsAreUsedAndATopicOfAnotherTypeIsRefused) {
                                       "--topic-scan", "/scan", "--topic-odom", "/odom", "--topic-cloud", "/points"});
   ASSERT_EQ(named.exit_code, 0) << named.err;
   EXPECT_EQ(json_number(named.out, "scans"), 20);
+  EXPECT_EQ(json_number(named.out, "clouds"), 1);
+  EXPECT_EQ(json_number(named.out, "clouds_acked"), 1) << "the bunny's 397 points were accepted";
+  EXPECT_EQ(json_number(named.out, "errors"), 0);
   EXPECT_NE(named.err.find("point clouds from topic /points (sensor_msgs/msg/PointCloud2)"), std::string::npos)
       << named.err;
 

@@ -90,6 +90,8 @@ class Progress {
   int last_decile_ = 0;
 };
 
+constexpr const char* kCloudSensor = "cloud";
+
 v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_min_m,
                         double range_max_m) {
   v1::RobotSpec spec;
@@ -118,6 +120,16 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
   laser.set_range_min_m(range_min_m);
   laser.set_range_max_m(range_max_m);
   laser.set_scan_period_s(traits.nominal_period_s);
+  if (format == LogFormat::mcap) {
+    // A bag's PointCloud2 topic: points are sent already in base_link (their TF mount applied), so the sensor sits
+    // at base_link's origin.
+    auto& cloud = *spec.add_sensors();
+    cloud.set_name(kCloudSensor);
+    cloud.mutable_mount()->mutable_position();
+    auto& model = *cloud.mutable_point_cloud();
+    model.set_range_max_m(range_max_m);
+    model.set_max_points(100000);
+  }
   spec.set_command_timeout_s(1.0);
   return spec;
 }
@@ -140,6 +152,8 @@ struct PassConfig {
 struct PassResult {
   std::uint64_t scans = 0;
   std::uint64_t acked = 0;
+  std::uint64_t clouds = 0;
+  std::uint64_t clouds_acked = 0;
   std::uint64_t errors = 0;
   double duration_s = 0.0;
   ConsistencyCounter consistency;
@@ -169,6 +183,7 @@ class Pass {
     std::optional<double> first_stamp;
     std::uint64_t index = 0;  // scan number in the log, 0-based
     while (auto scan = source->next()) {
+      send_clouds(*source, connection, index);
       if (!spec_scan) {
         spec_scan = *scan;
         // A ROS LaserScan states its own limits; an explicit --max-range still wins.
@@ -193,11 +208,13 @@ class Pass {
                                      std::chrono::duration<double>((stamp - *first_stamp) / options_.speed));
         std::this_thread::sleep_until(due);
       }
-      send_scan(*connection, this_index + 1, stamp, *scan);
+      last_stamp_ = stamp;
+      send_scan(*connection, this_index + 1 + clouds_sent_, stamp, *scan);
       result_.trajectory.push_back({scan->X_WB.x, scan->X_WB.y, scan->X_WB.theta});
       ++result_.scans;
       progress.update(source->progress(), result_.scans, seconds_since(start));
     }
+    send_clouds(*source, connection, index);
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
     if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
@@ -246,6 +263,42 @@ class Pass {
     await_answer(connection, seq);
   }
 
+  // Sends the clouds the source read so far (full pass only: the consistency check is about scans). Each goes after
+  // the scan before it with the next seq, the stamp of that scan and an odometry message with its own pose.
+  void send_clouds(ScanSource& source, std::optional<client::Connection>& connection, std::uint64_t scans_so_far) {
+    for (CloudRecord& cloud : source.take_clouds()) {
+      if (config_.even_only) continue;
+      if (!connection) {
+        diagnostics_.warn("cloud_before_first_scan", cloud.number,
+                          "point cloud comes before the first laser scan (which starts the robot); cloud skipped");
+        continue;
+      }
+      const std::uint64_t seq = scans_so_far + ++clouds_sent_;
+      v1::ClientMessage odometry;
+      auto& odom = *odometry.mutable_odometry();
+      odom.set_seq(seq);
+      odom.set_stamp_s(last_stamp_);
+      odom.mutable_pose()->set_x(cloud.X_WB.x);
+      odom.mutable_pose()->set_y(cloud.X_WB.y);
+      odom.mutable_pose()->set_theta(cloud.X_WB.theta);
+      connection->send(odometry);
+      v1::ClientMessage message;
+      auto& points = *message.mutable_point_cloud();
+      points.set_sensor(kCloudSensor);
+      points.set_seq(seq);
+      points.set_stamp_s(last_stamp_);
+      points.mutable_xyz()->Assign(cloud.xyz_B.begin(), cloud.xyz_B.end());
+      connection->send(message);
+      ++result_.clouds;
+      const std::uint64_t acked_before = result_.acked;
+      await_answer(*connection, seq);
+      if (result_.acked > acked_before) {
+        --result_.acked;  // counted as a cloud, not a scan
+        ++result_.clouds_acked;
+      }
+    }
+  }
+
   // Lockstep: wait for the scan's ScanAck (or its Error) so the server is never flooded.
   void await_answer(client::Connection& connection, std::uint64_t seq) {
     const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
@@ -283,6 +336,8 @@ class Pass {
   double range_max_m_;
   TimestampSanitizer stamps_;
   PassResult result_;
+  std::uint64_t clouds_sent_ = 0;  // clouds take seqs between the scans'
+  double last_stamp_ = 0.0;        // of the last scan sent
 };
 
 }  // namespace
@@ -338,6 +393,8 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
   PassResult full = Pass(options, config, diagnostics, err).run();
   summary.scans = full.scans;
   summary.scans_acked = full.acked;
+  summary.clouds = full.clouds;
+  summary.clouds_acked = full.clouds_acked;
   summary.errors += full.errors;
   summary.duration_s = full.duration_s;
   summary.scans_per_s = full.duration_s > 0.0 ? static_cast<double>(full.scans) / full.duration_s : 0.0;
@@ -375,7 +432,8 @@ std::string summary_json(const ReplayOptions& options, const ReplaySummary& summ
       << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
       << ",\"no_return_beams\":" << diagnostics.no_return_beams()
       << ",\"invalid_beams\":" << diagnostics.invalid_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
-      << ",\"scans_per_s\":" << fmt(summary.scans_per_s)
+      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"clouds\":" << summary.clouds
+      << ",\"clouds_acked\":" << summary.clouds_acked
       << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
   if (summary.consistency) {
     out << ",\"consistency\":" << fmt(*summary.consistency)

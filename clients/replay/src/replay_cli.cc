@@ -66,7 +66,8 @@ then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanA
   --topic-scan T       mcap: the sensor_msgs/msg/LaserScan topic (default: the first one in the file)
   --topic-odom T       mcap: the nav_msgs/msg/Odometry topic (default: the first one; without any, TF
                        odom -> base_link from tf2_msgs/msg/TFMessage topics)
-  --topic-cloud T      mcap: the sensor_msgs/msg/PointCloud2 topic whose clouds are checked (default: the first)
+  --topic-cloud T      mcap: the sensor_msgs/msg/PointCloud2 topic (default: the first); its x, y, z points are
+                       sent in base_link as PointCloud messages of the sensor "cloud"
   --laser-pose x,y,z,roll,pitch,yaw
                        mcap: the laser in base_link, metres and radians (default: from TF, else at base_link)
 Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <utility>
 
 #include "occgeo/replay/line_source.h"
 #include "occgeo/replay/ros2_messages.h"
@@ -42,7 +43,8 @@ PlanarTransform planar(std::string parent, const RosPose& pose) {
   return {std::move(parent), {pose.x, pose.y, rpy.yaw}, std::cos(rpy.roll) * std::cos(rpy.pitch) < 0.0};
 }
 
-constexpr std::size_t kMaxBeams = 100000;  // the server's default limit
+constexpr std::size_t kMaxBeams = 100000;        // the server's default limit
+constexpr std::size_t kMaxCloudPoints = 100000;  // the server's default limit
 
 bool finite(const LogPose& pose) { return std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.theta); }
 
@@ -82,8 +84,7 @@ class McapScanSource : public ScanSource {
             transforms_[transform.child_frame_id] = planar(transform.header.frame_id, transform.transform);
           }
         } else if (wants(topic, type, kPointCloud2Type, options_.topic_cloud, cloud_topic_, "point clouds", *message)) {
-          decode_point_cloud2(message->data);  // checked; the 2D replay maps laser scans
-          ++clouds_;
+          take_cloud(decode_point_cloud2(message->data), *message);
         } else if (seen_topics_.insert(topic).second && !type.empty()) {
           other_topics_.push_back(topic + " (" + type + ")");
         }
@@ -161,10 +162,56 @@ class McapScanSource : public ScanSource {
     return chain(base_frame_, root)->pose;
   }
 
+  std::vector<CloudRecord> take_clouds() override { return std::exchange(clouds_, {}); }
+
+  // The robot's latest pose: from odometry, or from TF when there is no odometry topic.
+  std::optional<LogPose> robot_pose() const {
+    if (odometry_pose_) return odometry_pose_;
+    if (!odom_topic_ && options_.topic_odom.empty()) return tf_base_pose();
+    return std::nullopt;
+  }
+
+  void take_cloud(RosPointCloud cloud, const McapMessage& message) {
+    ++clouds_seen_;
+    const auto X_WB = robot_pose();
+    if (!X_WB || !finite(*X_WB)) {
+      diagnostics_.warn(
+          "no_pose", clouds_seen_,
+          "point cloud at offset " + std::to_string(message.offset) + " has no robot pose; cloud skipped");
+      return;
+    }
+    if (cloud.xyz.size() / 3 > kMaxCloudPoints) {
+      diagnostics_.warn("cloud_too_large", clouds_seen_,
+                        "point cloud at offset " + std::to_string(message.offset) + " has " +
+                            std::to_string(cloud.xyz.size() / 3) + " points, more than the " +
+                            std::to_string(kMaxCloudPoints) + " sent; cloud skipped");
+      return;
+    }
+    PlanarTransform X_BC{base_frame_, {}, false};
+    if (const auto mounted = chain(cloud.header.frame_id, base_frame_)) {
+      X_BC = *mounted;
+    } else if (cloud.header.frame_id != base_frame_) {
+      diagnostics_.warn("cloud_pose_unknown", clouds_seen_,
+                        "no TF from '" + base_frame_ + "' to the cloud's frame '" + cloud.header.frame_id +
+                            "'; the cloud is taken to be in the base frame");
+    }
+    CloudRecord record{clouds_seen_, cloud.header.stamp_s, *X_WB, {}};
+    record.xyz_B.reserve(cloud.xyz.size());
+    const double c = std::cos(X_BC.pose.theta), s = std::sin(X_BC.pose.theta);
+    for (std::size_t i = 0; i + 2 < cloud.xyz.size(); i += 3) {
+      const double x = static_cast<double>(cloud.xyz[i]);
+      const double y = static_cast<double>(X_BC.flipped ? -cloud.xyz[i + 1] : cloud.xyz[i + 1]);
+      const double z = static_cast<double>(X_BC.flipped ? -cloud.xyz[i + 2] : cloud.xyz[i + 2]);
+      record.xyz_B.push_back(static_cast<float>(X_BC.pose.x + c * x - s * y));
+      record.xyz_B.push_back(static_cast<float>(X_BC.pose.y + s * x + c * y));
+      record.xyz_B.push_back(static_cast<float>(z));
+    }
+    clouds_.push_back(std::move(record));
+  }
+
   std::optional<ScanRecord> to_record(RosLaserScan scan, const McapMessage& message) {
     ++scans_seen_;
-    std::optional<LogPose> X_WB = odometry_pose_;
-    if (!X_WB && !odom_topic_ && options_.topic_odom.empty()) X_WB = tf_base_pose();
+    const std::optional<LogPose> X_WB = robot_pose();
     if (!X_WB) {
       diagnostics_.warn("no_pose", scans_seen_,
                         "scan at offset " + std::to_string(message.offset) +
@@ -232,7 +279,8 @@ class McapScanSource : public ScanSource {
   std::string base_frame_ = "base_link";
   std::optional<LogPose> odometry_pose_;
   std::uint64_t scans_seen_ = 0;
-  std::uint64_t clouds_ = 0;
+  std::uint64_t clouds_seen_ = 0;
+  std::vector<CloudRecord> clouds_;
 };
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <optional>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "occgeo/replay/diagnostics.h"
 #include "occgeo/replay/mcap.h"
@@ -22,6 +23,15 @@ struct McapOptions {
   std::optional<std::array<double, 6>> laser_pose;
 };
 
+// A point cloud of a bag, in base_link (its frame's TF mount applied in the plane), with the robot pose it was taken
+// at.
+struct CloudRecord {
+  std::uint64_t number = 0;  // 1-based cloud message number, for warnings
+  double stamp_s = 0.0;
+  LogPose X_WB;
+  std::vector<float> xyz_B;  // x, y, z triples, metres
+};
+
 // The scans of a log, in order, each with the robot pose it was taken at.
 class ScanSource {
  public:
@@ -30,6 +40,8 @@ class ScanSource {
   virtual std::optional<ScanRecord> next() = 0;
   // Fraction of the input consumed, 0..1.
   [[nodiscard]] virtual double progress() const = 0;
+  // The point clouds read since the last call (only bags have any), in file order.
+  virtual std::vector<CloudRecord> take_clouds() { return {}; }
 };
 
 // Opens `file` in `format`; `notes` (nullptr: none) hears which topics an MCAP replay chose.
