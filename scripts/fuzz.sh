@@ -6,10 +6,10 @@
 #   --seconds S   run each target for S seconds (default 60)
 #   --runs N      run each target for N executions instead
 #   --ci          the bounded run CI uses: 30 s per target for the targets that do not need the server library
-#                 (framing messages log_parser map_file), so the clang build stays small; the server and config
+#                 (framing messages log_parser mcap map_file), so the clang build stays small; the server and config
 #                 targets still replay their corpus in the ordinary build
 #   --jobs J      targets run at once (default 2)
-#   --targets     a subset of: framing messages server log_parser config map_file
+#   --targets     a subset of: framing messages server log_parser mcap config map_file
 #   --build-dir   where to build (default build-fuzz/ in the repository); it also keeps the grown corpora
 #                 (corpus/<target>/) and any crashing inputs (artifacts/)
 #   --no-build    use the binaries already in the build directory
@@ -28,7 +28,7 @@ jobs=2
 build=1
 ci=0
 nice_cmd=()
-targets=(framing messages server log_parser config map_file)
+targets=(framing messages server log_parser mcap config map_file)
 targets_given=0
 
 while [[ $# -gt 0 ]]; do
@@ -46,7 +46,7 @@ while [[ $# -gt 0 ]]; do
   esac
 done
 
-if [[ $ci -eq 1 && $targets_given -eq 0 ]]; then targets=(framing messages log_parser map_file); fi
+if [[ $ci -eq 1 && $targets_given -eq 0 ]]; then targets=(framing messages log_parser mcap map_file); fi
 
 if ! command -v clang++ >/dev/null 2>&1; then
   echo "fuzz.sh: skipped: clang++ is not installed (libFuzzer needs clang; see scripts/setup.sh)"

@@ -20,6 +20,9 @@ packages=(
   redis-server redis-tools
   chromium
 )
+# The ecosystem tests' npm clients (tests/ecosystem) need Node.js 18+ with npm. A node that is already installed (e.g.
+# NodeSource's, which bundles npm and conflicts with Debian's npm package) is used as it is.
+command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
 
 missing=()
 for p in "${packages[@]}"; do

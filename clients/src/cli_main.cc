@@ -79,8 +79,9 @@ commands:
                                              the same along waypoints with PTEM guidance
   estop --robot ID [--release] [--token T]   engage the robot's e-stop (as an observer); --release frees it
                                              (as a controller: acquires the lease, releases, returns it)
-  replay --format carmen|dpslam|urg FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
-                                             stream a recorded laser log as a driver (occgeo replay --help)
+  replay --format carmen|dpslam|urg|mcap FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
+                                             stream a recorded laser log or ROS 2 bag as a driver
+                                             (occgeo replay --help)
 common options (before or after the command):
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print the reply as one JSON object

@@ -70,7 +70,8 @@ TEST(ReplayArgs, ParsesOptionsAndNamesMistakes) {
     return std::string("no error");
   };
   EXPECT_EQ(message({"f.log"}), "option '--format' is required");
-  EXPECT_EQ(message({"--format", "rosbag", "f.log"}), "option '--format' needs carmen, dpslam or urg, got 'rosbag'");
+  EXPECT_EQ(message({"--format", "rosbag", "f.log"}),
+            "option '--format' needs carmen, dpslam, urg or mcap, got 'rosbag'");
   EXPECT_EQ(message({"--format", "carmen"}), "missing the log FILE");
   EXPECT_EQ(message({"--format", "carmen", "f", "--speed", "2", "--max"}),
             "options '--speed' and '--max' exclude each other");
@@ -79,6 +80,17 @@ TEST(ReplayArgs, ParsesOptionsAndNamesMistakes) {
   EXPECT_EQ(message({"--format", "carmen", "f", "--bogus"}), "unknown option '--bogus'");
   EXPECT_EQ(message({"--format", "carmen", "f", "g"}), "unexpected argument 'g' (one log file only)");
   EXPECT_EQ(message({"--format", "carmen", "f", "--out"}), "option '--out' needs a value");
+  EXPECT_EQ(message({"--format", "mcap", "f", "--laser-pose", "1,2,3"}),
+            "option '--laser-pose' needs x,y,z,roll,pitch,yaw, got '1,2,3'");
+  EXPECT_EQ(message({"--format", "mcap", "f", "--laser-pose", "1,2,3,4,5,x"}),
+            "option '--laser-pose' needs six numbers x,y,z,roll,pitch,yaw, got '1,2,3,4,5,x'");
+  const ReplayOptions mcap = parse_replay_args({"--format", "mcap", "bag.mcap", "--topic-scan", "/front/scan",
+                                                "--topic-odom", "/wheel/odom", "--laser-pose", "0.1,0,0.2,0,0,1.5"});
+  EXPECT_EQ(mcap.format, LogFormat::mcap);
+  EXPECT_EQ(mcap.mcap.topic_scan, "/front/scan");
+  EXPECT_EQ(mcap.mcap.topic_odom, "/wheel/odom");
+  ASSERT_TRUE(mcap.mcap.laser_pose);
+  EXPECT_DOUBLE_EQ((*mcap.mcap.laser_pose)[5], 1.5);
 }
 
 TEST(Consistency, CountsEndpointsWithinOneCellOfAnOccupiedCell) {

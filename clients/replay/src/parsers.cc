@@ -7,6 +7,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 namespace occgeo::replay {
 namespace {
@@ -359,6 +360,7 @@ std::optional<LogFormat> parse_format(std::string_view name) {
   if (name == "carmen") return LogFormat::carmen;
   if (name == "dpslam") return LogFormat::dpslam;
   if (name == "urg") return LogFormat::urg;
+  if (name == "mcap") return LogFormat::mcap;
   return std::nullopt;
 }
 
@@ -370,6 +372,8 @@ std::string format_name(LogFormat format) {
       return "dpslam";
     case LogFormat::urg:
       return "urg";
+    case LogFormat::mcap:
+      return "mcap";
   }
   return "?";
 }
@@ -382,6 +386,8 @@ std::unique_ptr<LineParser> make_parser(LogFormat format, Diagnostics& diagnosti
       return std::make_unique<DpSlamParser>(diagnostics);
     case LogFormat::urg:
       return std::make_unique<UrgParser>(diagnostics);
+    case LogFormat::mcap:
+      throw std::invalid_argument("MCAP files are not read line by line (see open_scan_source)");
   }
   return nullptr;
 }
@@ -397,6 +403,9 @@ FormatTraits traits_of(LogFormat format) {
     case LogFormat::urg:
       // URG-04LX: readings up to ~5.6 m occur; values below 20 mm are error codes. Stamps are a 32-bit us counter.
       return {5.6, 0.02, 0.1, 4294.967296, 0.2, "urg04lx"};
+    case LogFormat::mcap:
+      // ROS 2 LaserScans carry their own range_min and range_max, which the replay uses instead of these.
+      return {30.0, 0.0, 0.1, 0.0, 0.3, "laser"};
   }
   return {30.0, 0.05, 0.2, 0.0, 0.3, "laser"};
 }

@@ -90,7 +90,10 @@ class Progress {
   int last_decile_ = 0;
 };
 
-v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_max_m) {
+constexpr const char* kCloudSensor = "cloud";
+
+v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatTraits& traits, double range_min_m,
+                        double range_max_m) {
   v1::RobotSpec spec;
   spec.set_model("replay-" + format_name(format));
   const bool urg = format == LogFormat::urg;
@@ -114,9 +117,19 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
   laser.set_angle_min_rad(first.angle_min_rad);
   laser.set_angle_increment_rad(first.angle_increment_rad);
   laser.set_beam_count(static_cast<std::uint32_t>(first.ranges_m.size()));
-  laser.set_range_min_m(traits.range_min_m);
+  laser.set_range_min_m(range_min_m);
   laser.set_range_max_m(range_max_m);
   laser.set_scan_period_s(traits.nominal_period_s);
+  if (format == LogFormat::mcap) {
+    // A bag's PointCloud2 topic: points are sent already in base_link (their TF mount applied), so the sensor sits
+    // at base_link's origin.
+    auto& cloud = *spec.add_sensors();
+    cloud.set_name(kCloudSensor);
+    cloud.mutable_mount()->mutable_position();
+    auto& model = *cloud.mutable_point_cloud();
+    model.set_range_max_m(range_max_m);
+    model.set_max_points(100000);
+  }
   spec.set_command_timeout_s(1.0);
   return spec;
 }
@@ -139,6 +152,8 @@ struct PassConfig {
 struct PassResult {
   std::uint64_t scans = 0;
   std::uint64_t acked = 0;
+  std::uint64_t clouds = 0;
+  std::uint64_t clouds_acked = 0;
   std::uint64_t errors = 0;
   double duration_s = 0.0;
   ConsistencyCounter consistency;
@@ -154,23 +169,26 @@ class Pass {
         diagnostics_(diagnostics),
         err_(err),
         traits_(traits_of(options.format)),
+        range_min_m_(traits_.range_min_m),
         range_max_m_(options.max_range_m.value_or(traits_.default_range_max_m)),
         stamps_(traits_.nominal_period_s, traits_.wrap_period_s) {}
 
   PassResult run() {
-    LineSource source(options_.file);
-    auto parser = make_parser(options_.format, diagnostics_);
+    auto source = open_scan_source(options_.format, options_.file, options_.mcap, diagnostics_,
+                                   config_.even_only ? nullptr : &err_);
     std::optional<ScanRecord> spec_scan;
     std::optional<client::Connection> connection;
     Progress progress(err_, ::isatty(STDERR_FILENO) == 1 && &err_ == &std::cerr, config_.label);
     const auto start = Clock::now();
     std::optional<double> first_stamp;
     std::uint64_t index = 0;  // scan number in the log, 0-based
-    while (const auto line = source.next()) {
-      auto scan = parser->parse_line(*line, source.line_number());
-      if (!scan) continue;
+    while (auto scan = source->next()) {
+      send_clouds(*source, connection, index);
       if (!spec_scan) {
         spec_scan = *scan;
+        // A ROS LaserScan states its own limits; an explicit --max-range still wins.
+        if (scan->sensor_range_min_m) range_min_m_ = *scan->sensor_range_min_m;
+        if (scan->sensor_range_max_m && !options_.max_range_m) range_max_m_ = *scan->sensor_range_max_m;
         connection.emplace(connect(*spec_scan));
       } else if (!same_geometry(*spec_scan, *scan)) {
         diagnostics_.warn("scan_geometry_mismatch", scan->line_number,
@@ -181,7 +199,7 @@ class Pass {
       const std::uint64_t this_index = index++;
       const bool even = this_index % 2 == 0;
       if (config_.consistency_grid != nullptr && !even) {
-        result_.consistency.add_scan(*config_.consistency_grid, *scan, traits_.range_min_m, range_max_m_);
+        result_.consistency.add_scan(*config_.consistency_grid, *scan, range_min_m_, range_max_m_);
       }
       if (config_.even_only && !even) continue;
       if (!first_stamp) first_stamp = stamp;
@@ -190,11 +208,13 @@ class Pass {
                                      std::chrono::duration<double>((stamp - *first_stamp) / options_.speed));
         std::this_thread::sleep_until(due);
       }
-      send_scan(*connection, this_index + 1, stamp, *scan);
+      last_stamp_ = stamp;
+      send_scan(*connection, this_index + 1 + clouds_sent_, stamp, *scan);
       result_.trajectory.push_back({scan->X_WB.x, scan->X_WB.y, scan->X_WB.theta});
       ++result_.scans;
-      progress.update(source.progress(), result_.scans, seconds_since(start));
+      progress.update(source->progress(), result_.scans, seconds_since(start));
     }
+    send_clouds(*source, connection, index);
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
     if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
@@ -216,7 +236,7 @@ class Pass {
     hello.set_client_name("occgeo-replay");
     connection.hello(hello);
     v1::ClientMessage spec;
-    *spec.mutable_robot_spec() = make_spec(options_.format, first, traits_, range_max_m_);
+    *spec.mutable_robot_spec() = make_spec(options_.format, first, traits_, range_min_m_, range_max_m_);
     connection.send(spec);
     return connection;
   }
@@ -241,6 +261,42 @@ class Pass {
     for (const float r : scan.ranges_m) ranges.Add(r >= range_max ? range_max : r);  // +inf and far: no return
     connection.send(message);
     await_answer(connection, seq);
+  }
+
+  // Sends the clouds the source read so far (full pass only: the consistency check is about scans). Each goes after
+  // the scan before it with the next seq, the stamp of that scan and an odometry message with its own pose.
+  void send_clouds(ScanSource& source, std::optional<client::Connection>& connection, std::uint64_t scans_so_far) {
+    for (CloudRecord& cloud : source.take_clouds()) {
+      if (config_.even_only) continue;
+      if (!connection) {
+        diagnostics_.warn("cloud_before_first_scan", cloud.number,
+                          "point cloud comes before the first laser scan (which starts the robot); cloud skipped");
+        continue;
+      }
+      const std::uint64_t seq = scans_so_far + ++clouds_sent_;
+      v1::ClientMessage odometry;
+      auto& odom = *odometry.mutable_odometry();
+      odom.set_seq(seq);
+      odom.set_stamp_s(last_stamp_);
+      odom.mutable_pose()->set_x(cloud.X_WB.x);
+      odom.mutable_pose()->set_y(cloud.X_WB.y);
+      odom.mutable_pose()->set_theta(cloud.X_WB.theta);
+      connection->send(odometry);
+      v1::ClientMessage message;
+      auto& points = *message.mutable_point_cloud();
+      points.set_sensor(kCloudSensor);
+      points.set_seq(seq);
+      points.set_stamp_s(last_stamp_);
+      points.mutable_xyz()->Assign(cloud.xyz_B.begin(), cloud.xyz_B.end());
+      connection->send(message);
+      ++result_.clouds;
+      const std::uint64_t acked_before = result_.acked;
+      await_answer(*connection, seq);
+      if (result_.acked > acked_before) {
+        --result_.acked;  // counted as a cloud, not a scan
+        ++result_.clouds_acked;
+      }
+    }
   }
 
   // Lockstep: wait for the scan's ScanAck (or its Error) so the server is never flooded.
@@ -276,9 +332,12 @@ class Pass {
   Diagnostics& diagnostics_;
   std::ostream& err_;
   FormatTraits traits_;
+  double range_min_m_;
   double range_max_m_;
   TimestampSanitizer stamps_;
   PassResult result_;
+  std::uint64_t clouds_sent_ = 0;  // clouds take seqs between the scans'
+  double last_stamp_ = 0.0;        // of the last scan sent
 };
 
 }  // namespace
@@ -334,6 +393,8 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
   PassResult full = Pass(options, config, diagnostics, err).run();
   summary.scans = full.scans;
   summary.scans_acked = full.acked;
+  summary.clouds = full.clouds;
+  summary.clouds_acked = full.clouds_acked;
   summary.errors += full.errors;
   summary.duration_s = full.duration_s;
   summary.scans_per_s = full.duration_s > 0.0 ? static_cast<double>(full.scans) / full.duration_s : 0.0;
@@ -371,7 +432,8 @@ std::string summary_json(const ReplayOptions& options, const ReplaySummary& summ
       << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
       << ",\"no_return_beams\":" << diagnostics.no_return_beams()
       << ",\"invalid_beams\":" << diagnostics.invalid_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
-      << ",\"scans_per_s\":" << fmt(summary.scans_per_s)
+      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"clouds\":" << summary.clouds
+      << ",\"clouds_acked\":" << summary.clouds_acked
       << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
   if (summary.consistency) {
     out << ",\"consistency\":" << fmt(*summary.consistency)

@@ -1,3 +1,4 @@
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -20,10 +21,35 @@ double positive_number(const std::string& option, const std::string& value) {
   return number;
 }
 
+// "x,y,z,roll,pitch,yaw": six finite numbers.
+std::array<double, 6> six_numbers(const std::string& option, const std::string& value) {
+  std::array<double, 6> out{};
+  std::size_t at = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const std::size_t comma = value.find(',', at);
+    if ((i + 1 < out.size()) == (comma == std::string::npos)) {
+      throw std::invalid_argument("option '" + option + "' needs x,y,z,roll,pitch,yaw, got '" + value + "'");
+    }
+    const std::string part = value.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    std::size_t used = 0;
+    try {
+      out[i] = std::stod(part, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (part.empty() || used != part.size() || !std::isfinite(out[i])) {
+      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value + "'");
+    }
+    at = comma + 1;
+  }
+  return out;
+}
+
 }  // namespace
 
-const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg FILE [options]
-Streams a recorded laser log (gzip or plain text) to occgeod as a driver: a RobotSpec matching the log's laser,
+const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg|mcap FILE [options]
+Streams a recorded laser log (gzip or plain text, or a ROS 2 bag in MCAP) to occgeod as a driver: a RobotSpec
+matching the log's laser,
 then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck). Motion commands are ignored.
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --world W            world to map into (default "default")
@@ -37,8 +63,18 @@ then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanA
   --out PREFIX         write the final map of W as PREFIX.pgm + PREFIX.yaml (ROS map_server) and PREFIX.png
                        (the map as `map export --format png` draws it, with the replayed trajectory in red)
   --json               print one JSON summary object on stdout
+  --topic-scan T       mcap: the sensor_msgs/msg/LaserScan topic (default: the first one in the file)
+  --topic-odom T       mcap: the nav_msgs/msg/Odometry topic (default: the first one; without any, TF
+                       odom -> base_link from tf2_msgs/msg/TFMessage topics)
+  --topic-cloud T      mcap: the sensor_msgs/msg/PointCloud2 topic (default: the first); its x, y, z points are
+                       sent in base_link as PointCloud messages of the sensor "cloud"
+  --laser-pose x,y,z,roll,pitch,yaw
+                       mcap: the laser in base_link, metres and radians (default: from TF, else at base_link)
 Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are
-synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams).
+synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams),
+mcap (ROS 2 bag, chunks uncompressed, zstd or lz4; CDR LaserScan, Odometry, TFMessage, PointCloud2; the scan's own
+range_min/range_max apply unless --max-range is given). A damaged file stops the replay with an error naming the
+topic and file offset; nothing of the damaged part is sent.
 Exit code: 0 done, 1 failure or any server error, 2 usage.
 )";
 
@@ -55,7 +91,7 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
     if (arg == "--format") {
       const std::string& name = value();
       const auto format = parse_format(name);
-      if (!format) throw std::invalid_argument("option '--format' needs carmen, dpslam or urg, got '" + name + "'");
+      if (!format) throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
       options.format = *format;
       have_format = true;
     } else if (arg == "--server") {
@@ -75,6 +111,14 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
       options.out_prefix = value();
     } else if (arg == "--json") {
       options.json = true;
+    } else if (arg == "--topic-scan") {
+      options.mcap.topic_scan = value();
+    } else if (arg == "--topic-odom") {
+      options.mcap.topic_odom = value();
+    } else if (arg == "--topic-cloud") {
+      options.mcap.topic_cloud = value();
+    } else if (arg == "--laser-pose") {
+      options.mcap.laser_pose = six_numbers(arg, value());
     } else if (arg == "--consistency") {
       options.consistency = true;
     } else if (arg.rfind("--", 0) == 0) {
@@ -100,8 +144,20 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     err << "occgeo replay: " << e.what() << "\nrun 'occgeo replay --help' for usage\n";
     return 2;
   }
+  if (options.format != LogFormat::mcap && (!options.mcap.topic_scan.empty() || !options.mcap.topic_odom.empty() ||
+                                            !options.mcap.topic_cloud.empty() || options.mcap.laser_pose)) {
+    err << "occgeo replay: options '--topic-scan', '--topic-odom', '--topic-cloud' and '--laser-pose' need --format "
+           "mcap\nrun 'occgeo replay --help' for usage\n";
+    return 2;
+  }
   Diagnostics diagnostics(&err);
-  const ReplaySummary summary = run_replay(options, diagnostics, err);
+  ReplaySummary summary;
+  try {
+    summary = run_replay(options, diagnostics, err);
+  } catch (const McapError& e) {
+    err << "occgeo replay: " << e.what() << "\n";
+    return 1;
+  }
   if (options.json) {
     out << summary_json(options, summary, diagnostics) << "\n";
   } else {

@@ -16,15 +16,15 @@ namespace occgeo::replay {
 // A planar pose in a log's odometry frame, metres and radians.
 using LogPose = geometry::Pose2;
 
-enum class LogFormat { carmen, dpslam, urg };
+enum class LogFormat { carmen, dpslam, urg, mcap };
 
-// Parses "carmen", "dpslam" or "urg"; nullopt otherwise.
+// Parses "carmen", "dpslam", "urg" or "mcap"; nullopt otherwise.
 std::optional<LogFormat> parse_format(std::string_view name);
 std::string format_name(LogFormat format);
 
 // One laser scan of a log with the robot pose it was taken at.
 struct ScanRecord {
-  std::size_t line_number = 0;  // 1-based line of the scan in the log
+  std::size_t line_number = 0;  // 1-based line of the scan in the log (MCAP: 1-based scan message number)
   // Raw log timestamp, seconds; nullopt when the format has none (DP-SLAM). May be zero, negative or out of order:
   // see TimestampSanitizer.
   std::optional<double> stamp_s;
@@ -34,6 +34,9 @@ struct ScanRecord {
   double angle_increment_rad = 0.0;
   // Ranges in metres; +infinity for a beam at the format's "no return" sentinel.
   std::vector<float> ranges_m;
+  // The sensor's own limits when the log states them (ROS LaserScan), metres.
+  std::optional<double> sensor_range_min_m;
+  std::optional<double> sensor_range_max_m;
 };
 
 // Turns log lines into scans. Stateful (DP-SLAM pairs lines, URG integrates encoder ticks), so feed lines in order.

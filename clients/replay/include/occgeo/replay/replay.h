@@ -11,6 +11,7 @@
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/replay/diagnostics.h"
 #include "occgeo/replay/parsers.h"
+#include "occgeo/replay/scan_source.h"
 
 namespace occgeo::replay {
 
@@ -28,6 +29,7 @@ struct ReplayOptions {
   std::string out_prefix;             // empty: write no map files
   std::optional<double> max_range_m;  // nullopt: the format's default
   double ack_timeout_s = 30.0;        // longest wait for one scan's answer before giving up
+  McapOptions mcap;                   // --format mcap: topics and laser mount
 };
 
 // Parses the arguments after "replay"; throws std::invalid_argument with a message naming the option.
@@ -54,11 +56,13 @@ class ConsistencyCounter {
 
 // What a replay did.
 struct ReplaySummary {
-  std::uint64_t scans = 0;        // scans of the log sent into world W (the full pass)
-  std::uint64_t scans_acked = 0;  // of those, accepted by the server
-  std::uint64_t errors = 0;       // server Errors over all passes
-  double duration_s = 0.0;        // wall time of the full pass
-  double scans_per_s = 0.0;       // scans / duration_s
+  std::uint64_t scans = 0;         // scans of the log sent into world W (the full pass)
+  std::uint64_t scans_acked = 0;   // of those, accepted by the server
+  std::uint64_t clouds = 0;        // point clouds sent (bags only)
+  std::uint64_t clouds_acked = 0;  // of those, accepted by the server
+  std::uint64_t errors = 0;        // server Errors over all passes
+  double duration_s = 0.0;         // wall time of the full pass
+  double scans_per_s = 0.0;        // scans / duration_s
   std::optional<double> consistency;
   std::uint64_t consistency_endpoints = 0;
   std::vector<std::string> files_written;
