@@ -239,6 +239,9 @@ void ServerConfig::validate() const {
   require(limits.max_batch_queries > 0, "limits.max_batch_queries", "must be positive");
   require(limits.max_pending_requests > 0, "limits.max_pending_requests", "must be positive");
   require(limits.max_watch_queue_messages > 0, "limits.max_watch_queue_messages", "must be positive");
+  require(limits.hello_timeout_s > 0 && limits.hello_timeout_s <= 3600, "limits.hello_timeout_s",
+          "must be in (0, 3600] seconds");
+  require(limits.max_silent_per_address > 0, "limits.max_silent_per_address", "must be positive");
   require(limits.write_timeout_s > 0 && limits.write_timeout_s <= 3600, "limits.write_timeout_s",
           "must be in (0, 3600] seconds");
   require(queries.clearance_max_distance_m > 0, "queries.clearance_max_distance_m", "must be positive");
@@ -304,6 +307,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_batch_queries", config.limits.max_batch_queries)
                        .field("max_pending_requests", config.limits.max_pending_requests)
                        .field("max_watch_queue_messages", config.limits.max_watch_queue_messages)
+                       .field("hello_timeout_s", config.limits.hello_timeout_s)
+                       .field("max_silent_per_address", config.limits.max_silent_per_address)
                        .field("write_timeout_s", config.limits.write_timeout_s);
                  })
         .section("control",

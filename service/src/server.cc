@@ -155,6 +155,31 @@ struct Server::Impl {
     return index == 0 ? net : *more_loops[index - 1];
   }
 
+  // Connections that have not said hello yet from `address`.
+  std::size_t silent_sessions_from(const std::string& address) {
+    const std::lock_guard lock(sessions_mutex);
+    std::size_t count = 0;
+    for (const auto& weak : sessions) {
+      if (auto session = weak.lock(); session && !session->greeted() && session->peer_address() == address) ++count;
+    }
+    return count;
+  }
+
+  // Closes the oldest connection that has not said hello yet (from `address`, or from anywhere when null), so that
+  // silent connections never keep a robot's driver or anyone else out; false when there is none. Sessions are in
+  // accept order.
+  bool evict_silent_session(const std::string* address) {
+    const std::lock_guard lock(sessions_mutex);
+    for (auto it = sessions.begin(); it != sessions.end(); ++it) {
+      auto session = it->lock();
+      if (!session || session->greeted() || (address != nullptr && session->peer_address() != *address)) continue;
+      session->close_if_silent();
+      sessions.erase(it);
+      return true;
+    }
+    return false;
+  }
+
   void accept() {
     // Each loop is run by one thread, so a session on it needs no strand: its handlers never run concurrently.
     acceptor.async_accept(loop_for_next_session(), [this](const boost::system::error_code& error, tcp::socket socket) {
@@ -165,11 +190,16 @@ struct Server::Impl {
         }
         return;
       }
-      if (core.sessions.load() >= core.config().limits.max_clients) {
+      if (core.sessions.load() >= core.config().limits.max_clients && !evict_silent_session(nullptr)) {
         log::warn("session_refused", {{"reason", "client limit reached"}});
         boost::system::error_code ignored;
         socket.close(ignored);
       } else {
+        boost::system::error_code ignored;
+        const std::string address = socket.remote_endpoint(ignored).address().to_string();
+        if (silent_sessions_from(address) >= core.config().limits.max_silent_per_address) {
+          evict_silent_session(&address);
+        }
         auto session = std::make_shared<Session>(core, session_shared, std::move(socket), core.next_session_id++);
         {
           const std::lock_guard lock(sessions_mutex);

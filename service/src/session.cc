@@ -103,11 +103,13 @@ Session::Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket 
       executor_(socket.get_executor()),
       socket_(socket.get_executor()),
       write_timer_(socket.get_executor()),
+      hello_timer_(socket.get_executor()),
       decoder_(core.config().limits.max_frame_bytes) {
   info_.id = id;
   boost::system::error_code ignored;
   const auto remote = socket.remote_endpoint(ignored);
   info_.peer_address = remote.address().to_string();
+  peer_address_ = info_.peer_address;
   info_.peer = info_.peer_address + ":" + std::to_string(remote.port());
   if (shared_.tls) {
     tls_ = std::make_unique<asio::ssl::stream<asio::ip::tcp::socket>>(std::move(socket), *shared_.tls);
@@ -124,6 +126,16 @@ void Session::start() {
   tcp_socket().set_option(asio::ip::tcp::no_delay(true), ignored);
   log::info("session_open", {{"session", info_.id}, {"peer", info_.peer}, {"tls", tls_ != nullptr}});
   metrics::counter("occgeo_sessions_opened_total").inc();
+  // A connection that never says hello must not hold a session slot for good.
+  hello_timer_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(core_.config().limits.hello_timeout_s)));
+  hello_timer_.async_wait([self = shared_from_this()](const boost::system::error_code& error) {
+    if (error || self->closed_ || self->info_.greeted) return;
+    log::warn("session_hello_timeout", {{"session", self->info_.id},
+                                        {"peer", self->info_.peer},
+                                        {"hello_timeout_s", self->core_.config().limits.hello_timeout_s}});
+    self->shutdown();
+  });
   if (!tls_) {
     read_more();
     return;
@@ -144,6 +156,14 @@ void Session::start() {
 void Session::close() {
   // Posted, never run inline: the caller may hold locks that closing takes (leases, the session list).
   asio::post(executor_, [self = shared_from_this()] { self->shutdown(); });
+}
+
+void Session::close_if_silent() {
+  asio::post(executor_, [self = shared_from_this()] {
+    if (self->info_.greeted) return;
+    log::info("session_evicted", {{"session", self->info_.id}, {"peer", self->info_.peer}, {"reason", "no hello yet"}});
+    self->shutdown();
+  });
 }
 
 bool Session::on_session_thread() const {
@@ -223,7 +243,11 @@ bool Session::dispatch_frames() {
     const bool was_greeted = info_.greeted;
     dispatch_message(self, message);
     arena.end_message();
-    if (!was_greeted && info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
+    if (!was_greeted && info_.greeted) {
+      metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
+      greeted_.store(true, std::memory_order_release);
+      hello_timer_.cancel();
+    }
   }
   return false;
 }
@@ -396,6 +420,7 @@ void Session::shutdown() {
   shared_.watch.unsubscribe(this);
   boost::system::error_code ignored;
   write_timer_.cancel();
+  hello_timer_.cancel();
   tcp_socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
   tcp_socket().close(ignored);
   queued_.clear();

@@ -61,6 +61,13 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   void start();
   // Closes the connection now (server shutdown).
   void close();
+  // Closes it now unless it has said hello by the time this runs on its own thread (a silent connection the acceptor
+  // evicts to make room; see Server). Safe from any thread.
+  void close_if_silent();
+  // Whether the session has completed its hello; safe from any thread.
+  [[nodiscard]] bool greeted() const { return greeted_.load(std::memory_order_acquire); }
+  // The peer's address (no port), fixed at accept; safe from any thread.
+  [[nodiscard]] const std::string& peer_address() const { return peer_address_; }
 
   ServerCore& core() override { return core_; }
   SessionInfo& info() override { return info_; }
@@ -110,7 +117,10 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   asio::ip::tcp::socket socket_;  // plain TCP; unused (moved into tls_) with TLS
   std::unique_ptr<asio::ssl::stream<asio::ip::tcp::socket>> tls_;
   asio::steady_timer write_timer_;
+  asio::steady_timer hello_timer_;  // limits.hello_timeout_s: a connection that says nothing is closed
   SessionInfo info_;
+  std::string peer_address_;
+  std::atomic<bool> greeted_{false};
   proto::FrameDecoder decoder_;
   std::array<char, std::size_t{64} * 1024> read_buffer_{};
   // Watch events encoded into one write at most.

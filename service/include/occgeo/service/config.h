@@ -44,6 +44,10 @@ struct LimitsConfig {
   std::size_t max_batch_queries = 100000;  // entries (poses, rays, points) in one batch request
   std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
   std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
+  double hello_timeout_s = 5.0;  // a connection that has not completed its hello by then is closed
+  // Connections from one address that have not said hello yet; a newer one evicts the oldest of them, so idle
+  // connections can neither pile up nor keep a robot's driver out.
+  std::size_t max_silent_per_address = 64;
   double write_timeout_s = 60.0;  // a client that accepts no bytes for this long while some wait is dropped
 };
 
