@@ -460,7 +460,8 @@ class MapEscapeWrapper final : public Behaviour {
       BehaviourCommand escape = follow(input, pose);
       if (!escape.state.empty()) return escape;
     }
-    next_plan_s_ = input.stamp_s + 1.0;
+    // A search cut short by its per-cycle budget goes on at the next cycle; one that found nothing waits a second.
+    next_plan_s_ = next_candidate_ != 0 ? input.stamp_s : input.stamp_s + 1.0;
     if (command.stop) {
       // No way out on the map yet: turn on the spot so the sensors see more of the surroundings.
       command = BehaviourCommand{};
@@ -511,26 +512,33 @@ class MapEscapeWrapper final : public Behaviour {
     // escapes so two traps in a row do not send the robot back and forth along the same line.
     constexpr std::array<double, 8> kOffsets_deg{180.0, 135.0, -135.0, 90.0, -90.0, 45.0, -45.0, 0.0};
     const double side = (escapes_ % 2 == 0) ? 1.0 : -1.0;
+    constexpr std::array<double, 3> kRadii_m{4.0, 2.5, 1.5};
+    constexpr std::size_t kCandidates = kRadii_m.size() * kOffsets_deg.size();
     int tried = 0;
-    for (const double radius_m : {4.0, 2.5, 1.5}) {
-      for (const double offset_deg : kOffsets_deg) {
-        const double bearing = pose.yaw_rad + side * offset_deg * kDeg;
-        const Eigen::Vector2d target = here + radius_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
-        // Only to ground the map has seen free: an unseen cell may be the far side of a wall no beam came back from
-        // (a sonar's echo is specular).
-        const geometry::CellIndex cell = geometry::GridGeometry(input.grid->cell_size()).cell_of(target);
-        if (!input.grid->observed(cell) || input.grid->occupied(cell)) continue;
-        if (!segment_clear(*input.grid, target, target, clearance_m_)) continue;
-        if (++tried > kMaxPlansPerCycle) return false;
-        const GlobalPathResult result = plan_global_path(*input.grid, band ? &*band : nullptr, here, target, planner_);
-        if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) continue;
-        path_ = result.waypoints_W;
-        segment_ = 0;
-        escape_started_s_ = input.stamp_s;
-        ++escapes_;
-        return true;
+    // A cycle plans at most kMaxPlansPerCycle candidates; the next one carries on where this one stopped.
+    for (std::size_t k = next_candidate_; k < kCandidates; ++k) {
+      const double radius_m = kRadii_m[k / kOffsets_deg.size()];
+      const double bearing = pose.yaw_rad + side * kOffsets_deg[k % kOffsets_deg.size()] * kDeg;
+      const Eigen::Vector2d target = here + radius_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+      // Only to ground the map has seen free: an unseen cell may be the far side of a wall no beam came back from
+      // (a sonar's echo is specular).
+      const geometry::CellIndex cell = geometry::GridGeometry(input.grid->cell_size()).cell_of(target);
+      if (!input.grid->observed(cell) || input.grid->occupied(cell)) continue;
+      if (!segment_clear(*input.grid, target, target, clearance_m_)) continue;
+      if (++tried > kMaxPlansPerCycle) {
+        next_candidate_ = k;
+        return false;
       }
+      const GlobalPathResult result = plan_global_path(*input.grid, band ? &*band : nullptr, here, target, planner_);
+      if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) continue;
+      path_ = result.waypoints_W;
+      segment_ = 0;
+      escape_started_s_ = input.stamp_s;
+      ++escapes_;
+      next_candidate_ = 0;
+      return true;
     }
+    next_candidate_ = 0;
     return false;
   }
 
@@ -584,6 +592,7 @@ class MapEscapeWrapper final : public Behaviour {
   double escape_started_s_ = 0.0;
   double next_plan_s_ = -std::numeric_limits<double>::infinity();
   int escapes_ = 0;
+  std::size_t next_candidate_ = 0;  // where the next cycle's search for a way out resumes
   std::string trigger_;
   double height_m_;
 };

@@ -58,8 +58,11 @@ void handle_range_array(const SessionPtr& session, v1::RangeArray message) {
       const bool accepted = ingest_sensor_message_on_strand(
           session, *robot, {"range_array", message.seq(), message.stamp_s(), &message},
           [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_range_array(target, X_WB, array, message); });
-      // A robot without a laser steers by its first range array: every firing is answered with a command.
+      // A robot without a laser steers by its first range array: every firing is answered with a command, once the
+      // robot is meant to be steered (its spec names a default behaviour, or a lease holder set one); a driver that
+      // declared neither keeps deciding how it moves, as before range arrays could steer.
       if (!accepted || !model.lasers.empty() || &array != &model.range_arrays.front()) return;
+      if (model.spec.default_behaviour().empty() && robot->control().state().drive_generation == 0) return;
       const ServerConfig& config = session->core().config();
       v1::MotionCommand command =
           command_for_scan_on_strand(*robot, control::ScanView{}, message.stamp_s(), config.control.command_expiry_s,
