@@ -12,7 +12,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --robot) ROBOT=${2:-}; shift 2 ;;
     --robot=*) ROBOT=${1#--robot=}; shift ;;
-    -h|--help) sed -n '2,8p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,7p' "$0"; exit 0 ;;
     *) echo "demo.sh: unknown argument '$1' (try --robot bearcat|scout|activitybot|ugv)" >&2; exit 2 ;;
   esac
 done
