@@ -3,7 +3,7 @@
 // (bearcat_seed, the catalogue's UTrap row). Each world is driven in lockstep and judged on the simulator's truth:
 // no collision, never standing still for more than 10 s in a row, and in the open field the distance driven.
 //
-// CI runs 5 simulated minutes per world; the full 30 minutes per world (about 70 s of wall time each) runs with
+// CI runs 5 simulated minutes per world; the full 30 minutes per world (1-4 minutes of wall time each) runs with
 //   bearcat_never_parks_test --gtest_also_run_disabled_tests --gtest_filter='*ThirtyMinutes*'
 #include <gtest/gtest.h>
 
