@@ -66,7 +66,7 @@ commands:
                                              (default occgeo-cli-cloud, left registered and offline)
   lease acquire|retain|return|take --robot ID [--timeout S] [--token T]
                                              one lease request as a controller (take needs the operator token)
-  drive --robot ID bearcat|wander|stop|teleop [--v V --w W] [--hold S] [--timeout S] [--token T]
+  drive --robot ID bearcat|bearcat_seed|wander|stop|teleop [--v V --w W] [--hold S] [--timeout S] [--token T]
                                              acquire the robot's lease, set its behaviour (teleop: V m/s,
                                              W rad/s), keep the lease S seconds (default 0) with retains, return it
   goto --robot ID X Y [--no-escape] [--limit S] [--timeout S] [--token T]
@@ -961,8 +961,9 @@ int run_drive(const std::vector<std::string>& args) {
     }
     rest.push_back(args[i]);
   }
-  if (behaviour != "bearcat" && behaviour != "stop" && behaviour != "teleop" && behaviour != "wander") {
-    throw UsageError("drive needs a behaviour: bearcat, wander, stop or teleop");
+  if (behaviour != "bearcat" && behaviour != "bearcat_seed" && behaviour != "stop" && behaviour != "teleop" &&
+      behaviour != "wander") {
+    throw UsageError("drive needs a behaviour: bearcat, bearcat_seed, wander, stop or teleop");
   }
   const Options options = parse_options(rest, 0, {"robot", "v", "w", "hold", "timeout", "token"});
   const std::string robot = options.required("robot");

@@ -270,7 +270,12 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
   if (const auto it = robots_.find(model->id); it != robots_.end()) control = it->second->control_ptr();
   if (!control) {
     control = std::make_shared<RobotControl>();
-    control->update([&](ControlState& c) { c.behaviour = config_.control.initial_behaviour; });
+    // The robot's own default (a sonar robot wanders) stands in for the Bearcat, never for an initial stop.
+    const std::string& own_default = model->spec.default_behaviour();
+    const std::string initial = config_.control.initial_behaviour == "bearcat" && !own_default.empty()
+                                    ? own_default
+                                    : config_.control.initial_behaviour;
+    control->update([&](ControlState& c) { c.behaviour = initial; });
   }
   auto robot = std::make_shared<Robot>(model, std::move(target_world), bearcat_params_for(*model, config_.bearcat),
                                        std::move(control));

@@ -373,7 +373,34 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         return nullptr;
     }
   }
+  const std::string& default_behaviour = spec.default_behaviour();
+  if (!default_behaviour.empty()) {
+    if (default_behaviour != "bearcat" && default_behaviour != "wander" && default_behaviour != "stop") {
+      error = field_error("robot_spec.default_behaviour", "must be \"bearcat\", \"wander\" or \"stop\", not \"" +
+                                                              default_behaviour.substr(0, 64) + "\"");
+      return nullptr;
+    }
+    if (const std::optional<std::string> missing = missing_sensor_for(default_behaviour, *model)) {
+      error = field_error("robot_spec.default_behaviour", *missing);
+      return nullptr;
+    }
+  }
   return model;
+}
+
+std::optional<std::string> missing_sensor_for(const std::string& behaviour, const RobotModel& model) {
+  const bool laser = !model.lasers.empty();
+  if (behaviour == "bearcat" || behaviour == "bearcat_seed") {
+    if (!laser) return "'" + behaviour + "' steers by a laser scan and robot '" + model.id + "' has no laser";
+  } else if (behaviour == "wander") {
+    if (!laser && model.range_arrays.empty()) {
+      return "'wander' avoids what a laser or a range array sees and robot '" + model.id +
+             "' has neither (no range sensor to wander by)";
+    }
+  } else if (behaviour == "goto") {
+    if (!laser) return "'goto' (PointBug) reads a laser scan and robot '" + model.id + "' has no laser";
+  }
+  return std::nullopt;
 }
 
 std::optional<FieldError> check_pose(const v1::Pose2D& pose, const std::string& field, const LimitsConfig& limits) {

@@ -20,6 +20,9 @@ struct FieldError {
 std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot_id, const v1::RobotSpec& spec,
                                                         const LimitsConfig& limits, FieldError& error);
 
+// Why the robot cannot run the behaviour (a sensor it needs is missing), or nullopt when it can.
+std::optional<std::string> missing_sensor_for(const std::string& behaviour, const RobotModel& model);
+
 // Checks a footprint message; prefix names the field path for errors.
 std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& footprint, const std::string& prefix,
                                                         FieldError& error);

@@ -366,9 +366,9 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     // Hold the lease while the simulator runs (bounded: lockstep runs far faster than real time).
     Clock::time_point last_retain = Clock::now();
     while (sim->running()) {
-      if (seconds_since(started) > 240.0) {
+      if (seconds_since(started) > scenario.max_wall_s) {
         static_cast<void>(sim->stop(SIGTERM, std::chrono::seconds(10)));
-        throw std::runtime_error("the simulation ran past 240 s of wall time");
+        throw std::runtime_error("the simulation ran past " + std::to_string(scenario.max_wall_s) + " s of wall time");
       }
       std::this_thread::sleep_for(20ms);
       if (seconds_since(last_retain) > 2.0) {

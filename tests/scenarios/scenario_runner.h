@@ -32,7 +32,8 @@ struct Scenario {
   double goal_tolerance_m = 0.3;
   // occgeo-sim --command-latency: sim seconds between the server's command and its effect on the wheels (0: none).
   double command_latency_s = 0.0;
-  std::string note;  // printed with the table: what the scenario shows
+  std::string note;           // printed with the table: what the scenario shows
+  double max_wall_s = 240.0;  // the run is abandoned (did not run) after this much wall time, seconds
 };
 
 struct ScenarioResult {

@@ -62,12 +62,12 @@ TEST(ScenarioCatalogue, OpenField) {
   });
 }
 
-// Seed 000 Fig 5.3: the U-shaped deadlock. The Bearcat alone stops inside; PointBug alone reports no path; the full
-// stack plans its way out over the map it remembers and reaches the goal behind the trap.
+// Seed 000 Fig 5.3: the U-shaped deadlock. The Bearcat alone (bearcat_seed) stops inside; PointBug alone reports no
+// path; the full stack plans its way out over the map it remembers and reaches the goal behind the trap.
 TEST(ScenarioCatalogue, UTrap) {
   const Eigen::Vector2d beyond_u(7.0, 0.0);
   run_all({
-      {seed_only(make("u_trap_bearcat", "u_deadlock.yaml", "bearcat", "bearcat", 40.0), "seed 000 Fig 5.3"),
+      {seed_only(make("u_trap_bearcat", "u_deadlock.yaml", "bearcat", "bearcat_seed", 40.0), "seed 000 Fig 5.3"),
        Expect::kStopsInTrap},
       {seed_only(make("u_trap_goto", "u_deadlock.yaml", "bearcat", "goto", 60.0, beyond_u), "PointBug alone"),
        Expect::kNotReached},
@@ -93,11 +93,11 @@ TEST(ScenarioCatalogue, TurnReveal) {
   Scenario guarded = make("turn_reveal_bearcat_guard", "turn_reveal.yaml", "bearcat", "bearcat", 20.0);
   guarded.note = "Bearcat + guard, 0.3 s latency";
   run_all({
-      {delayed(seed_only(make("turn_reveal_bearcat", "turn_reveal.yaml", "bearcat", "bearcat", 20.0),
+      {delayed(seed_only(make("turn_reveal_bearcat", "turn_reveal.yaml", "bearcat", "bearcat_seed", 20.0),
                          "seed 000 §4 Results, 0.3 s latency, no guard", kNoGuard)),
        Expect::kCollides},
       // Lockstep without latency: the same Bearcat just gets past the barrel (printed only).
-      {seed_only(make("turn_reveal_bearcat_no_latency", "turn_reveal.yaml", "bearcat", "bearcat", 20.0),
+      {seed_only(make("turn_reveal_bearcat_no_latency", "turn_reveal.yaml", "bearcat", "bearcat_seed", 20.0),
                  "as above without latency", kNoGuard),
        Expect::kReported},
       {delayed(guarded), Expect::kNoCollisions},

@@ -169,18 +169,19 @@ TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {
   EXPECT_TRUE(snapshot->observed(grid.cell_of({1.0, 4.5})));
 }
 
-TEST_F(Handlers, WallAcrossTheFrontIsADeadlockThatStopsTheRobot) {
+// The default Bearcat does not park in a deadlock (seed 000 §5.2): with nothing on the map to plan by yet, it turns on
+// the spot to see more instead of stopping.
+TEST_F(Handlers, WallAcrossTheFrontIsADeadlockTheDefaultBearcatDoesNotStopIn) {
   auto session = driver("r1");
   handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
   handle_laser_scan(session, scan(1, 0.1, 1.0F));
   const auto command = session->next_of(v1::ServerMessage::kMotionCommand);
   ASSERT_TRUE(command);
-  EXPECT_TRUE(command->motion_command().stop());
-  EXPECT_EQ(command->motion_command().state(), "deadlock");
-  EXPECT_EQ(command->motion_command().left_wheel_mps(), 0.0);
-  EXPECT_EQ(command->motion_command().right_wheel_mps(), 0.0);
+  EXPECT_FALSE(command->motion_command().stop());
+  EXPECT_EQ(command->motion_command().state().rfind("escape_", 0), 0U) << command->motion_command().state();
+  EXPECT_NE(command->motion_command().left_wheel_mps(), command->motion_command().right_wheel_mps());
   core_.drain();
-  EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, "deadlock");
+  EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, command->motion_command().state());
 }
 
 // A driver that reconnects with a new footprint changes what the very next query on the same thread measures: the

@@ -500,7 +500,10 @@ TEST_F(SensorHandlers, SkidSteerCommandsCompensateSlippage) {
   for (int i = 0; i < 181; ++i) scan.add_ranges(i < 80 ? 1.2F : 6.0F);
   const control::ScanView view{-M_PI / 2, M_PI / 180,
                                std::span<const float>(scan.ranges().data(), scan.ranges().size()), 8.0};
-  const control::BearcatDecision decision = control::BearcatBehaviour(core_.config().bearcat).decide(view);
+  // The robot's Bearcat turns wheel speeds into motion with the robot's own track separation (0.6 m below).
+  control::BearcatParams bearcat = core_.config().bearcat;
+  bearcat.wheel_separation_m = 0.6;
+  const control::BearcatDecision decision = control::BearcatBehaviour(bearcat).decide(view);
   ASSERT_FALSE(decision.stop);
 
   for (const double max_track_speed_mps : {10.0, 0.2}) {

@@ -37,7 +37,7 @@ _LEASE_ACTIONS = {
     "take": control_pb2.LeaseRequest.TAKE,
 }
 #: Behaviour names a ``DriveRequest`` accepts (see docs/PROTOCOL.md, "Drive").
-BEHAVIOURS = ("bearcat", "stop", "teleop", "wander", "goto", "waypoints")
+BEHAVIOURS = ("bearcat", "bearcat_seed", "stop", "teleop", "wander", "goto", "waypoints")
 
 
 class ClientError(Exception):

@@ -94,6 +94,8 @@ RobotPreset scout() {
     sonar.elements.push_back({kRingRadius_m * std::cos(yaw), kRingRadius_m * std::sin(yaw), yaw});
   }
   preset.sensors = {sonar};
+  // Seed 001's system: the server wanders it on its sonar ring and maps with HIMM as it goes.
+  preset.default_behaviour = "wander";
   preset.command_timeout_s = 0.5;
   return preset;
 }

@@ -29,6 +29,16 @@ std::uint64_t sensor_seed(std::uint64_t seed, std::size_t index) {
   return seed ^ (static_cast<std::uint64_t>(index) * kGoldenRatio64);
 }
 
+// The sensor whose messages the server answers with motion commands: the first laser, else the first range array
+// (a sonar robot steers by its ring); none otherwise.
+std::string steering_sensor_of(const RobotPreset& preset) {
+  if (preset.laser() != nullptr) return preset.laser()->name;
+  for (const SensorPreset& sensor : preset.sensors) {
+    if (const auto* array = std::get_if<RangeArrayPreset>(&sensor)) return array->name;
+  }
+  return {};
+}
+
 }  // namespace
 
 const v1::LaserScan* SensorBatch::laser_scan(const std::string& sensor) const {
@@ -47,7 +57,7 @@ Simulation::Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& prese
                        std::uint64_t seed)
     : world_(world ? std::move(world) : throw std::invalid_argument("Simulation: the world must not be null")),
       kinematics_(preset.kinematics),
-      steering_laser_(preset.laser() != nullptr ? preset.laser()->name : std::string()),
+      steering_sensor_(steering_sensor_of(preset)),
       has_encoders_(preset.encoders.has_value()),
       robot_(*world_, preset, X_WB_start) {
   for (std::size_t i = 0; i < preset.sensors.size(); ++i) {
@@ -141,11 +151,12 @@ SensorBatch Simulation::take_batch() {
       visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
       batch.messages.push_back(make_laser_scan_message(sensor.name, seq, stamp_s, scan.ranges_m));
       ++message_counts_["laser_scan"];
-      if (sensor.name == steering_laser_) batch.steering_scan_seq = seq;
+      if (sensor.name == steering_sensor_) batch.steering_scan_seq = seq;
     } else if (auto* array = std::get_if<RangeArraySimulator>(&sensor.simulator)) {
       const SimulatedScan scan = array->fire(*world_, robot_.pose(), stamp_s);
       visible_pixels_.insert(scan.hit_pixels.begin(), scan.hit_pixels.end());
       batch.messages.push_back(make_range_array_message(sensor.name, seq, stamp_s, scan.ranges_m));
+      if (sensor.name == steering_sensor_) batch.steering_scan_seq = seq;
       ++message_counts_["range_array"];
     } else if (auto* depth = std::get_if<DepthSensorSimulator>(&sensor.simulator)) {
       batch.messages.push_back(

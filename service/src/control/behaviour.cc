@@ -1,11 +1,13 @@
 #include "occgeo/service/control/behaviour.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
 
 #include "height_band_layer.h"
+#include "occgeo/geometry/cell.h"
 #include "occgeo/geometry/convex_polygon.h"
 #include "occgeo/service/control/global_path.h"
 #include "occgeo/service/control/loop_detector.h"
@@ -63,9 +65,34 @@ class BearcatAdapter final : public Behaviour {
   BearcatBehaviour behaviour_;
 };
 
+// Beyond seed 001, for a sonar ring: a specular sonar hears a wall only along the wall's normal, so its reading d at
+// bearing b is the wall's perpendicular distance, and the wall crosses the heading (d - r) / cos b beyond the body's
+// radius r (less a side margin). Each element within +-90 degrees becomes a straight-ahead reading of that distance, so
+// a wall met at a glancing angle (heard only by a side element) blocks the front as soon as the robot would reach it
+// within the threshold; elements behind are left out. A wall beside the robot keeps at least this clear of the body's
+// circle, so the robot can still turn on the spot.
+constexpr double kRingSideMargin_m = 0.15;
+
+RangeSet ring_as_ahead(const RangeSet& ring, double body_radius_m) {
+  RangeSet ahead;
+  ahead.range_max_m = ring.range_max_m;
+  for (const BeamReading& beam : ring.beams) {
+    const double bearing = geometry::wrap_angle(beam.bearing_rad);
+    const double along = std::cos(bearing);
+    if (along <= 1e-3) continue;
+    if (!(beam.range_m < ring.range_max_m)) {
+      ahead.beams.push_back({0.0, beam.range_m});
+      continue;
+    }
+    const double clearance_m = std::max(0.0, beam.range_m - body_radius_m - kRingSideMargin_m);
+    ahead.beams.push_back({0.0, std::min(body_radius_m + clearance_m / along, ring.range_max_m)});
+  }
+  return ahead;
+}
+
 class WanderAdapter final : public Behaviour {
  public:
-  explicit WanderAdapter(const WanderParams& params) : behaviour_(params) {}
+  WanderAdapter(const WanderParams& params, double body_radius_m) : behaviour_(params), body_radius_m_(body_radius_m) {}
   [[nodiscard]] std::string_view name() const override { return "wander"; }
   BehaviourCommand decide(const BehaviourInput& input) override {
     WanderProgress progress;
@@ -76,7 +103,22 @@ class WanderAdapter final : public Behaviour {
     }
     last_stamp_s_ = input.stamp_s;
     last_pose_ = input.X_WB;
-    const WanderDecision decision = behaviour_.decide(range_set_from_scan(input.scan), progress);
+    if (input.ring) {
+      // Beyond the seed: something inside the circle the body's corners sweep turning on the spot. Turning would hit
+      // it, so first move straight away from it (along the heading, whichever way leads off).
+      const BeamReading* nearest = nullptr;
+      for (const BeamReading& beam : input.ring->beams) {
+        if (!nearest || beam.range_m < nearest->range_m) nearest = &beam;
+      }
+      if (nearest != nullptr && nearest->range_m < body_radius_m_ + kTurnSweepMargin_m) {
+        BehaviourCommand command;
+        command.linear_mps = std::cos(nearest->bearing_rad) >= 0.0 ? -kEaseOffSpeed_mps : kEaseOffSpeed_mps;
+        command.state = "avoid_ease_off";
+        return command;
+      }
+    }
+    const WanderDecision decision = behaviour_.decide(
+        input.ring ? ring_as_ahead(*input.ring, body_radius_m_) : range_set_from_scan(input.scan), progress);
     BehaviourCommand command;
     command.linear_mps = decision.linear_mps;
     command.angular_radps = decision.angular_radps;
@@ -86,7 +128,10 @@ class WanderAdapter final : public Behaviour {
   }
 
  private:
+  static constexpr double kTurnSweepMargin_m = 0.1;
+  static constexpr double kEaseOffSpeed_mps = 0.1;
   WanderBehaviour behaviour_;
+  double body_radius_m_;  // the footprint's bounding radius, for ring readings
   std::optional<double> last_stamp_s_;
   std::optional<geometry::Pose2> last_pose_;
 };
@@ -346,7 +391,218 @@ class EscapeWrapper final : public Behaviour {
   double height_m_;  // the robot's top: octree obstacles below it block the way
 };
 
+// Beyond the seeds (seed 000 §5.2: "memory mapping also enables the robot to get out of deadlock situations"): a
+// behaviour without a goal (Bearcat, wander) that stops, or makes no headway for stall_time_s, gets a way out planned
+// over the remembered grid: the first reachable point of a ring of candidates round the robot, those behind it first,
+// followed by pure pursuit; then a fresh inner behaviour carries on from there, facing away from the trap.
+class MapEscapeWrapper final : public Behaviour {
+ public:
+  MapEscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
+      : rebuild_(std::move(rebuild)),
+        inner_(rebuild_()),
+        height_m_(std::visit([](const auto& shape) { return shape.height; }, robot.footprint)) {
+    // No goal to squeeze through to: the way out keeps the whole turning circle clear, and more where there is room.
+    planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint);
+    planner_.cost_radius_m = planner_.footprint_radius_m + 0.4;
+    planner_.near_obstacle_extra_cost = 2.0;
+    planner_.window_margin_m = 2.0;
+    planner_.unknown_extra_cost = 8.0;  // keep the way out on ground the map has seen
+    follower_.linear_speed_mps = std::min(0.5, robot.max_linear_mps);
+    follower_.lookahead_m = 0.6;
+    follower_.goal_tolerance_m = 0.3;
+    follower_.max_angular_radps = 0.8;
+    clearance_m_ = geometry::bounding_radius(robot.footprint);
+  }
+  [[nodiscard]] std::string_view name() const override { return inner_->name(); }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
+    if (path_.empty() || !position_W_) return inner_->planned_path();
+    std::vector<Eigen::Vector2d> path{*position_W_};
+    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
+                path_.end());
+    return path;
+  }
+
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    if (!input.X_WB) return inner_->decide(input);
+    const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
+    if (!path_.empty()) {
+      BehaviourCommand command = follow(input, pose);
+      if (!command.state.empty()) return command;
+    }
+    BehaviourCommand command = inner_->decide(input);
+    // Headway: the robot left a disc round where it last made some; turning on the spot is not headway.
+    if (!anchor_W_ || (*position_W_ - *anchor_W_).norm() > kHeadway_m) {
+      anchor_W_ = position_W_;
+      anchor_s_ = input.stamp_s;
+    }
+    if (input.stamp_s < back_off_until_s_) {
+      BehaviourCommand back;
+      back.linear_mps = -kBackOffSpeed_mps;
+      back.state = "escape_back_off";
+      return back;
+    }
+    const bool stuck = command.stop || input.stamp_s - anchor_s_ > kStallTime_s;
+    if (!stuck || input.stamp_s < next_plan_s_) return command;
+    if (held_up_ && !input.ring && clear_behind(input, pose)) {
+      // The last way out was held up where it started (a wall the guard sees close ahead): back off first.
+      held_up_ = false;
+      back_off_until_s_ = input.stamp_s + kBackOffTime_s;
+      anchor_W_ = position_W_;
+      anchor_s_ = input.stamp_s + kBackOffTime_s;
+      BehaviourCommand back;
+      back.linear_mps = -kBackOffSpeed_mps;
+      back.state = "escape_back_off";
+      return back;
+    }
+    trigger_ = command.stop ? command.state : std::string("stalled");
+    if (plan_out(input, pose)) {
+      BehaviourCommand escape = follow(input, pose);
+      if (!escape.state.empty()) return escape;
+    }
+    // A search cut short by its per-cycle budget goes on at the next cycle; one that found nothing waits a second.
+    next_plan_s_ = next_candidate_ != 0 ? input.stamp_s : input.stamp_s + 1.0;
+    if (command.stop) {
+      // No way out on the map yet: turn on the spot so the sensors see more of the surroundings.
+      command = BehaviourCommand{};
+      command.angular_radps = 0.5;
+      command.state = "escape_look_round";
+    }
+    return command;
+  }
+
+ private:
+  static constexpr double kHeadway_m = 0.5;
+  static constexpr double kStallTime_s = 6.0;
+  static constexpr double kEscapeTimeout_s = 40.0;
+  static constexpr double kEscapeHeldUp_s = 4.0;
+  static constexpr double kBackOffSpeed_mps = 0.15;
+  static constexpr double kRingAheadClearance_m = 0.5;  // ring readings this far beyond the body block an escape
+  static constexpr double kBackOffTime_s = 2.0;
+
+  // Whether reversing kBackOffSpeed_mps for kBackOffTime_s stays clear of what the ring hears behind (when the robot
+  // has one) and of what the map remembers there.
+  [[nodiscard]] bool clear_behind(const BehaviourInput& input, const Pose2& pose) const {
+    const double reverse_m = kBackOffSpeed_mps * kBackOffTime_s;
+    if (input.ring) {
+      for (const BeamReading& beam : input.ring->beams) {
+        if (std::abs(geometry::wrap_angle(beam.bearing_rad)) < 0.6 * std::numbers::pi) continue;
+        if (beam.range_m < clearance_m_ + reverse_m + 0.2) return false;
+      }
+    }
+    if (input.grid == nullptr) return input.ring.has_value();
+    const Eigen::Vector2d here(pose.x_m, pose.y_m);
+    const Eigen::Vector2d back =
+        here - (reverse_m + 0.1) * Eigen::Vector2d(std::cos(pose.yaw_rad), std::sin(pose.yaw_rad));
+    return segment_clear(*input.grid, here, back, clearance_m_);
+  }
+
+  [[nodiscard]] bool ring_blocks_ahead(const RangeSet& ring) const {
+    const RangeSet ahead = ring_as_ahead(ring, clearance_m_);
+    return std::any_of(ahead.beams.begin(), ahead.beams.end(),
+                       [&](const BeamReading& beam) { return beam.range_m < clearance_m_ + kRingAheadClearance_m; });
+  }
+
+  bool plan_out(const BehaviourInput& input, const Pose2& pose) {
+    if (input.grid == nullptr) return false;
+    std::optional<HeightBandLayer> band;
+    if (input.octomap != nullptr) band.emplace(*input.octomap, height_m_);
+    const Eigen::Vector2d here(pose.x_m, pose.y_m);
+    // Behind first, then ever closer to straight ahead, alternating sides; the side to try first alternates between
+    // escapes so two traps in a row do not send the robot back and forth along the same line.
+    constexpr std::array<double, 8> kOffsets_deg{180.0, 135.0, -135.0, 90.0, -90.0, 45.0, -45.0, 0.0};
+    const double side = (escapes_ % 2 == 0) ? 1.0 : -1.0;
+    constexpr std::array<double, 3> kRadii_m{4.0, 2.5, 1.5};
+    constexpr std::size_t kCandidates = kRadii_m.size() * kOffsets_deg.size();
+    int tried = 0;
+    // A cycle plans at most kMaxPlansPerCycle candidates; the next one carries on where this one stopped.
+    for (std::size_t k = next_candidate_; k < kCandidates; ++k) {
+      const double radius_m = kRadii_m[k / kOffsets_deg.size()];
+      const double bearing = pose.yaw_rad + side * kOffsets_deg[k % kOffsets_deg.size()] * kDeg;
+      const Eigen::Vector2d target = here + radius_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+      // Only to ground the map has seen free: an unseen cell may be the far side of a wall no beam came back from
+      // (a sonar's echo is specular).
+      const geometry::CellIndex cell = geometry::GridGeometry(input.grid->cell_size()).cell_of(target);
+      if (!input.grid->observed(cell) || input.grid->occupied(cell)) continue;
+      if (!segment_clear(*input.grid, target, target, clearance_m_)) continue;
+      if (++tried > kMaxPlansPerCycle) {
+        next_candidate_ = k;
+        return false;
+      }
+      const GlobalPathResult result = plan_global_path(*input.grid, band ? &*band : nullptr, here, target, planner_);
+      if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) continue;
+      path_ = result.waypoints_W;
+      segment_ = 0;
+      escape_started_s_ = input.stamp_s;
+      ++escapes_;
+      next_candidate_ = 0;
+      return true;
+    }
+    next_candidate_ = 0;
+    return false;
+  }
+
+  // One step along the escape path; an empty state once it has ended (reached, or given up after kEscapeTimeout_s),
+  // with a fresh inner behaviour in place.
+  BehaviourCommand follow(const BehaviourInput& input, const Pose2& pose) {
+    const PurePursuitCommand step = pure_pursuit(pose, path_, follower_, segment_);
+    segment_ = step.segment;
+    if (!escape_anchor_W_ || (*position_W_ - *escape_anchor_W_).norm() > kHeadway_m) {
+      escape_anchor_W_ = position_W_;
+      escape_anchor_s_ = input.stamp_s;
+    }
+    // Held up on the way out (the guard stops what the map did not show): give up and try another way.
+    const bool held_up = input.stamp_s - escape_anchor_s_ > kEscapeHeldUp_s;
+    // A sonar map is sparse (echoes are specular): the ring hearing a wall across the way ends the escape too, and the
+    // inner behaviour avoids it.
+    const bool heard_ahead = input.ring && step.linear_mps > 0.0 && ring_blocks_ahead(*input.ring);
+    if (heard_ahead) next_plan_s_ = input.stamp_s + kStallTime_s;
+    if (step.reached || held_up || heard_ahead || input.stamp_s - escape_started_s_ > kEscapeTimeout_s) {
+      held_up_ = held_up;
+      escape_anchor_W_.reset();
+      path_.clear();
+      inner_ = rebuild_();
+      anchor_W_ = position_W_;
+      anchor_s_ = input.stamp_s;
+      return {};
+    }
+    BehaviourCommand command;
+    command.linear_mps = step.linear_mps;
+    command.angular_radps = step.angular_radps;
+    command.state = "escape_" + trigger_;
+    return command;
+  }
+
+  static constexpr int kMaxPlansPerCycle = 6;  // bounds the strand time one control cycle spends planning
+
+  std::function<std::unique_ptr<Behaviour>()> rebuild_;
+  std::unique_ptr<Behaviour> inner_;
+  GlobalPathParams planner_;
+  PurePursuitParams follower_;
+  double clearance_m_ = 0.0;
+  std::vector<Eigen::Vector2d> path_;
+  std::size_t segment_ = 0;
+  std::optional<Eigen::Vector2d> position_W_;
+  std::optional<Eigen::Vector2d> anchor_W_;         // where the robot last made headway
+  std::optional<Eigen::Vector2d> escape_anchor_W_;  // ... on the escape path
+  double escape_anchor_s_ = 0.0;
+  bool held_up_ = false;            // the last escape path made no headway
+  double back_off_until_s_ = -1.0;  // reversing until then
+  double anchor_s_ = 0.0;
+  double escape_started_s_ = 0.0;
+  double next_plan_s_ = -std::numeric_limits<double>::infinity();
+  int escapes_ = 0;
+  std::size_t next_candidate_ = 0;  // where the next cycle's search for a way out resumes
+  std::string trigger_;
+  double height_m_;
+};
+
 }  // namespace
+
+std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
+                                           const RobotShape& robot) {
+  return std::make_unique<MapEscapeWrapper>(std::move(rebuild), robot);
+}
 
 std::unique_ptr<Behaviour> make_bearcat(const BearcatParams& params) {
   return std::make_unique<BearcatAdapter>(params);
@@ -357,7 +613,7 @@ std::unique_ptr<Behaviour> make_wander(const WanderParams& params, const RobotSh
   const double front_m = footprint_front(robot.footprint) - robot.laser_x_m;
   scaled.obstacle_threshold_m = std::max(params.obstacle_threshold_m, front_m + 1.5 * footprint_width(robot.footprint));
   scaled.linear_speed_mps = std::min(params.linear_speed_mps, robot.max_linear_mps);
-  return std::make_unique<WanderAdapter>(scaled);
+  return std::make_unique<WanderAdapter>(scaled, geometry::bounding_radius(robot.footprint));
 }
 
 PointBugParams pointbug_params_for(const RobotShape& robot) {

@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "../validation.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
@@ -10,30 +11,52 @@ void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& req
   const std::uint64_t request_id = request.request_id();
   if (!known_behaviour(request.behaviour())) {
     session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.behaviour",
-                        "must be \"bearcat\", \"stop\", \"teleop\", \"wander\", \"goto\" or \"waypoints\", not \"" +
+                        "must be \"bearcat\", \"bearcat_seed\", \"stop\", \"teleop\", \"wander\", \"goto\" or "
+                        "\"waypoints\", not \"" +
                             request.behaviour().substr(0, 64) + "\"",
                         request_id);
     return;
   }
+  // A request the robot cannot carry out leaves it stopped when this session drives it, rather than carrying on with
+  // the plan the request meant to replace.
+  const auto refuse = [&](const std::string& field, const std::string& message) {
+    session->send_error(v1::ERROR_INVALID_ARGUMENT, field, message, request_id);
+    if (!valid_name(request.robot_id())) return;
+    const auto robot = session->core().find_robot(request.robot_id());
+    if (!robot) return;
+    const auto now = std::chrono::steady_clock::now();
+    const bool stopped = robot->control().update([&](ControlState& c) {
+      if (!c.lease || c.lease->session_id != info.id || c.lease->expires_at <= now) return false;
+      c.behaviour = "stop";
+      c.teleop_linear_mps = 0.0;
+      c.teleop_angular_radps = 0.0;
+      ++c.drive_generation;
+      return true;
+    });
+    if (stopped) {
+      log::warn("drive_refused", {{"robot", request.robot_id()}, {"field", field}, {"error", message}});
+      send_stop_to_driver(*robot, "drive_refused", session->core().config().control.command_expiry_s);
+    }
+  };
   if (!std::isfinite(request.linear_mps())) {
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.linear_mps", "must be finite", request_id);
+    refuse("drive.linear_mps", "must be finite");
     return;
   }
   if (!std::isfinite(request.angular_radps())) {
-    session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.angular_radps", "must be finite", request_id);
+    refuse("drive.angular_radps", "must be finite");
     return;
   }
   if (request.behaviour() == "goto") {
     if (!request.has_goal()) {
-      session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.goal", "goto needs a goal", request_id);
+      refuse("drive.goal", "goto needs a goal");
       return;
     }
     const double limit = session->core().config().limits.max_abs_coordinate_m;
     for (const auto& [value, field] :
          {std::pair{request.goal().x_m(), "drive.goal.x_m"}, std::pair{request.goal().y_m(), "drive.goal.y_m"}}) {
       if (!std::isfinite(value) || std::abs(value) > limit) {
-        session->send_error(v1::ERROR_INVALID_ARGUMENT, field,
-                            "must be finite and within limits.max_abs_coordinate_m of the origin", request_id);
+        refuse(field, "the goal is outside the world: it must be finite and within limits.max_abs_coordinate_m (" +
+                          std::to_string(limit) + " m) of the origin");
         return;
       }
     }
@@ -41,8 +64,7 @@ void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& req
   if (request.behaviour() == "waypoints") {
     constexpr int kMaxWaypoints = 1000;
     if (request.waypoints_size() == 0 || request.waypoints_size() > kMaxWaypoints) {
-      session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.waypoints", "waypoints needs 1 to 1000 waypoints",
-                          request_id);
+      refuse("drive.waypoints", "waypoints needs 1 to 1000 waypoints");
       return;
     }
     const double limit = session->core().config().limits.max_abs_coordinate_m;
@@ -50,14 +72,18 @@ void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& req
       const auto& w = request.waypoints(i);
       if (!std::isfinite(w.x_m()) || !std::isfinite(w.y_m()) || std::abs(w.x_m()) > limit ||
           std::abs(w.y_m()) > limit) {
-        session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.waypoints[" + std::to_string(i) + "]",
-                            "must be finite and within limits.max_abs_coordinate_m of the origin", request_id);
+        refuse("drive.waypoints[" + std::to_string(i) + "]",
+               "must be finite and within limits.max_abs_coordinate_m of the origin");
         return;
       }
     }
   }
   auto robot = find_named_robot(session, request.robot_id(), "drive", request_id);
   if (!robot) return;
+  if (const std::optional<std::string> missing = missing_sensor_for(request.behaviour(), robot->model())) {
+    refuse("drive.behaviour", *missing);
+    return;
+  }
   ClampedVelocity velocity;
   if (request.behaviour() == "teleop") {
     velocity = clamp_velocity(robot->model(), request.linear_mps(), request.angular_radps());

@@ -144,32 +144,14 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
       std::span<const float>(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size())), laser.range_max_m};
   v1::MotionCommand command =
       command_for_scan_on_strand(*robot, view, scan.stamp_s(), expiry_s, session->core().config());
-  command.set_answers_scan_seq(scan.seq());
-
-  std::vector<Eigen::Vector2f> scan_W;
-  if (placed_at_W) scan_W = scan_returns_W(*placed_at_W, laser, scan);
-  std::string previous_state;
-  robot->update_state([&](RobotState& state) {
-    if (placed_at_W) {
-      state.scan_W = std::make_shared<const std::vector<Eigen::Vector2f>>(std::move(scan_W));
+  if (placed_at_W) {
+    auto scan_W = std::make_shared<const std::vector<Eigen::Vector2f>>(scan_returns_W(*placed_at_W, laser, scan));
+    robot->update_state([&](RobotState& state) {
+      state.scan_W = std::move(scan_W);
       state.scan_stamp_s = scan.stamp_s();
-    }
-    command.set_seq(++state.commands_sent);
-    previous_state = state.behaviour_state;
-    state.behaviour = command.behaviour();
-    state.behaviour_state = command.state();
-    state.last_linear_mps = command.linear_mps();
-    state.last_angular_radps = command.angular_radps();
-  });
-  if (command.state() != previous_state) {
-    const auto level = command.stop() ? log::Level::warn : log::Level::debug;
-    if (log::enabled(level)) {
-      log::write(level, "behaviour_state", {{"robot", model.id}, {"state", command.state()}, {"scan_seq", scan.seq()}});
-    }
+    });
   }
-  v1::ServerMessage reply;
-  *reply.mutable_motion_command() = std::move(command);
-  session->send(reply);
+  send_command_on_strand(session, *robot, std::move(command), scan.seq());
 }
 
 }  // namespace

@@ -99,8 +99,8 @@ v1::MotionCommand make_stop(const std::string& behaviour, const std::string& sta
 }  // namespace
 
 bool known_behaviour(const std::string& name) {
-  return name == "bearcat" || name == "stop" || name == "teleop" || name == "wander" || name == "goto" ||
-         name == "waypoints";
+  return name == "bearcat" || name == "bearcat_seed" || name == "stop" || name == "teleop" || name == "wander" ||
+         name == "goto" || name == "waypoints";
 }
 
 namespace {
@@ -146,8 +146,16 @@ void fill_guard(const control::GuardDecision& decision, double requested_linear_
 std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
                                                    const RobotModel& model, const ServerConfig& config) {
   const control::RobotShape shape = robot_shape(model);
-  if (name == "bearcat") return control::make_bearcat(bearcat_params_for(model, config.bearcat));
-  if (name == "wander") return control::make_wander(control::WanderParams{}, shape);
+  // The Bearcat and wander get out of deadlocks over the map they built (seed 000 §5.2); bearcat_seed is the thesis's
+  // behaviour alone, which stops in a deadlock for good. Each robot's Bearcat uses its own wheel separation.
+  const control::BearcatParams bearcat = bearcat_params_for(model, config.bearcat);
+  if (name == "bearcat_seed") return control::make_bearcat(bearcat);
+  if (name == "bearcat") {
+    return control::make_map_escape([bearcat] { return control::make_bearcat(bearcat); }, shape);
+  }
+  if (name == "wander") {
+    return control::make_map_escape([shape] { return control::make_wander(control::WanderParams{}, shape); }, shape);
+  }
   if ((name == "goto" || name == "waypoints") && request.escape()) {
     v1::DriveRequest plain = request;
     plain.set_escape(false);
@@ -180,7 +188,8 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
 }
 
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
-                                             double expiry_s, const ServerConfig& config) {
+                                             double expiry_s, const ServerConfig& config,
+                                             const std::optional<control::RangeSet>& ring) {
   const RobotModel& model = robot.model();
   const ControlState control = robot.control().state();
   v1::MotionCommand command;
@@ -212,7 +221,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         robot.active_generation_on_strand() = control.drive_generation;
       }
       if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
-      wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get()});
+      wanted =
+          active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring});
       path_W = active->planned_path();
     } catch (const std::invalid_argument& e) {
       log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
@@ -253,6 +263,30 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     s.path_W = std::move(path_W);
   });
   return command;
+}
+
+void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionCommand command,
+                            std::uint64_t answers_seq) {
+  command.set_answers_scan_seq(answers_seq);
+  std::string previous_state;
+  robot.update_state([&](RobotState& state) {
+    command.set_seq(++state.commands_sent);
+    previous_state = state.behaviour_state;
+    state.behaviour = command.behaviour();
+    state.behaviour_state = command.state();
+    state.last_linear_mps = command.linear_mps();
+    state.last_angular_radps = command.angular_radps();
+  });
+  if (command.state() != previous_state) {
+    const auto level = command.stop() ? log::Level::warn : log::Level::debug;
+    if (log::enabled(level)) {
+      log::write(level, "behaviour_state",
+                 {{"robot", robot.model().id}, {"state", command.state()}, {"scan_seq", answers_seq}});
+    }
+  }
+  v1::ServerMessage reply;
+  *reply.mutable_motion_command() = std::move(command);
+  session->send(reply);
 }
 
 v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const std::string& state, double expiry_s,

@@ -51,8 +51,16 @@ struct ClampedVelocity {
 // holder set (rebuilt when a new DriveRequest was accepted); every moving command then passes the safety guard
 // (config.guard) against the world's latest snapshot, and the guard's verdict is recorded in the robot's state.
 // answers_scan_seq and seq are left to the caller. Call only from the world's strand.
+// A robot without a laser passes its first range array's readings as `ring` (base_link bearings and distances) and an
+// empty view.
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
-                                             double expiry_s, const ServerConfig& config);
+                                             double expiry_s, const ServerConfig& config,
+                                             const std::optional<control::RangeSet>& ring = std::nullopt);
+
+// Numbers the command as answering sensor message `answers_seq`, records it in the robot's state (logging a change of
+// behaviour state) and sends it on the driver's session. Call only from the world's strand.
+void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionCommand command,
+                            std::uint64_t answers_seq);
 
 // The behaviour a DriveRequest names, built for this robot; nullptr for "stop" and "teleop" (no decision needed).
 // Throws std::invalid_argument naming the field when its parameters are wrong.

@@ -108,6 +108,8 @@ struct RobotPreset {
   // Speed of each wheel during drive_goto, m/s (the ActivityBot's drive_setMaxSpeed default); 0 when the robot has no
   // drive_goto.
   double drive_goto_speed_mps = 0.0;
+  // RobotSpec.default_behaviour: what the server runs for it while nobody set a behaviour (empty: the server's own).
+  std::string default_behaviour;
   double command_timeout_s = 0.0;  // watchdog: the wheels stop when no command arrived within this, seconds
 
   // The first laser (the one the server steers by), or nullptr when the robot has none.

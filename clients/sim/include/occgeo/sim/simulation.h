@@ -42,7 +42,8 @@ struct SensorBatch {
   // seq of the last sensor message (LaserScan, RangeArray, ServoRange, PointCloud) in the batch, whose ScanAck closes
   // it; 0 when the batch has none.
   std::uint64_t last_sensor_seq = 0;
-  // seq of the steering laser's scan when the batch holds it: the server answers it with a MotionCommand.
+  // seq of the steering sensor's message (the first laser's scan, else the first range array's firing) when the batch
+  // holds it: the server answers it with a MotionCommand.
   std::optional<std::uint64_t> steering_scan_seq;
 
   // The batch's LaserScan from the named sensor (the first laser when sensor is empty), or nullptr.
@@ -125,7 +126,7 @@ class Simulation {
 
   std::unique_ptr<SimWorld> world_;
   KinematicsPreset kinematics_;
-  std::string steering_laser_;  // the first laser's name; empty when the robot has none
+  std::string steering_sensor_;  // the first laser's name, else the first range array's; empty when neither
   bool has_encoders_;
   std::int64_t encoder_period_steps_ = 0;  // 0 when the robot has no encoders
   std::vector<ScheduledSensor> sensors_;

@@ -32,6 +32,9 @@ struct BehaviourInput {
   const mapping::GridSnapshot* grid = nullptr;  // the world's latest models, when the caller has them
   const mapping::PtemSnapshot* ptem = nullptr;
   const mapping::OctoMapSnapshot* octomap = nullptr;  // for obstacles above or below the laser plane
+  // A robot without a laser steers by its range array (seed 001's sonar ring): each element's bearing in base_link and
+  // its reading as a distance from base_link's origin along that bearing; scan is then empty.
+  std::optional<RangeSet> ring = std::nullopt;
 };
 
 // What a behaviour commands.
@@ -93,6 +96,14 @@ std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<E
 // the footprint's inscribed radius, with a cost gradient out to its circumscribed radius. An inner behaviour without a
 // goal runs unchanged.
 std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot);
+
+// Beyond the seeds, for behaviours without a goal (Bearcat, wander): when the inner behaviour stops (the Bearcat's
+// deadlock) or makes no headway (0.5 m) for 6 s, plans a way out over the remembered HIMM grid to the first reachable
+// point round the robot (4 m, 2.5 m, 1.5 m away; behind it first) and follows it by pure pursuit (state
+// "escape_<trigger>"), then resumes a fresh inner behaviour from `rebuild`. With no way out on the map yet it turns on
+// the spot ("escape_look_round") instead of stopping.
+std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
+                                           const RobotShape& robot);
 
 // The ±90°, 1° sweep PointBug reads, taken from a laser scan: each whole degree reads the nearest beam within half a
 // beam step (or half a degree), else no return. laser_x_m shifts nothing: ranges stay the sensor's.
