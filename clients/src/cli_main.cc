@@ -361,6 +361,10 @@ int run_query_collision(const Options& options) {
                   << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
       }
     }
+    if (reply.keep_out()) {
+      std::cout << ",\"keep_out\":true,\"keep_out_point\":{\"x\":" << fmt(reply.keep_out_point().x())
+                << ",\"y\":" << fmt(reply.keep_out_point().y()) << "}";
+    }
     std::cout << ",\"cells_tested\":" << reply.cells_tested() << "}\n";
   } else if (reply.hit()) {
     std::cout << "hit (" << model_name(reply.model()) << ") at (" << fmt(reply.contact().x()) << ", "
@@ -369,6 +373,10 @@ int run_query_collision(const Options& options) {
     std::cout << "\n";
   } else {
     std::cout << "free\n";
+  }
+  if (!options.json && reply.keep_out()) {
+    std::cout << "keep-out: reaches into the PTEM's restricted region at (" << fmt(reply.keep_out_point().x()) << ", "
+              << fmt(reply.keep_out_point().y()) << ")\n";
   }
   return 0;
 }
@@ -395,6 +403,10 @@ int run_query_clearance(const Options& options) {
       std::cout << ",\"nearest_point\":{\"x\":" << fmt(reply.nearest_point().x())
                 << ",\"y\":" << fmt(reply.nearest_point().y()) << "}";
     }
+    if (reply.has_restricted_clearance_m()) {
+      std::cout << ",\"keep_out\":" << (reply.keep_out() ? "true" : "false")
+                << ",\"restricted_clearance_m\":" << fmt(reply.restricted_clearance_m());
+    }
     std::cout << "}\n";
   } else if (reply.found()) {
     std::cout << "clearance " << fmt(reply.clearance_m()) << " m to the " << model_name(reply.model()) << " at ("
@@ -402,6 +414,13 @@ int run_query_clearance(const Options& options) {
   } else {
     std::cout << "clearance at least " << fmt(reply.clearance_m())
               << " m (nothing occupied within the search radius)\n";
+  }
+  if (!options.json && reply.has_restricted_clearance_m()) {
+    if (reply.keep_out()) {
+      std::cout << "keep-out: inside the PTEM's restricted region\n";
+    } else {
+      std::cout << "keep-out: " << fmt(reply.restricted_clearance_m()) << " m to the PTEM's restricted region\n";
+    }
   }
   return 0;
 }

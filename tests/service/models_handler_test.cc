@@ -4,10 +4,12 @@
 // fake session and a real ServerCore (no sockets).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <set>
@@ -267,7 +269,7 @@ TEST_F(ModelsHandlers, GridClearanceComesFromTheDistanceFieldWithinOneCellOfExac
 
 // The thin obstacle of seed 004 §5.1.1 as a PTEM cluster: a footprint overlapping its circle collides with the
 // PTEM; clearance measures to the circle.
-TEST_F(ModelsHandlers, PtemRestrictedRegionsAreObstaclesForModelPtem) {
+TEST_F(ModelsHandlers, PtemClusterCirclesAreObstaclesForModelPtem) {
   auto session = driver("r1", laser_spec());
   handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
   const Eigen::Vector2d obstacle(1.75, 0.0);
@@ -298,6 +300,100 @@ TEST_F(ModelsHandlers, PtemRestrictedRegionsAreObstaclesForModelPtem) {
   EXPECT_TRUE(far.found());
   EXPECT_EQ(far.model(), v1::MODEL_PTEM);
   EXPECT_NEAR(far.clearance_m(), gap, 1e-6);
+}
+
+// Ranges of the level laser at (0, 0) heading theta among posts 0.11 m across, some in pairs (max range where a
+// beam meets nothing).
+std::vector<float> posts_ranges(double theta) {
+  const std::vector<Eigen::Vector2d> posts = {{2.0, 0.3},  {2.0, -0.3}, {-1.5, 1.2}, {-1.5, 1.75},
+                                              {0.5, -2.5}, {3.0, 2.5},  {-2.5, -1.5}};
+  std::vector<float> ranges;
+  for (int i = 0; i < 181; ++i) {
+    const double a = theta - M_PI / 2 + i * M_PI / 180;
+    const Eigen::Vector2d u(std::cos(a), std::sin(a));
+    double t = 8.0;
+    for (const auto& post : posts) {
+      const double b = u.dot(post);
+      const double disc = b * b - (post.squaredNorm() - 0.055 * 0.055);
+      if (disc >= 0 && b - std::sqrt(disc) > 0.05) t = std::min(t, b - std::sqrt(disc));
+    }
+    ranges.push_back(static_cast<float>(t));
+  }
+  return ranges;
+}
+
+TEST_F(ModelsHandlers, DefaultCollisionAndClearanceAnswerAgainstMatterAndReportTheKeepOutBeside) {
+  auto session = driver("r1", laser_spec());
+  std::uint64_t seq = 0;
+  for (int turn = 0; turn < 8; ++turn) {
+    const double theta = turn * M_PI / 4;
+    const double stamp = 0.1 * (turn + 1);
+    handle_odometry(session, odometry(0.0, 0.0, theta, stamp));
+    handle_laser_scan(session, scan(++seq, stamp, posts_ranges(theta)));
+    expect_ack(*session, seq);
+  }
+  const WorldSnapshot snapshot = world();
+  ASSERT_GT(snapshot.grid->occupied_cell_count(), 0U);
+  ASSERT_FALSE(snapshot.ptem->clusters().empty());
+  ASSERT_TRUE(snapshot.ptem->restricted_threshold().has_value());
+  std::vector<Eigen::Vector2d> cell_centres;
+  const double cell = snapshot.grid->cell_size();
+  snapshot.grid->for_each_occupied({-1000, -1000}, {1000, 1000}, [&](const geometry::CellIndex& c) {
+    cell_centres.emplace_back((c.ix + 0.5) * cell, (c.iy + 0.5) * cell);
+    return true;
+  });
+  // The footprint: a 0.6 m by 0.5 m box, bounding radius ≈ 0.39 m.
+  v1::Footprint footprint;
+  footprint.mutable_box()->set_length_m(0.6);
+  footprint.mutable_box()->set_width_m(0.5);
+  footprint.mutable_box()->set_height_m(0.4);
+  const double radius = std::hypot(0.3, 0.25);
+  auto q = querier();
+  std::mt19937 rng(19);
+  std::uniform_real_distribution<double> x_of(-3.5, 4.0), y_of(-3.5, 3.5), theta_of(-M_PI, M_PI);
+  int tested = 0, keep_out = 0;
+  for (int k = 0; k < 400; ++k) {
+    const Eigen::Vector2d p(x_of(rng), y_of(rng));
+    const double theta = theta_of(rng);
+    // Distance from the pose to matter: occupied cells (their corners) and the clusters' own circles.
+    double matter_m = std::numeric_limits<double>::infinity();
+    for (const auto& c : cell_centres) matter_m = std::min(matter_m, (c - p).norm() - cell * M_SQRT1_2);
+    for (const auto& cluster : snapshot.ptem->clusters()) {
+      matter_m = std::min(matter_m, (cluster.centre_W - p).norm() - cluster.radius_m);
+    }
+    // Free and at least one footprint radius clear: the footprint's bounding circle is a radius from everything.
+    if (matter_m < 2.0 * radius) continue;
+    ++tested;
+    v1::CollisionQuery collision;
+    collision.set_request_id(++request_id_);
+    collision.set_robot_id("r1");
+    collision.mutable_pose()->set_x(p.x());
+    collision.mutable_pose()->set_y(p.y());
+    collision.mutable_pose()->set_theta(theta);
+    *collision.mutable_footprint() = footprint;
+    handle_collision_query(q, collision);
+    const auto hit = q->next();
+    ASSERT_TRUE(hit && hit->has_collision());
+    EXPECT_FALSE(hit->collision().hit()) << "at (" << p.x() << ", " << p.y() << ", " << theta << "), " << matter_m
+                                         << " m from matter: " << hit->collision().DebugString();
+    v1::ClearanceQuery clearance;
+    clearance.set_request_id(++request_id_);
+    clearance.set_robot_id("r1");
+    *clearance.mutable_pose() = collision.pose();
+    *clearance.mutable_footprint() = footprint;
+    handle_clearance_query(q, clearance);
+    const auto room = q->next();
+    ASSERT_TRUE(room && room->has_clearance());
+    // The footprint's points lie within radius of the pose, so matter is at least matter_m - radius away.
+    EXPECT_GE(room->clearance().clearance_m(), matter_m - radius - 1e-6)
+        << "at (" << p.x() << ", " << p.y() << "): " << room->clearance().DebugString();
+    EXPECT_GT(room->clearance().clearance_m(), 0.0);
+    EXPECT_TRUE(room->clearance().has_restricted_clearance_m());
+    EXPECT_EQ(room->clearance().keep_out(), hit->collision().keep_out());
+    if (room->clearance().keep_out()) ++keep_out;
+  }
+  std::printf("%d free poses tested, %d of them inside the keep-out\n", tested, keep_out);
+  EXPECT_GE(tested, 20);
 }
 
 TEST_F(ModelsHandlers, UnknownModelsAreRefusedNamingTheField) {

@@ -428,7 +428,9 @@ class Client:
         in the world frame — to the nearest obstacle of the asked models (see :meth:`collision` for
         ``models`` and ``footprint``), searching up to ``max_distance_m`` (0: the server's default,
         5 m). Returns the ``ClearanceReply``: ``found``, ``clearance_m`` (0 in collision,
-        ``max_distance_m`` when not found), ``model``, ``nearest_cell``, ``nearest_point`` (world, m).
+        ``max_distance_m`` when not found), ``model``, ``nearest_cell``, ``nearest_point`` (world, m);
+        when the PTEM is asked, ``keep_out`` and ``restricted_clearance_m``: the PTEM's restricted region,
+        reported beside the clearance to matter and never counted in it.
         """
         model_values = _model_list(models)
 

@@ -70,7 +70,8 @@ ModelClearance model_clearance(const WorldSnapshot& snapshot, v1::Model model,
     const geometry::ClearanceResult r = geometry::compute_clearance(request, columns);
     return {r.found, r.clearance_m, r.nearest_point_W, r.nearest_cell};
   }
-  const PtemClearance r = ptem_clearance(*snapshot.ptem, request.footprint, request.pose, request.max_distance_m);
+  const PtemClearance r =
+      ptem_extent_clearance(*snapshot.ptem, request.footprint, request.pose, request.max_distance_m);
   return {r.found, r.clearance_m, r.nearest_point_W, std::nullopt};
 }
 
@@ -107,6 +108,12 @@ geometry::CollisionResult grid_collision(const mapping::GridSnapshot& grid, cons
 
 void answer_collision(const WorldSnapshot& snapshot, const geometry::Footprint& footprint, double bounding_radius_m,
                       const geometry::Pose2& X_WB, std::span<const v1::Model> models, v1::CollisionReply& out) {
+  if (std::find(models.begin(), models.end(), v1::MODEL_PTEM) != models.end()) {
+    if (const PtemContact keep_out = collide_ptem(*snapshot.ptem, footprint, X_WB, bounding_radius_m); keep_out.hit) {
+      out.set_keep_out(true);
+      set_vector(Eigen::Vector3d(keep_out.point_W.x(), keep_out.point_W.y(), 0.0), *out.mutable_keep_out_point());
+    }
+  }
   for (const v1::Model model : models) {
     if (model == v1::MODEL_GRID) {
       const geometry::CollisionResult result =
@@ -126,7 +133,7 @@ void answer_collision(const WorldSnapshot& snapshot, const geometry::Footprint& 
       out.set_hit(true);
       set_vector(result.contact_W, *out.mutable_contact());
     } else {
-      const PtemContact result = collide_ptem(*snapshot.ptem, footprint, X_WB, bounding_radius_m);
+      const PtemContact result = collide_ptem_extent(*snapshot.ptem, footprint, X_WB, bounding_radius_m);
       if (!result.hit) continue;
       out.set_hit(true);
       set_vector(Eigen::Vector3d(result.point_W.x(), result.point_W.y(), 0.0), *out.mutable_contact());
@@ -140,6 +147,11 @@ void answer_clearance(const WorldSnapshot& snapshot, const geometry::Footprint& 
                       double max_distance_m, std::span<const v1::Model> models, v1::ClearanceReply& out) {
   const geometry::ClearanceRequest request{footprint, X_WB, max_distance_m};
   out.set_clearance_m(max_distance_m);
+  if (std::find(models.begin(), models.end(), v1::MODEL_PTEM) != models.end()) {
+    const PtemClearance restricted = ptem_clearance(*snapshot.ptem, footprint, X_WB, max_distance_m);
+    out.set_restricted_clearance_m(restricted.clearance_m);
+    out.set_keep_out(restricted.found && restricted.clearance_m <= 0.0);
+  }
   Eigen::Vector2d best_point_W = Eigen::Vector2d::Zero();
   // Keeps the nearest answer over the models; ties go to the model asked first.
   for (const v1::Model model : models) {

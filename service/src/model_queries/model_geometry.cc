@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <tuple>
 #include <utility>
 #include <variant>
@@ -250,6 +251,26 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
   if (const PtemContact contact = collide_ptem(ptem, footprint, X_WB); contact.hit) {
     return {true, 0.0, contact.point_W};
   }
+  return ptem_extent_clearance(ptem, footprint, X_WB, max_distance_m);
+}
+
+PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                                const geometry::Pose2& X_WB, double bounding_radius_m) {
+  std::optional<PlanarFrame> frame;
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    // The bounding circle first: most clusters are far and need no body-frame arithmetic.
+    if ((cluster.centre_W - X_WB.position()).norm() > bounding_radius_m + cluster.radius_m) continue;
+    if (!frame) frame.emplace(X_WB);
+    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, *frame, cluster.centre_W);
+    if ((q_W - cluster.centre_W).norm() <= cluster.radius_m) return {true, q_W};
+  }
+  return {};
+}
+
+PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                                    const geometry::Pose2& X_WB, double max_distance_m) {
+  PtemClearance out;
+  out.clearance_m = max_distance_m;
   const PlanarFrame frame(X_WB);
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
     const Eigen::Vector2d q_W = nearest_footprint_point(footprint, frame, cluster.centre_W);
