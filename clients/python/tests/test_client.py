@@ -74,6 +74,9 @@ def collision_json(reply):
         if reply.HasField("cell"):
             out["cell"] = {"ix": reply.cell.ix, "iy": reply.cell.iy}
             out["cell_center"] = {"x": fmt(reply.cell_center.x), "y": fmt(reply.cell_center.y)}
+    if reply.keep_out:
+        out["keep_out"] = True
+        out["keep_out_point"] = {"x": fmt(reply.keep_out_point.x), "y": fmt(reply.keep_out_point.y)}
     out["cells_tested"] = reply.cells_tested
     return out
 
@@ -86,6 +89,9 @@ def clearance_json(reply):
         if reply.HasField("nearest_cell"):
             out["nearest_cell"] = {"ix": reply.nearest_cell.ix, "iy": reply.nearest_cell.iy}
         out["nearest_point"] = {"x": fmt(reply.nearest_point.x), "y": fmt(reply.nearest_point.y)}
+    if reply.HasField("restricted_clearance_m"):
+        out["keep_out"] = reply.keep_out
+        out["restricted_clearance_m"] = fmt(reply.restricted_clearance_m)
     return out
 
 

@@ -23,7 +23,7 @@ class ReadmeExampleTest(test_client.ClientTest):
                                 timeout=test_client.CLI_TIMEOUT_S, env=os.environ)
         self.assertEqual(result.returncode, 0, result.stderr.decode())
         out = result.stdout.decode()
-        match = re.search(r"^%s at \(([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\) (\S+): clearance ([-0-9.]+) m$"
+        match = re.search(r"^%s at \(([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\) (\S+): clearance ([-0-9.]+) m, keep-out ([-0-9.]+) m$"
                           % re.escape(test_client.ROBOT), out, re.MULTILINE)
         self.assertIsNotNone(match, out)
         x, y, theta = (float(v) for v in match.group(1, 2, 3))
@@ -31,6 +31,7 @@ class ReadmeExampleTest(test_client.ClientTest):
                                       "--y", "%.17g" % y, "--theta", "%.17g" % theta, "--json"))
         # The robot stands at (0, 0, 0), so the printed pose is exact; the clearance is printed to 1 mm.
         self.assertAlmostEqual(float(match.group(5)), cli["clearance_m"], delta=0.0005)
+        self.assertAlmostEqual(float(match.group(6)), cli.get("restricted_clearance_m", 0.0), delta=0.0005)
         cells = re.search(r"world %s: (\d+) occupied cells" % test_client.WORLD, out)
         self.assertIsNotNone(cells, out)
         self.assertEqual(int(cells.group(1)), len(self.query.grid(test_client.WORLD).occupied_cells()))
