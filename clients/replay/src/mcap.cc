@@ -240,6 +240,28 @@ void McapReader::load_chunk(std::string_view body, std::uint64_t record_offset) 
     fail("chunk claims " + std::to_string(uncompressed_size) + " uncompressed bytes, more than the 2 GiB accepted",
          record_offset);
   }
+  // The claim is checked against what the compressed bytes can hold before any memory is taken for it, so a damaged
+  // or hostile size costs nothing: no compression holds exactly its size, an LZ4 frame at most 255 times its own
+  // (the format's limit), and a zstd frame says its content size in its header.
+  const std::uint64_t compressed_size = records.size();
+  if (compression.empty() && compressed_size != uncompressed_size) {
+    fail("uncompressed chunk holds " + std::to_string(compressed_size) + " byte(s) but claims " +
+             std::to_string(uncompressed_size),
+         record_offset);
+  }
+  if (compression == "lz4" && uncompressed_size > 255 * compressed_size + 64) {
+    fail("lz4 chunk of " + std::to_string(compressed_size) + " byte(s) cannot hold the " +
+             std::to_string(uncompressed_size) + " it claims",
+         record_offset);
+  }
+  if (compression == "zstd") {
+    const unsigned long long content = ZSTD_getFrameContentSize(records.data(), records.size());
+    if (content == ZSTD_CONTENTSIZE_ERROR || (content != ZSTD_CONTENTSIZE_UNKNOWN && content != uncompressed_size) ||
+        (content == ZSTD_CONTENTSIZE_UNKNOWN && uncompressed_size > 1024 * compressed_size + 65536)) {
+      fail("zstd chunk's frame does not hold the " + std::to_string(uncompressed_size) + " byte(s) it claims",
+           record_offset);
+    }
+  }
   chunk_.resize(static_cast<std::size_t>(uncompressed_size));
   if (compression.empty()) {
     if (records.size() != uncompressed_size) {
