@@ -234,6 +234,13 @@ void ServerConfig::validate() const {
                 "role needs a token; missing: " +
                 missing);
   }
+  if (http.enabled && !listen_is_loopback(http.listen)) {
+    require(!auth.observer_token.empty(), "http.listen",
+            "is '" + http.listen +
+                "', not a loopback address: the live view (with its e-stop) and the Foxglove channels would be "
+                "open to anyone who can reach it; set auth.observer_token, which every page and WebSocket request "
+                "must then carry");
+  }
   require(tls.cert.empty() == tls.key.empty(), tls.cert.empty() ? "tls.cert" : "tls.key",
           "must be set together with tls." + std::string(tls.cert.empty() ? "key" : "cert"));
   require(limits.max_batch_queries > 0, "limits.max_batch_queries", "must be positive");

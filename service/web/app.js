@@ -289,7 +289,9 @@ function send(message) {
 
 function connect() {
   const status = document.getElementById('connection');
-  const socket = new WebSocket(`ws://${location.host}/ws`);
+  // The page's own token (a server reachable beyond loopback needs one) goes with its WebSocket.
+  const token = new URLSearchParams(location.search).get("token");
+  const socket = new WebSocket(`ws://${location.host}/ws` + (token ? `?token=${encodeURIComponent(token)}` : ""));
   view.socket = socket;
   socket.onopen = () => {
     status.textContent = 'live';

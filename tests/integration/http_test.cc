@@ -12,6 +12,7 @@
 #include <boost/property_tree/ptree.hpp>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -19,6 +20,7 @@
 
 #include "../support/http_get.h"
 #include "../support/process.h"
+#include "../support/temp_dir.h"
 #include "occgeo/mapfile/map_file.h"
 #include "test_clients.h"
 
@@ -406,6 +408,58 @@ TEST_F(LiveView, PublishesTheGridAndScansOverTheFoxgloveProtocol) {
     EXPECT_NEAR(static_cast<double>(xy[1]), pose.y() + mount_x * std::sin(pose.theta()) + 2.0 * std::sin(bearing), 1e-4)
         << k;
   }
+}
+
+// The HTTP side follows the socket's rules. An address other than loopback needs the observer token: without it the
+// server refuses to start, naming the key. With a token, the page, /metrics and the WebSockets need it (the page's
+// script and style carry no data); the live view's WebSocket, which can engage an e-stop, refuses a foreign Origin.
+TEST(HttpAccess, AddressBeyondLoopbackNeedsTheObserverToken) {
+  TempDir dir;
+  const ProcessResult refused = run_process({binary("service/occgeod").string(), "--listen", "127.0.0.1:0",
+                                             "--data-dir", dir.path().string(), "--http", "0.0.0.0:0"},
+                                            std::chrono::seconds(20));
+  EXPECT_EQ(refused.exit_code, 2) << refused.err;
+  EXPECT_NE(refused.err.find("http.listen"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("auth.observer_token"), std::string::npos) << refused.err;
+}
+
+TEST(HttpAccess, RequestsWithoutTheTokenAndForeignOriginsAreRefused) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "auth:\n  observer_token: s3cret\n";
+  ServerProcess server(dir.path(), {"--config", config.string(), "--http", "127.0.0.1:0"});
+  const std::uint16_t port = http_port(server);
+  EXPECT_EQ(http_get(port, "/").status, 401U);
+  EXPECT_EQ(http_get(port, "/metrics").status, 401U);
+  EXPECT_EQ(http_get(port, "/?token=wrong").status, 401U);
+  EXPECT_EQ(http_get(port, "/?token=s3cret").status, 200U);
+  EXPECT_EQ(http_get(port, "/metrics?token=s3cret").status, 200U);
+  EXPECT_EQ(http_get(port, "/app.js").status, 200U) << "the page's script carries no data";
+
+  // The status of a WebSocket upgrade request (101 when it is taken), sent as a browser would.
+  const auto upgrade_status = [&](const std::string& target, const std::string& origin) {
+    boost::asio::io_context io;
+    beast::tcp_stream stream(io);
+    stream.expires_after(std::chrono::seconds(10));
+    stream.connect(boost::asio::ip::tcp::endpoint(boost::asio::ip::make_address("127.0.0.1"), port));
+    beast::http::request<beast::http::empty_body> request{beast::http::verb::get, target, 11};
+    request.set(beast::http::field::host, "127.0.0.1:" + std::to_string(port));
+    request.set(beast::http::field::connection, "Upgrade");
+    request.set(beast::http::field::upgrade, "websocket");
+    request.set(beast::http::field::sec_websocket_version, "13");
+    request.set(beast::http::field::sec_websocket_key, "dGhlIHNhbXBsZSBub25jZQ==");
+    if (!origin.empty()) request.set(beast::http::field::origin, origin);
+    beast::http::write(stream, request);
+    beast::flat_buffer buffer;
+    beast::http::response_parser<beast::http::empty_body> response;
+    response.skip(true);  // a 101 has no body; an error's body is not needed
+    beast::http::read_header(stream, buffer, response);
+    return response.get().result_int();
+  };
+  const std::string self = "http://127.0.0.1:" + std::to_string(port);
+  EXPECT_EQ(upgrade_status("/ws", self), 401U) << "no token";
+  EXPECT_EQ(upgrade_status("/ws?token=s3cret", self), 101U);
+  EXPECT_EQ(upgrade_status("/ws?token=s3cret", "http://attacker.example"), 403U);
 }
 
 }  // namespace

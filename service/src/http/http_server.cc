@@ -357,6 +357,35 @@ bool wants_foxglove(const Request& request) {
   return std::string_view(protocols.data(), protocols.size()).find(foxglove::kSubprotocol) != std::string_view::npos;
 }
 
+// The request's path without its query.
+std::string_view path_of(std::string_view target) {
+  const auto query = target.find('?');
+  return query == std::string_view::npos ? target : target.substr(0, query);
+}
+
+// The value of `token=` in the target's query, if any.
+std::optional<std::string_view> query_token(std::string_view target) {
+  const auto query = target.find('?');
+  if (query == std::string_view::npos) return std::nullopt;
+  std::string_view rest = target.substr(query + 1);
+  while (!rest.empty()) {
+    const auto amp = rest.find('&');
+    const std::string_view pair = rest.substr(0, amp);
+    if (pair.starts_with("token=")) return pair.substr(6);
+    if (amp == std::string_view::npos) break;
+    rest = rest.substr(amp + 1);
+  }
+  return std::nullopt;
+}
+
+// Compares in time independent of where the two differ.
+bool same_secret(std::string_view a, std::string_view b) {
+  unsigned char difference = a.size() == b.size() ? 0 : 1;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    difference |= static_cast<unsigned char>(a[i] ^ b[i % std::max<std::size_t>(b.size(), 1)]);
+  return difference == 0;
+}
+
 // One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket, and
 // an upgrade asking for the foxglove.websocket.v1 subprotocol (on any path) to a FoxgloveSocket.
 class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
@@ -382,12 +411,24 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     }
     Request request = parser_->release();
     const std::string_view target(request.target().data(), request.target().size());
+    if (auto refusal = refuse(request)) {
+      auto response = std::make_shared<Response>(std::move(*refusal));
+      metrics::counter("occgeo_http_requests_total",
+                       {{"path", path_label(path_of(target))}, {"code", std::to_string(response->result_int())}})
+          .inc();
+      bhttp::async_write(stream_, *response,
+                         [self = shared_from_this(), response](const beast::error_code&, std::size_t) {
+                           beast::error_code ignored;
+                           self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+                         });
+      return;
+    }
     if (websocket::is_upgrade(request) && wants_foxglove(request)) {
       metrics::counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
       std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())->run(std::move(request));
       return;
     }
-    if (websocket::is_upgrade(request) && target == "/ws") {
+    if (websocket::is_upgrade(request) && path_of(target) == "/ws") {
       metrics::counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
       std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request));
       return;
@@ -405,6 +446,51 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
                          }
                          self->read();
                        });
+  }
+
+  // The answer to a request this server must not serve, or nullopt. With auth.observer_token set (required for an
+  // address other than loopback), the page, /metrics and both WebSockets need it, as `?token=` or
+  // `Authorization: Bearer`; the page's script and style carry no data and are served to anyone. The live view's
+  // WebSocket (it can engage an e-stop) is refused to a browser page of another origin.
+  std::optional<Response> refuse(const Request& request) const {
+    const std::string_view target(request.target().data(), request.target().size());
+    const std::string_view path = path_of(target);
+    if (websocket::is_upgrade(request) && path == "/ws") {
+      const auto origin = request.find(bhttp::field::origin);
+      const auto host = request.find(bhttp::field::host);
+      if (origin != request.end()) {
+        const std::string_view origin_value(origin->value().data(), origin->value().size());
+        const std::string_view host_value =
+            host == request.end() ? std::string_view() : std::string_view(host->value().data(), host->value().size());
+        const auto scheme_end = origin_value.find("://");
+        const std::string_view origin_host =
+            scheme_end == std::string_view::npos ? origin_value : origin_value.substr(scheme_end + 3);
+        if (host_value.empty() || origin_host != host_value) {
+          return make_response(request, bhttp::status::forbidden, "text/plain; charset=utf-8",
+                               "the live view's WebSocket only serves pages of this server (Origin " +
+                                   std::string(origin_value) + ")\n");
+        }
+      }
+    }
+    const std::string& token = core_.config().auth.observer_token;
+    if (token.empty()) return std::nullopt;
+    const bool open_asset =
+        !websocket::is_upgrade(request) && path != "/" && path != "/index.html" && path != "/metrics" && path != "/ws";
+    if (open_asset) return std::nullopt;
+    std::optional<std::string_view> given = query_token(target);
+    if (!given) {
+      const auto authorization = request.find(bhttp::field::authorization);
+      if (authorization != request.end()) {
+        const std::string_view value(authorization->value().data(), authorization->value().size());
+        if (value.starts_with("Bearer ")) given = value.substr(7);
+      }
+    }
+    if (given && same_secret(*given, token)) return std::nullopt;
+    auto response = make_response(request, bhttp::status::unauthorized, "text/plain; charset=utf-8",
+                                  "this server needs the observer token: add ?token=... to the address, or send "
+                                  "Authorization: Bearer ...\n");
+    response.set(bhttp::field::www_authenticate, "Bearer");
+    return response;
   }
 
   ServerCore& core_;
