@@ -241,9 +241,12 @@ void McapReader::load_chunk(std::string_view body, std::uint64_t record_offset) 
          record_offset);
   }
   // The claim is checked against what the compressed bytes can hold before any memory is taken for it, so a damaged
-  // or hostile size costs nothing: no compression holds exactly its size, an LZ4 frame at most 255 times its own
+  // or hostile size costs little: no compression holds exactly its size, an LZ4 frame at most 255 times its own
   // (the format's limit), and a zstd frame says its content size in its header.
   const std::uint64_t compressed_size = records.size();
+  if (!compression.empty() && compression != "lz4" && compression != "zstd") {
+    fail("chunk compression '" + compression + "' is not supported (none, lz4 or zstd)", record_offset);
+  }
   if (compression.empty() && compressed_size != uncompressed_size) {
     fail("uncompressed chunk holds " + std::to_string(compressed_size) + " byte(s) but claims " +
              std::to_string(uncompressed_size),
@@ -255,10 +258,13 @@ void McapReader::load_chunk(std::string_view body, std::uint64_t record_offset) 
          record_offset);
   }
   if (compression == "zstd") {
+    // A frame header can claim any content size, so the claim is also held to a ratio no recorded sensor data
+    // reaches (about 256:1), which bounds the memory a damaged chunk can take to 256 times its own size.
     const unsigned long long content = ZSTD_getFrameContentSize(records.data(), records.size());
     if (content == ZSTD_CONTENTSIZE_ERROR || (content != ZSTD_CONTENTSIZE_UNKNOWN && content != uncompressed_size) ||
-        (content == ZSTD_CONTENTSIZE_UNKNOWN && uncompressed_size > 1024 * compressed_size + 65536)) {
-      fail("zstd chunk's frame does not hold the " + std::to_string(uncompressed_size) + " byte(s) it claims",
+        uncompressed_size > 256 * compressed_size + 65536) {
+      fail("zstd chunk of " + std::to_string(compressed_size) + " byte(s) does not hold the " +
+               std::to_string(uncompressed_size) + " byte(s) it claims",
            record_offset);
     }
   }
