@@ -19,6 +19,15 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+// What an escape reports as its plan: from the robot at position_W along what is left of path_W after `segment`.
+std::vector<Eigen::Vector2d> remaining_path(const Eigen::Vector2d& position_W,
+                                            const std::vector<Eigen::Vector2d>& path_W, std::size_t segment) {
+  std::vector<Eigen::Vector2d> path{position_W};
+  path.insert(path.end(), path_W.begin() + static_cast<std::ptrdiff_t>(std::min(segment + 1, path_W.size())),
+              path_W.end());
+  return path;
+}
+
 double footprint_width(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->width;
   if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
@@ -280,11 +289,7 @@ class EscapeWrapper final : public Behaviour {
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
   [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
     if (path_.empty() || !position_W_) return inner_->planned_path();
-    // From the robot along what is left of the escape path.
-    std::vector<Eigen::Vector2d> path{*position_W_};
-    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
-                path_.end());
-    return path;
+    return remaining_path(*position_W_, path_, segment_);
   }
 
   BehaviourCommand decide(const BehaviourInput& input) override {
@@ -416,10 +421,7 @@ class MapEscapeWrapper final : public Behaviour {
   [[nodiscard]] std::string_view name() const override { return inner_->name(); }
   [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
     if (path_.empty() || !position_W_) return inner_->planned_path();
-    std::vector<Eigen::Vector2d> path{*position_W_};
-    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
-                path_.end());
-    return path;
+    return remaining_path(*position_W_, path_, segment_);
   }
 
   BehaviourCommand decide(const BehaviourInput& input) override {

@@ -385,18 +385,6 @@ std::shared_ptr<Robot> find_named_robot(const SessionPtr& session, const std::st
   return robot;
 }
 
-bool constant_time_equal(const std::string& a, const std::string& b) {
-  // Every byte of the longer string is visited whatever the contents; only the lengths leak.
-  const std::size_t n = std::max(a.size(), b.size());
-  unsigned difference = a.size() == b.size() ? 0U : 1U;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto x = static_cast<unsigned char>(i < a.size() ? a[i] : 0);
-    const auto y = static_cast<unsigned char>(i < b.size() ? b[i] : 0);
-    difference |= static_cast<unsigned>(x ^ y);
-  }
-  return difference == 0U;
-}
-
 ClampedVelocity clamp_velocity(const RobotModel& model, double linear_mps, double angular_radps) {
   const geometry::BodyVelocity wanted{linear_mps, angular_radps};
   ClampedVelocity out;

@@ -76,7 +76,4 @@ void release_session_control(ServerCore& core, const SessionInfo& info);
 std::shared_ptr<Robot> find_named_robot(const SessionPtr& session, const std::string& robot_id,
                                         const std::string& message, std::uint64_t request_id);
 
-// Compares two strings in time independent of where they differ (operator token).
-[[nodiscard]] bool constant_time_equal(const std::string& a, const std::string& b);
-
 }  // namespace occgeo::service

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "../core.h"
+#include "../secret_compare.h"
 #include "../metrics.h"
 #include "foxglove.h"
 #include "live_view.h"
@@ -378,14 +379,6 @@ std::optional<std::string_view> query_token(std::string_view target) {
   return std::nullopt;
 }
 
-// Compares in time independent of where the two differ.
-bool same_secret(std::string_view a, std::string_view b) {
-  unsigned char difference = a.size() == b.size() ? 0 : 1;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    difference |= static_cast<unsigned char>(a[i] ^ b[i % std::max<std::size_t>(b.size(), 1)]);
-  return difference == 0;
-}
-
 // One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket, and
 // an upgrade asking for the foxglove.websocket.v1 subprotocol (on any path) to a FoxgloveSocket.
 class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
@@ -485,7 +478,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
         if (value.starts_with("Bearer ")) given = value.substr(7);
       }
     }
-    if (given && same_secret(*given, token)) return std::nullopt;
+    if (given && constant_time_equal(*given, token)) return std::nullopt;
     auto response = make_response(request, bhttp::status::unauthorized, "text/plain; charset=utf-8",
                                   "this server needs the observer token: add ?token=... to the address, or send "
                                   "Authorization: Bearer ...\n");
