@@ -254,6 +254,10 @@ class DistanceField::Brushfire {
         width_(box.max.ix - box.min.ix + 1),
         height_(box.max.iy - box.min.iy + 1),
         cells_(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_)),
+        blocks_x_((width_ + kBlockCells - 1) >> kBlockShift),
+        blocks_y_((height_ + kBlockCells - 1) >> kBlockShift),
+        dirty_blocks_(static_cast<std::size_t>(blocks_x_) * static_cast<std::size_t>(blocks_y_), 1),
+        published_(dirty_blocks_.size()),
         buckets_(static_cast<std::size_t>(max_squared) + 1),
         max_squared_(max_squared) {}
 
@@ -313,13 +317,32 @@ class DistanceField::Brushfire {
     return processed;
   }
 
-  // The references, row-major from box().min.
-  [[nodiscard]] std::vector<DistanceFieldSnapshot::Ref> references() const {
-    std::vector<DistanceFieldSnapshot::Ref> refs(cells_.size());
-    std::transform(cells_.begin(), cells_.end(), refs.begin(), [](const Cell& c) {
-      return DistanceFieldSnapshot::Ref{c.ref_x, c.ref_y};
-    });
-    return refs;
+  // The references in blocks (row-major from box().min): the blocks unchanged since the previous call are the same
+  // shared ones, only those a wavefront touched are copied out of the cells.
+  [[nodiscard]] DistanceFieldSnapshot::RefBlocks references() {
+    for (std::int32_t by = 0; by < blocks_y_; ++by) {
+      for (std::int32_t bx = 0; bx < blocks_x_; ++bx) {
+        const std::size_t b = static_cast<std::size_t>(by) * blocks_x_ + bx;
+        if (dirty_blocks_[b] == 0) continue;
+        dirty_blocks_[b] = 0;
+        auto block = std::make_shared<DistanceFieldSnapshot::RefBlock>();
+        for (std::int32_t ly = 0; ly < kBlockCells; ++ly) {
+          const std::int32_t y = (by << kBlockShift) + ly;
+          for (std::int32_t lx = 0; lx < kBlockCells; ++lx) {
+            const std::int32_t x = (bx << kBlockShift) + lx;
+            DistanceFieldSnapshot::Ref& ref = block->refs[static_cast<std::size_t>(ly) * kBlockCells + lx];
+            if (x < width_ && y < height_) {
+              const Cell& c = at(x, y);
+              ref = {c.ref_x, c.ref_y};
+            } else {
+              ref = {DistanceFieldSnapshot::kNone, DistanceFieldSnapshot::kNone};
+            }
+          }
+        }
+        published_[b] = std::move(block);
+      }
+    }
+    return published_;
   }
 
  private:
@@ -337,7 +360,9 @@ class DistanceField::Brushfire {
     return cells_[static_cast<std::size_t>(y) * width_ + x];
   }
 
+  // Every change of a cell's reference goes with a push of that cell, so this is where its block becomes dirty.
   void push(std::int32_t squared, std::int32_t x, std::int32_t y) {
+    dirty_blocks_[static_cast<std::size_t>(y >> kBlockShift) * blocks_x_ + (x >> kBlockShift)] = 1;
     buckets_[static_cast<std::size_t>(squared)].push_back(y * width_ + x);
     next_bucket_ = std::min(next_bucket_, static_cast<std::size_t>(squared));
     ++queued_;
@@ -390,10 +415,17 @@ class DistanceField::Brushfire {
     });
   }
 
+  static constexpr std::int32_t kBlockShift = DistanceFieldSnapshot::kBlockShift;
+  static constexpr std::int32_t kBlockCells = DistanceFieldSnapshot::kBlockCells;
+
   CellBox box_;
   std::int32_t width_;
   std::int32_t height_;
   std::vector<Cell> cells_;
+  std::int32_t blocks_x_;
+  std::int32_t blocks_y_;
+  std::vector<std::uint8_t> dirty_blocks_;         // Per block: a reference changed since the last references().
+  DistanceFieldSnapshot::RefBlocks published_;     // The blocks the last references() returned.
   // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as y * width + x.
   std::vector<std::vector<std::int32_t>> buckets_;
   std::size_t next_bucket_ = 0;
@@ -405,8 +437,8 @@ DistanceField::DistanceField(const DistanceFieldParams& params) : params_(params
 
 DistanceField::~DistanceField() = default;
 
-DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched,
-                                          std::optional<Eigen::Vector2d> focus_W) {
+bool DistanceField::prepare(std::shared_ptr<const GridSnapshot>& grid, std::optional<Eigen::Vector2d> focus_W,
+                            DistanceFieldUpdate& result) {
   if (!grid) throw std::invalid_argument("DistanceField::update: grid is null");
   const double cell_size = grid->cell_size();
   if (snapshot_ && snapshot_->cell_size() != cell_size) {
@@ -423,12 +455,11 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
   }
   if (focus_W && !focus_W->allFinite()) throw std::invalid_argument("DistanceField::update: focus_W must be finite");
 
-  DistanceFieldUpdate result;
   const std::optional<CellBox> tiles = grid->tile_bounds();
   if (!tiles) {
     brushfire_.reset();
     snapshot_.reset(new DistanceFieldSnapshot(std::move(grid), std::nullopt, {}, params_.max_distance_m));
-    return result;
+    return false;
   }
 
   const auto margin = static_cast<std::int64_t>(std::ceil(params_.growth_margin_m / cell_size));
@@ -444,62 +475,96 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
   const auto [need_y0, need_y1] = required_range(tiles->min.iy, tiles->max.iy, focus[1], margin, max_cells);
   const CellBox required{{static_cast<std::int32_t>(need_x0), static_cast<std::int32_t>(need_y0)},
                          {static_cast<std::int32_t>(need_x1), static_cast<std::int32_t>(need_y1)}};
+  if (brushfire_ && contains(brushfire_->box(), required)) return true;
 
-  if (!brushfire_ || !contains(brushfire_->box(), required)) {
-    const auto [x0, x1] = field_range(tiles->min.ix, tiles->max.ix, focus[0], margin, max_cells);
-    const auto [y0, y1] = field_range(tiles->min.iy, tiles->max.iy, focus[1], margin, max_cells);
-    constexpr std::int64_t kLowest = std::numeric_limits<std::int32_t>::min();
-    constexpr std::int64_t kHighest = std::numeric_limits<std::int32_t>::max();
-    const CellBox box{
-        {static_cast<std::int32_t>(std::max(x0, kLowest)), static_cast<std::int32_t>(std::max(y0, kLowest))},
-        {static_cast<std::int32_t>(std::min(x1, kHighest)), static_cast<std::int32_t>(std::min(y1, kHighest))}};
-    const double max_half_cells = 2.0 * params_.max_distance_m / cell_size;
-    brushfire_ =
-        std::make_unique<Brushfire>(box, static_cast<std::int32_t>(std::floor(max_half_cells * max_half_cells)));
-    Brushfire& brushfire = *brushfire_;
-    grid->for_each_occupied(box.min, box.max, [&brushfire, &box](const CellIndex& c) {
-      brushfire.set_obstacle(c.ix - box.min.ix, c.iy - box.min.iy);
-      return true;
-    });
-    result.rebuilt = true;
-    result.processed_cells = brushfire.propagate();
-  } else {
-    Brushfire& brushfire = *brushfire_;
-    const CellBox& box = brushfire.box();
-    if (const std::optional<CellBox> region = touched ? intersect(*touched, box) : std::optional<CellBox>(box)) {
-      const std::int32_t width = region->max.ix - region->min.ix + 1;
-      const std::int32_t height = region->max.iy - region->min.iy + 1;
-      const std::vector<std::uint8_t> values = grid->window(region->min, width, height);
-      const int threshold = grid->occupied_threshold();
-      for (std::int32_t row = 0; row < height; ++row) {
-        const std::int32_t y = region->min.iy - box.min.iy + row;
-        for (std::int32_t col = 0; col < width; ++col) {
-          const std::uint8_t value = values[static_cast<std::size_t>(row) * width + col];
-          const bool occupied = value != kUnobserved && value >= threshold;
-          const std::int32_t x = region->min.ix - box.min.ix + col;
-          if (occupied == brushfire.is_obstacle(x, y)) continue;
-          ++result.changed_cells;
-          if (occupied) {
-            brushfire.set_obstacle(x, y);
-          } else {
-            brushfire.remove_obstacle(x, y);
-          }
-        }
-      }
-      result.processed_cells = brushfire.propagate();
-    }
-  }
+  const auto [x0, x1] = field_range(tiles->min.ix, tiles->max.ix, focus[0], margin, max_cells);
+  const auto [y0, y1] = field_range(tiles->min.iy, tiles->max.iy, focus[1], margin, max_cells);
+  constexpr std::int64_t kLowest = std::numeric_limits<std::int32_t>::min();
+  constexpr std::int64_t kHighest = std::numeric_limits<std::int32_t>::max();
+  const CellBox box{
+      {static_cast<std::int32_t>(std::max(x0, kLowest)), static_cast<std::int32_t>(std::max(y0, kLowest))},
+      {static_cast<std::int32_t>(std::min(x1, kHighest)), static_cast<std::int32_t>(std::min(y1, kHighest))}};
+  const double max_half_cells = 2.0 * params_.max_distance_m / cell_size;
+  brushfire_ = std::make_unique<Brushfire>(box, static_cast<std::int32_t>(std::floor(max_half_cells * max_half_cells)));
+  Brushfire& brushfire = *brushfire_;
+  grid->for_each_occupied(box.min, box.max, [&brushfire, &box](const CellIndex& c) {
+    brushfire.set_obstacle(c.ix - box.min.ix, c.iy - box.min.iy);
+    return true;
+  });
+  result.rebuilt = true;
+  result.processed_cells = brushfire.propagate();
+  take_snapshot(std::move(grid));
+  return false;
+}
+
+void DistanceField::take_snapshot(std::shared_ptr<const GridSnapshot> grid) {
   snapshot_.reset(
       new DistanceFieldSnapshot(std::move(grid), brushfire_->box(), brushfire_->references(), params_.max_distance_m));
+}
+
+DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched,
+                                          std::optional<Eigen::Vector2d> focus_W) {
+  DistanceFieldUpdate result;
+  if (!prepare(grid, focus_W, result)) return result;
+  Brushfire& brushfire = *brushfire_;
+  const CellBox& box = brushfire.box();
+  if (const std::optional<CellBox> region = touched ? intersect(*touched, box) : std::optional<CellBox>(box)) {
+    const std::int32_t width = region->max.ix - region->min.ix + 1;
+    const std::int32_t height = region->max.iy - region->min.iy + 1;
+    const std::vector<std::uint8_t> values = grid->window(region->min, width, height);
+    const int threshold = grid->occupied_threshold();
+    for (std::int32_t row = 0; row < height; ++row) {
+      const std::int32_t y = region->min.iy - box.min.iy + row;
+      for (std::int32_t col = 0; col < width; ++col) {
+        const std::uint8_t value = values[static_cast<std::size_t>(row) * width + col];
+        const bool occupied = value != kUnobserved && value >= threshold;
+        const std::int32_t x = region->min.ix - box.min.ix + col;
+        if (occupied == brushfire.is_obstacle(x, y)) continue;
+        ++result.changed_cells;
+        if (occupied) {
+          brushfire.set_obstacle(x, y);
+        } else {
+          brushfire.remove_obstacle(x, y);
+        }
+      }
+    }
+    result.processed_cells = brushfire.propagate();
+  }
+  take_snapshot(std::move(grid));
+  return result;
+}
+
+DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid,
+                                          std::span<const geometry::CellIndex> changed,
+                                          std::optional<Eigen::Vector2d> focus_W) {
+  DistanceFieldUpdate result;
+  if (!prepare(grid, focus_W, result)) return result;
+  Brushfire& brushfire = *brushfire_;
+  const CellBox& box = brushfire.box();
+  for (const CellIndex& c : changed) {
+    if (c.ix < box.min.ix || c.iy < box.min.iy || c.ix > box.max.ix || c.iy > box.max.iy) continue;
+    const bool occupied = grid->occupied(c);
+    const std::int32_t x = c.ix - box.min.ix;
+    const std::int32_t y = c.iy - box.min.iy;
+    if (occupied == brushfire.is_obstacle(x, y)) continue;
+    ++result.changed_cells;
+    if (occupied) {
+      brushfire.set_obstacle(x, y);
+    } else {
+      brushfire.remove_obstacle(x, y);
+    }
+  }
+  result.processed_cells = brushfire.propagate();
+  take_snapshot(std::move(grid));
   return result;
 }
 
 DistanceFieldSnapshot::DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds,
-                                             std::vector<Ref> refs, double max_distance_m)
+                                             RefBlocks blocks, double max_distance_m)
     : grid_(std::move(grid)),
       bounds_(bounds),
-      width_(bounds ? bounds->max.ix - bounds->min.ix + 1 : 0),
-      refs_(std::move(refs)),
+      blocks_x_(bounds ? (bounds->max.ix - bounds->min.ix + kBlockCells) >> kBlockShift : 0),
+      blocks_(std::move(blocks)),
       max_distance_m_(max_distance_m) {}
 
 const DistanceFieldSnapshot::Ref* DistanceFieldSnapshot::ref_of(const CellIndex& c) const {
@@ -507,7 +572,7 @@ const DistanceFieldSnapshot::Ref* DistanceFieldSnapshot::ref_of(const CellIndex&
       c.iy > bounds_->max.iy) {
     return nullptr;
   }
-  const Ref& ref = refs_[static_cast<std::size_t>(c.iy - bounds_->min.iy) * width_ + (c.ix - bounds_->min.ix)];
+  const Ref& ref = ref_at(c.ix - bounds_->min.ix, c.iy - bounds_->min.iy);
   return ref.x == kNone ? nullptr : &ref;
 }
 
@@ -565,11 +630,10 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   Eigen::Vector2d best_point = Eigen::Vector2d::Zero();
   Ref last_ref{kNone, kNone};
   for (std::int32_t iy = near.min.iy; iy <= near.max.iy; ++iy) {
-    const std::size_t row = static_cast<std::size_t>(iy - bounds_->min.iy) * width_;
     for (std::int32_t ix = near.min.ix; ix <= near.max.ix; ++ix) {
       const Eigen::Vector2d center_W((ix + 0.5) * cell_size, (iy + 0.5) * cell_size);
       if (placed.distance_to_point(center_W) > half_diagonal) continue;
-      const Ref& ref = refs_[row + (ix - bounds_->min.ix)];
+      const Ref& ref = ref_at(ix - bounds_->min.ix, iy - bounds_->min.iy);
       if (ref.x == kNone) {
         lower = std::min(lower, max_distance_m_ - half_diagonal);
         continue;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "format_number.h"
 #include "himm_tile_writer.h"
@@ -93,6 +94,14 @@ std::shared_ptr<const GridSnapshot> HimmGrid::snapshot() const {
   return std::shared_ptr<const GridSnapshot>(new GridSnapshot(std::move(shared_tiles), layout_, params_.cell_size_m,
                                                               params_.occupied_threshold, params_.max_certainty,
                                                               tile_bounds_, version_, occupied_cells_));
+}
+
+std::optional<std::vector<geometry::CellIndex>> HimmGrid::take_occupancy_changes() {
+  if (occupancy_changes_overflowed_) {
+    occupancy_changes_overflowed_ = false;
+    return std::nullopt;
+  }
+  return std::exchange(occupancy_changes_, {});
 }
 
 const Tile* HimmGrid::find_tile(const TileIndex& t) const {

@@ -42,7 +42,11 @@ class HimmGrid::TileWriter {
     std::int32_t local_y = layout.local(start.cell().iy);
     while (!ray.done()) {
       std::uint8_t& value = cells[layout.offset_of_local(local_x, local_y)];
-      occupied_change -= static_cast<int>(lowering_leaves_occupied(value, decrement, occupied_threshold));
+      if (lowering_leaves_occupied(value, decrement, occupied_threshold)) {
+        --occupied_change;
+        const geometry::CellIndex first = layout.first_cell_of(cursor_.tile_index);
+        grid_.note_occupancy_change({first.ix + local_x, first.iy + local_y});
+      }
       value = lowered(value, decrement);
       const geometry::CellStep step = ray.advance();
       local_x += step.dx;
@@ -65,7 +69,7 @@ class HimmGrid::TileWriter {
   }
 
   // Sets cell c to new_value, a certainty or kUnobserved.
-  void set(const geometry::CellIndex& c, std::uint8_t new_value) { store(cell(c), new_value); }
+  void set(const geometry::CellIndex& c, std::uint8_t new_value) { store(c, cell(c), new_value); }
 
  private:
   // The tile being written and its change of occupied cells not yet added to the tile and the grid.
@@ -105,7 +109,7 @@ class HimmGrid::TileWriter {
   // Lowers the certainty of cell c by the decrement, not below 0; an unobserved cell becomes observed at 0.
   void clear(const geometry::CellIndex& c) {
     std::uint8_t& value = cell(c);
-    store(value, lowered(value, decrement_));
+    store(c, value, lowered(value, decrement_));
   }
 
   // Raises the certainty of cell c by the increment, up to the maximum, then applies the growth-rate operator: the
@@ -115,7 +119,8 @@ class HimmGrid::TileWriter {
     std::uint8_t& value = cell(c);
     const int raised = std::min(params.max_certainty, certainty_of(value) + params.increment);
     const double grown = params.growth_center_weight * raised + params.growth_neighbour_weight * neighbour_sum(c);
-    store(value, static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
+    store(c, value,
+          static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
   }
 
   // Cell c, after moving the cursor to its tile.
@@ -178,9 +183,13 @@ class HimmGrid::TileWriter {
                                     (t.tx & (kCachedTilesSide - 1)));
   }
 
-  // Sets a cell value of the cursor's tile.
-  void store(std::uint8_t& value, std::uint8_t new_value) {
-    cursor_.occupied_change += static_cast<int>(is_occupied(new_value)) - static_cast<int>(is_occupied(value));
+  // Sets value, cell c's in the cursor's tile.
+  void store(const geometry::CellIndex& c, std::uint8_t& value, std::uint8_t new_value) {
+    const int change = static_cast<int>(is_occupied(new_value)) - static_cast<int>(is_occupied(value));
+    if (change != 0) {
+      cursor_.occupied_change += change;
+      grid_.note_occupancy_change(c);
+    }
     value = new_value;
   }
 

@@ -10,6 +10,7 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -493,6 +494,95 @@ TEST(DistanceFieldClearanceTest, GradientPointsAwayFromTheNearestObstacle) {
   }
   EXPECT_GT(tested, 100);
   EXPECT_GE(rising, tested * 9 / 10);
+}
+
+}  // namespace
+}  // namespace occgeo::mapping
+
+namespace occgeo::mapping {
+namespace {
+
+// Scans into a HimmGrid, the field fed only the grid's log of flipped cells (as the server feeds it), agree with brute
+// force; and a snapshot taken earlier keeps its own distances while later updates change the shared field.
+TEST(DistanceFieldTest, FollowsTheGridsLogOfFlippedCellsAndKeepsOlderSnapshotsIntact) {
+  HimmGrid grid(HimmParams{});
+  DistanceFieldParams params;
+  params.max_distance_m = 1.0;
+  DistanceField field(params);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> range(0.5F, 6.0F);
+  std::shared_ptr<const DistanceFieldSnapshot> early;
+  std::vector<double> early_distances;
+  std::size_t changed = 0;
+  for (int scan = 0; scan < 60; ++scan) {
+    const geometry::Pose2 X_WS{0.07 * scan, -0.03 * scan, 0.41 * scan};
+    std::vector<float> ranges(181);
+    for (float& r : ranges) r = range(rng);
+    grid.insert_scan(X_WS, -std::numbers::pi_v<float> / 2, std::numbers::pi_v<float> / 180, ranges, 5.5F);
+    const auto flipped = grid.take_occupancy_changes();
+    ASSERT_TRUE(flipped.has_value());
+    changed += field.update(grid.snapshot(), std::span<const CellIndex>(*flipped), X_WS.position()).changed_cells;
+    if (scan == 20) {
+      early = field.snapshot();
+      const CellBox box = *early->bounds();
+      for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+        for (int ix = box.min.ix; ix <= box.max.ix; ++ix) early_distances.push_back(early->distance({ix, iy}));
+      }
+    }
+  }
+  EXPECT_GT(changed, 0U);
+  expect_field_exact(*field.snapshot());
+  // The early snapshot still answers for its own grid version.
+  const CellBox box = *early->bounds();
+  std::size_t i = 0;
+  for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+    for (int ix = box.min.ix; ix <= box.max.ix; ++ix) ASSERT_EQ(early->distance({ix, iy}), early_distances[i++]);
+  }
+  expect_field_exact(*early);
+}
+
+// The grid's log names every cell whose occupancy changed, and overflows to "compare everything" rather than growing
+// without bound.
+TEST(DistanceFieldTest, TheGridsLogNamesEveryFlippedCell) {
+  HimmGrid grid(HimmParams{});
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> range(0.3F, 4.0F);
+  const CellBox box{{-60, -60}, {60, 60}};
+  const auto occupied_cells = [&] {
+    std::vector<bool> cells;
+    for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+      for (int ix = box.min.ix; ix <= box.max.ix; ++ix) cells.push_back(grid.occupied({ix, iy}));
+    }
+    return cells;
+  };
+  std::size_t flips = 0;
+  for (int scan = 0; scan < 30; ++scan) {
+    const std::vector<bool> before = occupied_cells();
+    std::vector<float> ranges(91);
+    for (float& r : ranges) r = range(rng);
+    grid.insert_scan({0.0, 0.0, 0.2 * scan}, -1.5F, 1.5F * 2.0F / 90.0F, ranges, 3.8F);
+    const std::vector<bool> after = occupied_cells();
+    const auto logged = grid.take_occupancy_changes();
+    ASSERT_TRUE(logged.has_value());
+    std::size_t i = 0;
+    for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+      for (int ix = box.min.ix; ix <= box.max.ix; ++ix, ++i) {
+        if (before[i] == after[i]) continue;
+        ++flips;
+        EXPECT_NE(std::find(logged->begin(), logged->end(), CellIndex{ix, iy}), logged->end())
+            << "cell (" << ix << ", " << iy << ") flipped but was not logged";
+      }
+    }
+  }
+  EXPECT_GT(flips, 0U);
+  // A map loaded from an image larger than the log's bound says "compare everything".
+  mapfile::OccupancyImage image;
+  image.width = image.height = 1100;
+  image.resolution = kCell;
+  image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, 0);
+  HimmGrid loaded = HimmGrid::from_image(image, HimmParams{});
+  EXPECT_FALSE(loaded.take_occupancy_changes().has_value());
+  EXPECT_TRUE(loaded.take_occupancy_changes().has_value());
 }
 
 }  // namespace

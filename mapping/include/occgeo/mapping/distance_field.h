@@ -1,10 +1,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "occgeo/geometry/cell.h"
@@ -80,18 +82,31 @@ class DistanceFieldSnapshot {
     std::int16_t y;
   };
   static constexpr std::int16_t kNone = -1;
+  // The references come in square blocks shared between successive snapshots: a snapshot costs one pointer per block
+  // plus a copy of the blocks the update changed, not a copy of the whole field.
+  static constexpr std::int32_t kBlockShift = 6;
+  static constexpr std::int32_t kBlockCells = 1 << kBlockShift;
+  struct RefBlock {
+    std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
+  };
+  using RefBlocks = std::vector<std::shared_ptr<const RefBlock>>;
 
-  DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, std::vector<Ref> refs,
+  DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, RefBlocks blocks,
                         double max_distance_m);
 
   struct Answer;
   [[nodiscard]] Answer answer(const geometry::ClearanceRequest& request) const;
   [[nodiscard]] const Ref* ref_of(const geometry::CellIndex& c) const;
+  // The reference of the cell at offset (x, y) from bounds()->min, which must lie inside bounds().
+  [[nodiscard]] const Ref& ref_at(std::int32_t x, std::int32_t y) const {
+    const RefBlock& block = *blocks_[static_cast<std::size_t>(y >> kBlockShift) * blocks_x_ + (x >> kBlockShift)];
+    return block.refs[static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells + (x & (kBlockCells - 1))];
+  }
 
   std::shared_ptr<const GridSnapshot> grid_;
   std::optional<CellBox> bounds_;
-  std::int32_t width_ = 0;
-  std::vector<Ref> refs_;
+  std::int32_t blocks_x_ = 0;
+  RefBlocks blocks_;
   double max_distance_m_;
   mutable std::atomic<std::uint64_t> fallbacks_{0};
 };
@@ -125,6 +140,10 @@ class DistanceField {
   // Throws std::invalid_argument when grid is null or its cell size differs from the previous one's.
   DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched = std::nullopt,
                              std::optional<Eigen::Vector2d> focus_W = std::nullopt);
+  // As above, but only the cells listed in `changed` are compared with the previous version (for a HimmGrid:
+  // take_occupancy_changes()), so the work follows what changed, not the area a scan covers.
+  DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::span<const geometry::CellIndex> changed,
+                             std::optional<Eigen::Vector2d> focus_W = std::nullopt);
 
   // The field of the last update; nullptr before the first. Costs one shared pointer copy.
   [[nodiscard]] std::shared_ptr<const DistanceFieldSnapshot> snapshot() const { return snapshot_; }
@@ -133,6 +152,12 @@ class DistanceField {
 
  private:
   class Brushfire;
+
+  // Checks grid against the field's parameters and (re)builds the field when it is empty or the grid outgrew it; true
+  // when the caller still has to bring the field in step (false: empty grid, or just rebuilt; the snapshot is taken).
+  bool prepare(std::shared_ptr<const GridSnapshot>& grid, std::optional<Eigen::Vector2d> focus_W,
+               DistanceFieldUpdate& result);
+  void take_snapshot(std::shared_ptr<const GridSnapshot> grid);
 
   DistanceFieldParams params_;
   std::unique_ptr<Brushfire> brushfire_;
