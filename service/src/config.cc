@@ -448,9 +448,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                  })
         .section("distance_field", [&](Section& s) {
           auto& d = config.distance_field;
-          s.field("max_distance_m", d.max_distance_m)
-              .field("max_extent_m", d.max_extent_m)
-              .field("growth_margin_m", d.growth_margin_m);
+          s.field("max_distance_m", d.max_distance_m);
         });
     top.reject_unknown();
   } catch (const ConfigError& e) {

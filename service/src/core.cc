@@ -34,14 +34,14 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
-void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::optional<Eigen::Vector2d> focus_W) {
+void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
   auto grid = grid_.snapshot();
   // The grid's log of flipped cells keeps this step in proportion to what changed; `touched` (the area the
   // messages could reach) is the fallback when the log overflowed.
   if (const auto changed = grid_.take_occupancy_changes()) {
-    distance_field_.update(grid, std::span<const geometry::CellIndex>(*changed), focus_W);
+    distance_field_.update(grid, std::span<const geometry::CellIndex>(*changed));
   } else {
-    distance_field_.update(grid, touched, focus_W);
+    distance_field_.update(grid, touched);
   }
   if (octomap_publish_every_messages_ > 0) {
     // Counted in messages, not wall time, so lockstep runs repeat exactly.

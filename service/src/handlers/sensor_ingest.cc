@@ -101,7 +101,7 @@ bool ingest_sensor_message_on_strand(
   }
   IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   insert(*before.X_WB, target);
-  world.publish_on_strand(target.touched, before.X_WB->position());
+  world.publish_on_strand(target.touched);
 
   // The robot's state first: a client that saw the ack and then asks for the status must find the message counted.
   robot.update_state([&](RobotState& state) {

@@ -176,8 +176,7 @@ struct ServerConfig {
   // The terrain rule (section `terrain:`): surfaces the octree shows a robot can drive on (a ramp) are not obstacles
   // to its behaviour, planner and guard; ground_band_m is the floor's height band for every model.
   mapping::TerrainParams terrain;
-  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m, max_extent_m,
-  // growth_margin_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
+  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
   // clearance queries are answered from the field.
   mapping::DistanceFieldParams distance_field = default_distance_field_params();
 
