@@ -4,7 +4,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <csignal>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <thread>
 #include <numbers>
 #include <vector>
 
@@ -240,6 +244,93 @@ TEST(ObserverData, ASlowDataWatcherLosesItsOldestEventsIsToldHowManyAndTheDriver
   EXPECT_GE(events + dropped, static_cast<std::uint64_t>(3 * kScans + 1));
   // The newest are kept: the last scan's event arrives.
   EXPECT_EQ(last_scan_seq, static_cast<std::uint64_t>(kScans));
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// `occgeo map export` of `world` as PGM bytes.
+std::string exported_map(const ServerProcess& server, const std::filesystem::path& prefix) {
+  const auto result = run_process({binary("clients/occgeo").string(), "map", "export", "--server", server.address(),
+                                   "--world", "default", "--out", prefix.string()},
+                                  60s);
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  return read_file(prefix.string() + ".pgm");
+}
+
+TEST(Record, TheMapRebuiltFromARecordingEqualsTheLiveOne) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "live");
+  std::filesystem::create_directories(dir.path() / "fresh");
+  ServerProcess live(dir.path() / "live");
+  const auto file = dir.path() / "session.mcap";
+  BackgroundProcess record({binary("clients/occgeo").string(), "record", "--out", file.string(), "--server",
+                            live.address()},
+                           dir.path() / "record.out", dir.path() / "record.err");
+  // The recorder is attached once the server logs its watch.
+  for (int i = 0; i < 100 && live.log().find("session_watch") == std::string::npos; ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_NE(live.log().find("session_watch"), std::string::npos) << read_file(dir.path() / "record.err");
+  // A bounded run: 30 s of simulated time in lockstep through the corridor, steered by the server.
+  const auto sim = run_process({binary("clients/sim/occgeo-sim").string(), "--world",
+                                source("clients/sim/worlds/corridor.yaml").string(), "--server", live.address(),
+                                "--lockstep", "--duration", "30"},
+                               120s);
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  std::this_thread::sleep_for(500ms);  // the last events reach the recorder
+  // Ctrl-C closes the file cleanly.
+  ASSERT_EQ(record.stop(SIGINT, 20s), 0) << read_file(dir.path() / "record.err");
+  EXPECT_NE(read_file(dir.path() / "record.err").find("messages"), std::string::npos);
+  const std::string live_map = exported_map(live, dir.path() / "live-map");
+  ASSERT_FALSE(live_map.empty());
+
+  ServerProcess fresh(dir.path() / "fresh");
+  const auto replay = run_process({binary("clients/occgeo").string(), "replay", "--format", "mcap", file.string(),
+                                   "--max", "--json", "--server", fresh.address()},
+                                  240s);
+  ASSERT_EQ(replay.exit_code, 0) << replay.err;
+  EXPECT_NE(replay.out.find("\"errors\":0"), std::string::npos) << replay.out;
+  EXPECT_NE(replay.out.find("\"scans\":300,\"scans_acked\":300"), std::string::npos) << replay.out;
+  const std::string replayed_map = exported_map(fresh, dir.path() / "replayed-map");
+  EXPECT_EQ(replayed_map.size(), live_map.size());
+  EXPECT_TRUE(replayed_map == live_map) << "the replayed map differs from the live one";
+}
+
+TEST(Record, DurationEndsTheRecordingWithAValidFileHoldingTheRobotsAlreadyThere) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "server");
+  ServerProcess server(dir.path() / "server");
+  auto driver = open_driver_session(server.address(), "parked-bot");
+  drive(driver, 3);
+  const auto file = dir.path() / "parked.mcap";
+  const auto result = run_process({binary("clients/occgeo").string(), "record", "--out", file.string(), "--duration",
+                                   "1", "--compression", "none", "--json", "--server", server.address()},
+                                  30s);
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.out.find("\"dropped\":0"), std::string::npos) << result.out;
+  EXPECT_NE(result.err.find("wrote "), std::string::npos) << result.err;
+  const std::string bytes = read_file(file);
+  ASSERT_GT(bytes.size(), 16U);
+  EXPECT_EQ(bytes.substr(bytes.size() - 8), std::string("\x89MCAP0\r\n", 8)) << "no closing magic: file not closed";
+  EXPECT_NE(bytes.find("/default/parked-bot/robot_spec"), std::string::npos) << "the parked robot's spec is missing";
+}
+
+TEST(Record, BadOptionsAndAnUnreachableServerAreErrorsNamingWhatWasWrong) {
+  TempDir dir;
+  const auto no_out = run_process({binary("clients/occgeo").string(), "record", "--duration", "1"}, 30s);
+  EXPECT_EQ(no_out.exit_code, 2);
+  EXPECT_NE(no_out.err.find("--out"), std::string::npos) << no_out.err;
+  const auto bad = run_process({binary("clients/occgeo").string(), "record", "--out", (dir.path() / "x.mcap").string(),
+                                "--compression", "gzip"},
+                               30s);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("gzip"), std::string::npos) << bad.err;
+  const auto unreachable = run_process({binary("clients/occgeo").string(), "record", "--out",
+                                        (dir.path() / "y.mcap").string(), "--server", "127.0.0.1:1"},
+                                       30s);
+  EXPECT_EQ(unreachable.exit_code, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "y.mcap")) << "a refused recording left a file behind";
 }
 
 }  // namespace
