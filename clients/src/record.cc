@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -154,19 +155,113 @@ double positive_seconds(const std::string& option, const std::string& value) {
   return number;
 }
 
+// Follows each recorded world's grid: the union of the cell boxes its sensor messages may have changed, fetched as a
+// GridWindowRequest (the whole window first, then only the blocks changed since the version held) at most every
+// period, one request in flight per world, and written as /WORLD/grid (occgeo.v1.GridWindowReply). Cells outside the
+// union never changed, so the incremental answers over a growing window miss nothing. Queries run on the server's
+// query pool: following the map costs ingest nothing.
+class GridFollower {
+ public:
+  explicit GridFollower(double period_s) : period_(std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s))) {}
+
+  void note(const v1::WatchEvent& event) {
+    if (!event.has_changed_cells() || event.cell_size_m() <= 0.0) return;
+    World& world = worlds_[event.world()];
+    const auto& box = event.changed_cells();
+    if (!world.have_box) {
+      world.min_ix = box.min().ix();
+      world.min_iy = box.min().iy();
+      world.max_ix = box.max().ix();
+      world.max_iy = box.max().iy();
+      world.have_box = true;
+    }
+    world.min_ix = std::min(world.min_ix, box.min().ix());
+    world.min_iy = std::min(world.min_iy, box.min().iy());
+    world.max_ix = std::max(world.max_ix, box.max().ix());
+    world.max_iy = std::max(world.max_iy, box.max().iy());
+    world.cell_size_m = event.cell_size_m();
+    world.dirty = true;
+  }
+
+  // Asks for the changes of every world that has some, unless one is in flight or (unless `now`) the period has not
+  // passed since the last request.
+  void request(Connection& connection, bool now = false) {
+    const auto at = Clock::now();
+    for (auto& [name, world] : worlds_) {
+      if (!world.dirty || world.pending != 0 || world.failed || (!now && at < world.last_request + period_)) continue;
+      v1::ClientMessage message;
+      auto& window = *message.mutable_grid_window();
+      window.set_request_id(next_request_id_);
+      window.set_world(name);
+      // Cell centres: the window holds exactly the cells of the box.
+      window.mutable_min_corner()->set_x((world.min_ix + 0.5) * world.cell_size_m);
+      window.mutable_min_corner()->set_y((world.min_iy + 0.5) * world.cell_size_m);
+      window.mutable_max_corner()->set_x((world.max_ix + 0.5) * world.cell_size_m);
+      window.mutable_max_corner()->set_y((world.max_iy + 0.5) * world.cell_size_m);
+      window.set_since_version(world.version);
+      connection.send(message);
+      world.pending = next_request_id_++;
+      world.dirty = false;
+      world.last_request = at;
+    }
+  }
+
+  // Takes a reply or error of one of its requests (true), writing the reply; false for anything else.
+  bool take(const v1::ServerMessage& message, RecordingFile& file, std::ostream& err) {
+    const std::uint64_t id = reply_request_id(message);
+    if (id == 0) return false;
+    for (auto& [name, world] : worlds_) {
+      if (world.pending != id) continue;
+      world.pending = 0;
+      if (message.has_grid_window()) {
+        world.version = message.grid_window().version();
+        file.write("/" + name + "/grid", message.grid_window(), name, "");
+      } else if (message.has_error()) {
+        world.failed = true;  // e.g. over limits.max_grid_reply_cells: the rest of the recording is still written
+        err << "\noccgeo record: the grid of world " << name << " is no longer followed: " << describe(message.error())
+            << "\n";
+      }
+      return true;
+    }
+    return false;
+  }
+
+  [[nodiscard]] bool in_flight() const {
+    return std::ranges::any_of(worlds_, [](const auto& entry) { return entry.second.pending != 0; });
+  }
+
+ private:
+  struct World {
+    bool have_box = false;
+    std::int32_t min_ix = 0, min_iy = 0, max_ix = 0, max_iy = 0;
+    double cell_size_m = 0.0;
+    std::uint64_t version = 0;  // of the last answer: the next since_version
+    std::uint64_t pending = 0;  // request id in flight, 0: none
+    bool dirty = false;
+    bool failed = false;
+    Clock::time_point last_request{};
+  };
+  Clock::duration period_;
+  std::map<std::string, World> worlds_;
+  std::uint64_t next_request_id_ = 2;  // 1 is the WatchRequest
+};
+
 }  // namespace
 
 const char* const kRecordUsage = R"(usage: occgeo record --out FILE.mcap [options]
 Attaches to occgeod as an observer and records what the server accepts, as MCAP with protobuf schemas (Foxglove
 and the MCAP libraries decode them): per robot /WORLD/ROBOT/robot_spec, odometry, laser_scan, range_array,
 servo_range, point_cloud (each after a /WORLD/ROBOT/placement: the pose it was placed at and the grid cells it may
-have changed) and motion_command. Stops on Ctrl-C or SIGTERM, or after --duration, and closes the file cleanly.
+have changed) and motion_command, and per world /WORLD/grid: the grid's changes. Stops on Ctrl-C or SIGTERM, or after --duration, and closes the file cleanly.
 `occgeo replay --format mcap FILE.mcap` streams a recording back into a server.
   --out FILE.mcap      the file to write (replaced if it exists)
   --robot ID           record only this robot (default: every robot)
   --world W            record only this world (default: every world)
   --duration S         stop after S seconds
   --compression C      chunk compression: zstd (default), lz4 or none
+  --grid-period S      how often the grid's changes are fetched and written as /WORLD/grid (occgeo.v1.GridWindowReply:
+                       the whole window of changed cells first, then the blocks changed since), default 1; the last
+                       are fetched when recording stops
   --token T            the observer token (needed beyond loopback when the server sets one)
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print a summary (file, messages, bytes, dropped, duration_s) as JSON on stdout
@@ -195,6 +290,8 @@ RecordOptions parse_record_args(const std::vector<std::string>& args) {
       options.duration_s = positive_seconds(option, value);
     } else if (option == "--compression") {
       options.compression = parse_mcap_compression(value);
+    } else if (option == "--grid-period") {
+      options.grid_period_s = positive_seconds(option, value);
     } else if (option == "--token") {
       options.token = value;
     } else if (option == "--server") {
@@ -233,24 +330,37 @@ RecordSummary run_record(const RecordOptions& options, std::ostream& err) {
   const auto end = options.duration_s ? start + std::chrono::duration_cast<Clock::duration>(
                                                     std::chrono::duration<double>(*options.duration_s))
                                       : Clock::time_point::max();
+  GridFollower grid(options.grid_period_s);
+  auto handle = [&](const v1::ServerMessage& message) {
+    if (message.has_watch_event()) {
+      const v1::WatchEvent& event = message.watch_event();
+      if (event.dropped_since_last() > 0) {
+        if (summary.dropped == 0) {
+          err << "\noccgeo record: the server is dropping events because this recorder reads too slowly; the "
+                 "recording has gaps\n";
+        }
+        summary.dropped += event.dropped_since_last();
+      }
+      write_event(file, event);
+      grid.note(event);
+    } else if (!grid.take(message, file, err) && message.has_error()) {
+      err << "occgeo record: server error: " << describe(message.error()) << "\n";
+    }
+  };
   try {
     while (stop_flag == 0 && Clock::now() < end) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - Clock::now());
-      const auto message = connection.receive(std::clamp(left, std::chrono::milliseconds(1), std::chrono::milliseconds(200)));
-      if (message && message->has_watch_event()) {
-        const v1::WatchEvent& event = message->watch_event();
-        if (event.dropped_since_last() > 0) {
-          if (summary.dropped == 0) {
-            err << "\noccgeo record: the server is dropping events because this recorder reads too slowly; the "
-                   "recording has gaps\n";
-          }
-          summary.dropped += event.dropped_since_last();
-        }
-        write_event(file, event);
-      } else if (message && message->has_error()) {
-        err << "occgeo record: server error: " << describe(message->error()) << "\n";
-      }
+      const auto message =
+          connection.receive(std::clamp(left, std::chrono::milliseconds(1), std::chrono::milliseconds(200)));
+      if (message) handle(*message);
+      grid.request(connection);
       progress.update(file, summary.dropped);
+    }
+    // The grid as it stands when recording stops: the last changes, bounded in time.
+    const auto last = Clock::now() + std::chrono::seconds(10);
+    grid.request(connection, true);
+    while (grid.in_flight() && Clock::now() < last) {
+      if (const auto message = connection.receive(std::chrono::milliseconds(200))) handle(*message);
     }
   } catch (const ClientError&) {
     file.close();

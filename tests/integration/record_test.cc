@@ -7,6 +7,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <iterator>
 #include <thread>
 #include <numbers>
@@ -17,6 +18,7 @@
 #include <boost/asio/write.hpp>
 
 #include "occgeo/proto/framing.h"
+#include "occgeo/replay/mcap.h"
 #include "process.h"
 #include "test_clients.h"
 
@@ -216,9 +218,9 @@ TEST(ObserverData, ASlowDataWatcherLosesItsOldestEventsIsToldHowManyAndTheDriver
   ASSERT_TRUE(watcher.receive(5s)) << "no welcome";
   auto driver = open_driver_session(server.address(), "busy-bot");
   drive(driver, 20);
-  // Then it asks for more than the socket buffers hold (10 windows of 250 000 cells) and reads nothing, as a slow
+  // Then it asks for more than the socket buffers hold (30 windows of 250 000 cells) and reads nothing, as a slow
   // link would: its event queue fills and drops.
-  for (std::uint64_t id = 2; id < 12; ++id) {
+  for (std::uint64_t id = 2; id < 32; ++id) {
     v1::ClientMessage window;
     window.mutable_grid_window()->set_request_id(id);
     window.mutable_grid_window()->mutable_min_corner()->set_x(-25.0);
@@ -284,6 +286,47 @@ TEST(Record, TheMapRebuiltFromARecordingEqualsTheLiveOne) {
   EXPECT_NE(read_file(dir.path() / "record.err").find("messages"), std::string::npos);
   const std::string live_map = exported_map(live, dir.path() / "live-map");
   ASSERT_FALSE(live_map.empty());
+
+  // The recording's /default/grid (the whole window of changed cells, then the changed blocks) rebuilds the live grid.
+  std::map<std::pair<std::int32_t, std::int32_t>, std::uint8_t> recorded;
+  auto paint = [&](const v1::CellIndex& min, std::uint32_t width, std::uint32_t height, const std::string& cells) {
+    ASSERT_EQ(cells.size(), static_cast<std::size_t>(width) * height);
+    for (std::uint32_t row = 0; row < height; ++row) {
+      for (std::uint32_t col = 0; col < width; ++col) {
+        recorded[{min.ix() + static_cast<std::int32_t>(col), min.iy() + static_cast<std::int32_t>(row)}] =
+            static_cast<std::uint8_t>(cells[static_cast<std::size_t>(row) * width + col]);
+      }
+    }
+  };
+  std::size_t grid_messages = 0;
+  replay::McapReader reader(file);
+  while (const auto message = reader.next()) {
+    if (message->channel->topic != "/default/grid") continue;
+    v1::GridWindowReply window;
+    ASSERT_TRUE(window.ParseFromArray(message->data.data(), static_cast<int>(message->data.size())));
+    if (grid_messages++ == 0) paint(window.min_cell(), window.width(), window.height(), window.cells());
+    for (const auto& block : window.changed()) paint(block.min_cell(), block.width(), block.height(), block.cells());
+  }
+  EXPECT_GE(grid_messages, 2U) << "the grid's changes were not followed during the run";
+  auto query = open_query_session(live.address());
+  v1::ClientMessage request;
+  request.mutable_grid()->set_request_id(1);
+  request.mutable_grid()->set_world("default");
+  const v1::GridReply grid = query.call(request, 1).grid();
+  std::size_t observed = 0;
+  std::size_t differing = 0;
+  for (std::uint32_t row = 0; row < grid.height(); ++row) {
+    for (std::uint32_t col = 0; col < grid.width(); ++col) {
+      const auto value = static_cast<std::uint8_t>(grid.cells()[static_cast<std::size_t>(row) * grid.width() + col]);
+      if (value == 255) continue;
+      ++observed;
+      const auto it = recorded.find({grid.min_cell().ix() + static_cast<std::int32_t>(col),
+                                     grid.min_cell().iy() + static_cast<std::int32_t>(row)});
+      if (it == recorded.end() || it->second != value) ++differing;
+    }
+  }
+  EXPECT_GT(observed, 1000U);
+  EXPECT_EQ(differing, 0U) << "of " << observed << " observed cells, the recorded grid differs in " << differing;
 
   ServerProcess fresh(dir.path() / "fresh");
   const auto replay = run_process({binary("clients/occgeo").string(), "replay", "--format", "mcap", file.string(),

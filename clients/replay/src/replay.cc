@@ -382,7 +382,8 @@ class RecordingPass {
       // /WORLD/ROBOT/KIND
       const std::size_t second = topic.find('/', 1);
       const std::size_t third = second == std::string::npos ? std::string::npos : topic.find('/', second + 1);
-      if (topic.empty() || topic[0] != '/' || third == std::string::npos) fail("is not /WORLD/ROBOT/KIND");
+      if (topic.empty() || topic[0] != '/' || second == std::string::npos) fail("is not /WORLD/ROBOT/KIND");
+      if (third == std::string::npos) continue;  // /WORLD/grid: the live grid's changes, rebuilt here from the scans
       const std::string world = topic.substr(1, second - 1);
       const std::string robot = topic.substr(second + 1, third - second - 1);
       const std::string kind = topic.substr(third + 1);

@@ -18,6 +18,7 @@ struct RecordOptions {
   std::string world;     // empty: every world
   std::string robot_id;  // empty: every robot
   std::optional<double> duration_s;
+  double grid_period_s = 1.0;  // how often the grid's changes are fetched and written
   McapCompression compression = McapCompression::zstd;
   std::string token;  // the observer token, needed beyond loopback
   bool json = false;  // summary as JSON on stdout
