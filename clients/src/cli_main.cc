@@ -17,10 +17,10 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/client/json.h"
+#include "occgeo/client/record.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
-#include "occgeo/client/record.h"
 #include "occgeo/replay/replay.h"
 
 namespace {
@@ -1246,7 +1246,8 @@ int main(int argc, char** argv) {
         std::fputs(occgeo::client::kRecordUsage, stdout);
         return 0;
       }
-      return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
+      return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout,
+                                            std::cerr);
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}));
     if (args[0] == "lease") {

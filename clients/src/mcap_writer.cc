@@ -106,7 +106,10 @@ McapCompression parse_mcap_compression(const std::string& text) {
 
 McapWriter::McapWriter(const std::filesystem::path& path, McapCompression compression, std::string library,
                        std::size_t chunk_bytes)
-    : path_(path), out_(path, std::ios::binary | std::ios::trunc), compression_(compression), chunk_bytes_(chunk_bytes) {
+    : path_(path),
+      out_(path, std::ios::binary | std::ios::trunc),
+      compression_(compression),
+      chunk_bytes_(chunk_bytes) {
   if (!out_) throw std::runtime_error("cannot open '" + path.string() + "' for writing");
   write_bytes(kMagic);
   std::string header;

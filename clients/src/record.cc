@@ -162,7 +162,8 @@ double positive_seconds(const std::string& option, const std::string& value) {
 // query pool: following the map costs ingest nothing.
 class GridFollower {
  public:
-  explicit GridFollower(double period_s) : period_(std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s))) {}
+  explicit GridFollower(double period_s)
+      : period_(std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s))) {}
 
   void note(const v1::WatchEvent& event) {
     if (!event.has_changed_cells() || event.cell_size_m() <= 0.0) return;
@@ -327,9 +328,10 @@ RecordSummary run_record(const RecordOptions& options, std::ostream& err) {
   RecordSummary summary;
   Progress progress(err, ::isatty(STDERR_FILENO) == 1 && &err == &std::cerr);
   const auto start = Clock::now();
-  const auto end = options.duration_s ? start + std::chrono::duration_cast<Clock::duration>(
-                                                    std::chrono::duration<double>(*options.duration_s))
-                                      : Clock::time_point::max();
+  const auto end =
+      options.duration_s
+          ? start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*options.duration_s))
+          : Clock::time_point::max();
   GridFollower grid(options.grid_period_s);
   auto handle = [&](const v1::ServerMessage& message) {
     if (message.has_watch_event()) {

@@ -8,8 +8,8 @@
 #include <unistd.h>
 
 #include <fstream>
-#include <map>
 #include <iterator>
+#include <map>
 #include <string>
 
 #include "occgeo/client/mcap_writer.h"
@@ -33,7 +33,8 @@ std::string read_all(const std::filesystem::path& path) {
 
 std::uint64_t le(const std::string& bytes, std::size_t at, int size) {
   std::uint64_t value = 0;
-  for (int i = size - 1; i >= 0; --i) value = (value << 8) | static_cast<unsigned char>(bytes[at + static_cast<std::size_t>(i)]);
+  for (int i = size - 1; i >= 0; --i)
+    value = (value << 8) | static_cast<unsigned char>(bytes[at + static_cast<std::size_t>(i)]);
   return value;
 }
 

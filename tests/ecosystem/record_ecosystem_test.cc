@@ -29,10 +29,10 @@ TEST_P(RecordingReadByTheEcosystem, McapCoreFindsEveryMessageAndProtobufjsDecode
     std::this_thread::sleep_for(50ms);
   }
   ASSERT_NE(server.log().find("session_watch"), std::string::npos) << "the recorder did not attach";
-  const auto sim = run_process({binary("clients/sim/occgeo-sim").string(), "--world",
-                                source("clients/sim/worlds/corridor.yaml").string(), "--server", server.address(),
-                                "--lockstep", "--duration", "10", "--json"},
-                               120s);
+  const auto sim = run_process(
+      {binary("clients/sim/occgeo-sim").string(), "--world", source("clients/sim/worlds/corridor.yaml").string(),
+       "--server", server.address(), "--lockstep", "--duration", "10", "--json"},
+      120s);
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   const double scans_sent = json_number(sim.out, "scans_sent");
   ASSERT_GT(scans_sent, 50);

@@ -7,10 +7,10 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <iterator>
-#include <thread>
+#include <map>
 #include <numbers>
+#include <thread>
 #include <vector>
 
 #include <boost/asio/io_context.hpp>
@@ -268,17 +268,18 @@ TEST(Record, TheMapRebuiltFromARecordingEqualsTheLiveOne) {
   std::filesystem::create_directories(dir.path() / "fresh");
   ServerProcess live(dir.path() / "live");
   const auto file = dir.path() / "session.mcap";
-  BackgroundProcess record({binary("clients/occgeo").string(), "record", "--out", file.string(), "--server",
-                            live.address()},
-                           dir.path() / "record.out", dir.path() / "record.err");
+  BackgroundProcess record(
+      {binary("clients/occgeo").string(), "record", "--out", file.string(), "--server", live.address()},
+      dir.path() / "record.out", dir.path() / "record.err");
   // The recorder is attached once the server logs its watch.
-  for (int i = 0; i < 100 && live.log().find("session_watch") == std::string::npos; ++i) std::this_thread::sleep_for(50ms);
+  for (int i = 0; i < 100 && live.log().find("session_watch") == std::string::npos; ++i)
+    std::this_thread::sleep_for(50ms);
   ASSERT_NE(live.log().find("session_watch"), std::string::npos) << read_file(dir.path() / "record.err");
   // A bounded run: 30 s of simulated time in lockstep through the corridor, steered by the server.
-  const auto sim = run_process({binary("clients/sim/occgeo-sim").string(), "--world",
-                                source("clients/sim/worlds/corridor.yaml").string(), "--server", live.address(),
-                                "--lockstep", "--duration", "30"},
-                               120s);
+  const auto sim = run_process(
+      {binary("clients/sim/occgeo-sim").string(), "--world", source("clients/sim/worlds/corridor.yaml").string(),
+       "--server", live.address(), "--lockstep", "--duration", "30"},
+      120s);
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   std::this_thread::sleep_for(500ms);  // the last events reach the recorder
   // Ctrl-C closes the file cleanly.
@@ -340,6 +341,55 @@ TEST(Record, TheMapRebuiltFromARecordingEqualsTheLiveOne) {
   EXPECT_TRUE(replayed_map == live_map) << "the replayed map differs from the live one";
 }
 
+TEST(Record, TwoRobotsMappingOneWorldAtOnceReplayIntoTheSameMap) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "live");
+  std::filesystem::create_directories(dir.path() / "fresh");
+  ServerProcess live(dir.path() / "live");
+  const auto file = dir.path() / "two.mcap";
+  BackgroundProcess record({binary("clients/occgeo").string(), "record", "--out", file.string(), "--compression", "lz4",
+                            "--server", live.address()},
+                           dir.path() / "record.out", dir.path() / "record.err");
+  for (int i = 0; i < 100 && live.log().find("session_watch") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_NE(live.log().find("session_watch"), std::string::npos) << read_file(dir.path() / "record.err");
+  // Both at once, interleaving on the world's strand in an order only the recording knows.
+  auto sim_args = [&](const std::string& id, const std::string& start) {
+    return std::vector<std::string>{binary("clients/sim/occgeo-sim").string(),
+                                    "--world",
+                                    source("clients/sim/worlds/corridor.yaml").string(),
+                                    "--server",
+                                    live.address(),
+                                    "--id",
+                                    id,
+                                    "--start",
+                                    start,
+                                    "--lockstep",
+                                    "--duration",
+                                    "20"};
+  };
+  BackgroundProcess second(sim_args("second", "3,0,0"), dir.path() / "second.out", dir.path() / "second.err");
+  const auto first = run_process(sim_args("first", "0,0,0"), 120s);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  for (int i = 0; i < 1200 && second.running(); ++i) std::this_thread::sleep_for(100ms);
+  ASSERT_EQ(second.stop(SIGTERM, 5s), 0) << read_file(dir.path() / "second.err");
+  std::this_thread::sleep_for(500ms);
+  ASSERT_EQ(record.stop(SIGTERM, 20s), 0) << read_file(dir.path() / "record.err");
+  const std::string live_map = exported_map(live, dir.path() / "live-map");
+
+  ServerProcess fresh(dir.path() / "fresh");
+  const auto replay = run_process({binary("clients/occgeo").string(), "replay", "--format", "mcap", file.string(),
+                                   "--max", "--json", "--server", fresh.address()},
+                                  240s);
+  ASSERT_EQ(replay.exit_code, 0) << replay.err;
+  EXPECT_NE(replay.out.find("\"scans\":400,\"scans_acked\":400"), std::string::npos) << replay.out;
+  EXPECT_NE(replay.err.find("robot first of the recording"), std::string::npos) << replay.err;
+  EXPECT_NE(replay.err.find("robot second of the recording"), std::string::npos) << replay.err;
+  EXPECT_TRUE(exported_map(fresh, dir.path() / "replayed-map") == live_map)
+      << "the map replayed from two robots differs from the live one";
+}
+
 TEST(Record, DurationEndsTheRecordingWithAValidFileHoldingTheRobotsAlreadyThere) {
   TempDir dir;
   std::filesystem::create_directories(dir.path() / "server");
@@ -364,9 +414,9 @@ TEST(Record, BadOptionsAndAnUnreachableServerAreErrorsNamingWhatWasWrong) {
   const auto no_out = run_process({binary("clients/occgeo").string(), "record", "--duration", "1"}, 30s);
   EXPECT_EQ(no_out.exit_code, 2);
   EXPECT_NE(no_out.err.find("--out"), std::string::npos) << no_out.err;
-  const auto bad = run_process({binary("clients/occgeo").string(), "record", "--out", (dir.path() / "x.mcap").string(),
-                                "--compression", "gzip"},
-                               30s);
+  const auto bad = run_process(
+      {binary("clients/occgeo").string(), "record", "--out", (dir.path() / "x.mcap").string(), "--compression", "gzip"},
+      30s);
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("gzip"), std::string::npos) << bad.err;
   const auto unreachable = run_process({binary("clients/occgeo").string(), "record", "--out",

@@ -6,9 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <set>
 #include <sstream>
 #include <stdexcept>
-#include <set>
 #include <thread>
 
 #include "occgeo/client/connection.h"
@@ -367,9 +367,9 @@ class RecordingPass {
     while (const auto message = reader.next()) {
       const std::string& topic = message->channel->topic;
       auto fail = [&](const std::string& what) -> void {
-        throw McapError(reader.name() + ": offset " + std::to_string(message->offset) + ": topic '" + topic + "' " +
-                            what,
-                        message->offset);
+        throw McapError(
+            reader.name() + ": offset " + std::to_string(message->offset) + ": topic '" + topic + "' " + what,
+            message->offset);
       };
       if (message->schema == nullptr || message->channel->message_encoding != "protobuf" ||
           message->schema->name.rfind("occgeo.v1.", 0) != 0) {
@@ -453,9 +453,10 @@ class RecordingPass {
       const bool cloud = kind == "point_cloud";
       ++(cloud ? result_.clouds : result_.scans);
       if (await_answer(*driver, seq)) ++(cloud ? result_.clouds_acked : result_.acked);
+      if (drivers_.size() > 1 && ++since_drain_ >= kDrainEvery) drain_others(*driver);
       if (world == grid_world_) {
-        result_.trajectory.push_back({driver->placement->pose().x(), driver->placement->pose().y(),
-                                      driver->placement->pose().theta()});
+        result_.trajectory.push_back(
+            {driver->placement->pose().x(), driver->placement->pose().y(), driver->placement->pose().theta()});
       }
       progress.update(reader.progress(), result_.scans + result_.clouds, seconds_since(start));
     }
@@ -520,9 +521,27 @@ class RecordingPass {
     }
   }
 
+  // The robots not being sent to also get commands (and the watchdog's stops): read and dropped now and then, so their
+  // unread replies never pile up on the server.
+  void drain_others(Driver& current) {
+    since_drain_ = 0;
+    for (auto& [key, driver] : drivers_) {
+      if (&driver == &current) continue;
+      while (const auto message = driver.connection.receive(std::chrono::milliseconds(0))) {
+        if (message->has_error()) {
+          ++result_.errors;
+          if (result_.errors <= 5)
+            err_ << "occgeo replay: server error: " << client::describe(message->error()) << "\n";
+        }
+      }
+    }
+  }
+
+  static constexpr std::uint64_t kDrainEvery = 32;
   const ReplayOptions& options_;
   Diagnostics& diagnostics_;
   std::ostream& err_;
+  std::uint64_t since_drain_ = 0;
   std::map<std::string, Driver> drivers_;  // by recorded "world/robot"
   std::string grid_world_;                 // the first robot's: --out and the summary's map
   std::set<std::string> foreign_topics_;
@@ -567,7 +586,8 @@ ReplaySummary finish_summary(const ReplayOptions& options, PassResult full, std:
 ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics, std::ostream& err) {
   ReplaySummary summary;
   if (options.format == LogFormat::mcap && is_occgeo_recording(options.file)) {
-    if (options.consistency) err << "occgeo replay: --consistency is for laser logs and bags; a recording is replayed once\n";
+    if (options.consistency)
+      err << "occgeo replay: --consistency is for laser logs and bags; a recording is replayed once\n";
     ReplayOptions once = options;
     once.consistency = false;
     return finish_summary(once, RecordingPass(once, diagnostics, err).run(), err);

@@ -36,9 +36,8 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
     // Published from the world's strand like every later data event of the robot, so it reaches watchers first.
     auto event = std::make_shared<v1::WatchEvent>();
     *event->mutable_robot_spec() = spec;
-    asio::post(info.robot->world().strand(), [session, event = std::move(event)]() mutable {
-      session->publish_data(std::move(event));
-    });
+    asio::post(info.robot->world().strand(),
+               [session, event = std::move(event)]() mutable { session->publish_data(std::move(event)); });
   }
   log::info(
       "robot_registered",
