@@ -17,6 +17,7 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/client/json.h"
+#include "occgeo/client/record.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -82,6 +83,9 @@ commands:
   replay --format carmen|dpslam|urg|mcap FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
                                              stream a recorded laser log or ROS 2 bag as a driver
                                              (occgeo replay --help)
+  record --out FILE.mcap [--robot ID] [--world W] [--duration S] [--compression zstd|lz4|none]
+                                             record what the server accepts as MCAP until Ctrl-C
+                                             (occgeo record --help)
 common options (before or after the command):
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print the reply as one JSON object
@@ -1236,6 +1240,14 @@ int main(int argc, char** argv) {
         return 0;
       }
       return occgeo::replay::run_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
+    }
+    if (args[0] == "record") {
+      if (args.size() >= 2 && (args[1] == "--help" || args[1] == "-h")) {
+        std::fputs(occgeo::client::kRecordUsage, stdout);
+        return 0;
+      }
+      return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout,
+                                            std::cerr);
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}));
     if (args[0] == "lease") {

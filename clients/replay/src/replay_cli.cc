@@ -73,7 +73,10 @@ then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanA
 Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are
 synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams),
 mcap (ROS 2 bag, chunks uncompressed, zstd or lz4; CDR LaserScan, Odometry, TFMessage, PointCloud2; the scan's own
-range_min/range_max apply unless --max-range is given). A damaged file stops the replay with an error naming the
+range_min/range_max apply unless --max-range is given), or an `occgeo record` recording (protobuf topics): each
+recorded robot drives under its own id into its recorded world (or --world W), with its recorded spec, and each
+accepted sensor message is sent unchanged after an Odometry at the pose the live server placed it at, so the map
+rebuilt equals the live one (--id, --max-range, --topic-* and --consistency do not apply). A damaged file stops the replay with an error naming the
 topic and file offset; nothing of the damaged part is sent.
 Exit code: 0 done, 1 failure or any server error, 2 usage.
 )";
