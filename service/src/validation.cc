@@ -398,7 +398,9 @@ std::optional<std::string> missing_sensor_for(const std::string& behaviour, cons
              "' has neither (no range sensor to wander by)";
     }
   } else if (behaviour == "goto") {
-    if (!laser) return "'goto' (PointBug) reads a laser scan and robot '" + model.id + "' has no laser";
+    if (!laser && model.servo_ranges.empty()) {
+      return "'goto' (PointBug) reads a laser scan or a servo-swept beam and robot '" + model.id + "' has neither";
+    }
   }
   return std::nullopt;
 }

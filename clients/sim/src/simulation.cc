@@ -30,11 +30,15 @@ std::uint64_t sensor_seed(std::uint64_t seed, std::size_t index) {
 }
 
 // The sensor whose messages the server answers with motion commands: the first laser, else the first range array
-// (a sonar robot steers by its ring); none otherwise.
+// (a sonar robot steers by its ring), else the first servo-swept beam (seed 003's ActivityBot, one command per
+// reading); none otherwise.
 std::string steering_sensor_of(const RobotPreset& preset) {
   if (preset.laser() != nullptr) return preset.laser()->name;
   for (const SensorPreset& sensor : preset.sensors) {
     if (const auto* array = std::get_if<RangeArrayPreset>(&sensor)) return array->name;
+  }
+  for (const SensorPreset& sensor : preset.sensors) {
+    if (const auto* servo = std::get_if<ServoRangePreset>(&sensor)) return servo->name;
   }
   return {};
 }
@@ -168,6 +172,7 @@ SensorBatch Simulation::take_batch() {
       visible_pixels_.insert(reading.hit_pixels.begin(), reading.hit_pixels.end());
       batch.messages.push_back(
           make_servo_range_message(sensor.name, seq, stamp_s, reading.servo_angle_rad, reading.range_m));
+      if (sensor.name == steering_sensor_) batch.steering_scan_seq = seq;
       ++message_counts_["servo_range"];
     }
   }

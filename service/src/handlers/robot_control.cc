@@ -167,6 +167,23 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
     for (const auto& w : request.waypoints()) waypoints_W.emplace_back(w.x_m(), w.y_m());
     return control::make_waypoints(shape, std::move(waypoints_W));
   }
+  if (name == "goto" && model.lasers.empty() && !model.servo_ranges.empty()) {
+    // Seed 003's robot: PointBug on the swept beam, one decision per servo step.
+    const ServoRangeModel& servo = model.servo_ranges.front();
+    const control::ServoSweepLimits limits{servo.servo_min_rad, servo.servo_max_rad, servo.servo_step_rad,
+                                           servo.range_max_m};
+    const Eigen::Vector3d beam_B = servo.X_BS.transform.linear() * Eigen::Vector3d::UnitX();
+    control::PointBugParams params = control::pointbug_params_for(shape);
+    if (model.encoders) {
+      // A pose dead-reckoned from whole ticks knows the heading only to one tick of one wheel over the wheel
+      // separation (1.76 degrees on the ActivityBot), as coarse as the seed's own drive_goto turns; a finer tolerance
+      // would dither between the two ticks either side of the goal's bearing for ever.
+      const double heading_step_rad = geometry::metres_per_tick(*model.encoders) / model.encoders->wheel_separation_m;
+      params.heading_tolerance_rad = std::max(params.heading_tolerance_rad, heading_step_rad);
+    }
+    return control::make_servo_goto(params, limits, std::atan2(beam_B.y(), beam_B.x()),
+                                    request.goal().x_m(), request.goal().y_m(), servo.step_period_s);
+  }
   if (name == "goto") {
     double half_width_m = 0.0;
     std::visit(
@@ -189,7 +206,8 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
 
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
                                              double expiry_s, const ServerConfig& config,
-                                             const std::optional<control::RangeSet>& ring) {
+                                             const std::optional<control::RangeSet>& ring,
+                                             const std::optional<control::ServoSample>& servo) {
   const RobotModel& model = robot.model();
   const ControlState control = robot.control().state();
   v1::MotionCommand command;
@@ -221,8 +239,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         robot.active_generation_on_strand() = control.drive_generation;
       }
       if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
-      wanted =
-          active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring});
+      wanted = active->decide(
+          {view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring, servo});
       path_W = active->planned_path();
     } catch (const std::invalid_argument& e) {
       log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
