@@ -138,6 +138,7 @@ RobotPreset activitybot() {
   // Seed 003's system: the server runs PointBug on its sweeps once a controller gives it a goal; until then it
   // stands, answered reading by reading.
   preset.default_behaviour = "stop";
+  preset.activitybot_units = true;
   preset.command_timeout_s = 0.5;
   return preset;
 }

@@ -305,6 +305,15 @@ class ServoGotoAdapter final : public Behaviour {
   BehaviourCommand finish(const PointBugDecision& decision) {
     BehaviourCommand command = pointbug_command(decision, period_s_);
     done_ = command.state == "reached" || command.state == "no_path";
+    if (command.state == "drive_to_sudden_point") {
+      if (last_state_ != command.state) {
+        ++leg_id_;
+        leg_m_ = decision.target.distance_m;
+      }
+      command.leg_m = leg_m_;
+      command.leg_id = leg_id_;
+    }
+    last_state_ = command.state;
     return command;
   }
 
@@ -315,6 +324,9 @@ class ServoGotoAdapter final : public Behaviour {
   double period_s_;
   std::optional<Ahead> ahead_;
   bool awaiting_sweep_ = false;
+  std::string last_state_;    // of the last decision that moved or stopped by PointBug
+  std::uint64_t leg_id_ = 0;  // counts the legs to sudden points
+  double leg_m_ = 0.0;        // the current leg's length where it began
   std::optional<Eigen::Vector2d> position_W_;
   bool done_ = false;
 };

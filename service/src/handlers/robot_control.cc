@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <boost/asio/post.hpp>
+#include <cmath>
 #include <variant>
 
 #include "../metrics.h"
@@ -181,8 +182,8 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
       const double heading_step_rad = geometry::metres_per_tick(*model.encoders) / model.encoders->wheel_separation_m;
       params.heading_tolerance_rad = std::max(params.heading_tolerance_rad, heading_step_rad);
     }
-    return control::make_servo_goto(params, limits, std::atan2(beam_B.y(), beam_B.x()),
-                                    request.goal().x_m(), request.goal().y_m(), servo.step_period_s);
+    return control::make_servo_goto(params, limits, std::atan2(beam_B.y(), beam_B.x()), request.goal().x_m(),
+                                    request.goal().y_m(), servo.step_period_s);
   }
   if (name == "goto") {
     double half_width_m = 0.0;
@@ -268,6 +269,30 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);
       metrics::counter("occgeo_guard_interventions_total", {{"robot", model.id}}).inc();
+    }
+  }
+  if (model.encoders && model.spec.command_units() == v1::COMMAND_UNITS_ACTIVITYBOT_TICKS) {
+    // Seed 003's robot takes whole encoder ticks (abdrive): its wheel speeds become ticks per second, and a straight
+    // leg the behaviour drives to its end, unchanged by the guard, becomes a drive_goto of the leg's ticks.
+    const double metres_per_tick = geometry::metres_per_tick(*model.encoders);
+    const auto ticks = [&](double metres) { return static_cast<std::int32_t>(std::lround(metres / metres_per_tick)); };
+    const bool guard_passed = !guard.checked() || guard.action() == "pass";
+    if (wanted.leg_m && guard_passed && velocity.wheels.left_mps > 0.0) {
+      const auto leg_ticks = static_cast<std::int64_t>(std::lround(*wanted.leg_m / metres_per_tick));
+      v1::DriveGoto& drive_goto = *command.mutable_drive_goto();
+      drive_goto.set_left_ticks(leg_ticks);
+      drive_goto.set_right_ticks(leg_ticks);
+      drive_goto.set_id(wanted.leg_id);
+      drive_goto.set_max_ticks_per_s(std::max(1, ticks(velocity.wheels.left_mps)));
+    } else {
+      v1::DriveSpeed& drive_speed = *command.mutable_drive_speed();
+      drive_speed.set_left_ticks_per_s(ticks(velocity.wheels.left_mps));
+      drive_speed.set_right_ticks_per_s(ticks(velocity.wheels.right_mps));
+      // What the wheels will do: the speeds the whole ticks give.
+      const auto* drive = std::get_if<geometry::DifferentialDriveParams>(&model.drive);
+      velocity.wheels = {drive_speed.left_ticks_per_s() * metres_per_tick,
+                         drive_speed.right_ticks_per_s() * metres_per_tick};
+      if (drive != nullptr) velocity.body = geometry::to_body(velocity.wheels, *drive);
     }
   }
   command.set_left_wheel_mps(velocity.wheels.left_mps);

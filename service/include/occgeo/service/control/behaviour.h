@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -54,6 +55,10 @@ struct BehaviourCommand {
   std::optional<geometry::WheelSpeeds> wheels;  // differential wheel speeds, when the behaviour computes them
   bool stop = false;                            // stand still
   std::string state;                            // e.g. "steer_gap", "step_to_goal", "reached"
+  // A straight leg the behaviour drives to its end (PointBug's drive to a sudden point, as the seed's drive_goto):
+  // its whole length from where it began, metres, and a number that changes with each new leg (from 1).
+  std::optional<double> leg_m;
+  std::uint64_t leg_id = 0;
 };
 
 class Behaviour {
