@@ -268,7 +268,9 @@ class ServoGotoAdapter final : public Behaviour {
     // missing one reads as blocked, which PointBug can only answer with no_path on a sweep of one reading.
     double ahead_m = 0.0;
     const bool ahead_known =
-        ahead_ && std::abs(geometry::wrap_angle(ahead_->pose.yaw_rad - pose.yaw_rad)) <= kAheadHeadingTolerance_rad;
+        ahead_ &&
+        std::abs(geometry::wrap_angle(ahead_->pose.yaw_rad - pose.yaw_rad)) <=
+            std::max(kAheadHeadingTolerance_rad, kReaimHeadingTolerances * behaviour_.params().heading_tolerance_rad);
     if (ahead_known) {
       const double driven_m = (pose.x_m - ahead_->pose.x_m) * std::cos(pose.yaw_rad) +
                               (pose.y_m - ahead_->pose.y_m) * std::sin(pose.yaw_rad);
@@ -294,8 +296,10 @@ class ServoGotoAdapter final : public Behaviour {
 
  private:
   // A reading ahead counts while the heading stays this close to the one it was taken at (assumption: the beam is
-  // about as wide as the ActivityBot at the obstacle range).
+  // about as wide as the ActivityBot at the obstacle range), and at least while PointBug keeps stepping without
+  // re-aiming: wheel speeds in whole ticks correct the heading in steps of a tick-quantised heading.
   static constexpr double kAheadHeadingTolerance_rad = 3.0 * kDeg;
+  static constexpr double kReaimHeadingTolerances = 4.0;  // PointBug's step_to_goal re-aims beyond this many
 
   struct Ahead {
     double range_m = 0.0;
