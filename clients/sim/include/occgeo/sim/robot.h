@@ -52,7 +52,8 @@ class SimulatedRobot {
   // current count, at the preset's drive_goto speed, and stops when it gets there (the last step is shortened so it
   // stops exactly on the tick). Ignores the watchdog; a later command() cancels it. Throws std::logic_error when the
   // preset has no encoders or no drive_goto speed.
-  void drive_goto(std::int64_t left_ticks, std::int64_t right_ticks);
+  // speed_mps > 0 is drive_setMaxSpeed's cruising speed for this manoeuvre (at most the preset's).
+  void drive_goto(std::int64_t left_ticks, std::int64_t right_ticks, double speed_mps = 0.0);
   // True while a drive_goto has not reached both targets.
   [[nodiscard]] bool drive_goto_active() const { return goto_target_.has_value(); }
 
@@ -100,6 +101,7 @@ class SimulatedRobot {
   std::optional<geometry::TrackDynamics> tracks_;  // set for a skid-steered robot
   std::optional<geometry::EncoderParams> encoders_;
   double drive_goto_speed_mps_;
+  double goto_speed_mps_ = 0.0;  // the running drive_goto's speed
   geometry::BoxFootprint footprint_;
   std::int64_t watchdog_steps_;
   geometry::Pose2 X_WB_;
