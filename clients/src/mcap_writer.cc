@@ -1,5 +1,7 @@
 #include "occgeo/client/mcap_writer.h"
 
+#include "occgeo/client/mcap_format.h"
+
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/descriptor.pb.h>
 #include <lz4frame.h>
@@ -13,22 +15,7 @@
 namespace occgeo::client {
 namespace {
 
-// Record opcodes of the MCAP format.
-enum Opcode : std::uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-  kMessageIndex = 0x07,
-  kChunkIndex = 0x08,
-  kStatistics = 0x0B,
-  kSummaryOffset = 0x0E,
-  kDataEnd = 0x0F,
-};
-
-constexpr std::string_view kMagic{"\x89MCAP0\r\n", 8};
+using namespace mcap;  // opcodes and magic
 
 // Little-endian field encoders.
 void put_u8(std::string& out, std::uint8_t v) { out.push_back(static_cast<char>(v)); }
