@@ -20,6 +20,7 @@
 #include "occgeo/proto/framing.h"
 #include "occgeo/replay/mcap.h"
 #include "process.h"
+#include "raw_client.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -152,61 +153,12 @@ TEST(ObserverData, AWatcherOfOneRobotGetsNothingOfAnother) {
   EXPECT_TRUE(drain_events(watcher).empty());
 }
 
-// A raw observer socket with a tiny receive buffer: once it stops reading, the server's writes to it stall.
-class StalledObserver {
- public:
-  explicit StalledObserver(std::uint16_t port) : socket_(io_) {
-    socket_.open(boost::asio::ip::tcp::v4());
-    socket_.set_option(boost::asio::socket_base::receive_buffer_size(4096));
-    socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
-  }
-  void send(const v1::ClientMessage& message) {
-    boost::asio::write(socket_, boost::asio::buffer(proto::encode_frame(message)));
-  }
-  // The next message, or nullopt at end of stream or after `limit`.
-  std::optional<v1::ServerMessage> receive(std::chrono::milliseconds limit) {
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    v1::ServerMessage message;
-    while (decoder_.next(message) != proto::FrameStatus::frame) {
-      if (closed_ || std::chrono::steady_clock::now() >= deadline) return std::nullopt;
-      std::size_t got = 0;
-      boost::system::error_code result = boost::asio::error::would_block;
-      socket_.async_read_some(boost::asio::buffer(buffer_), [&](const boost::system::error_code& error, std::size_t n) {
-        result = error;
-        got = n;
-      });
-      io_.restart();
-      io_.run_until(deadline);
-      if (!io_.stopped()) {
-        boost::system::error_code ignored;
-        socket_.cancel(ignored);
-        io_.restart();
-        io_.run();
-        return std::nullopt;
-      }
-      if (result) {
-        closed_ = true;
-        return std::nullopt;
-      }
-      decoder_.append(buffer_.data(), got);
-    }
-    return message;
-  }
-
- private:
-  boost::asio::io_context io_;
-  boost::asio::ip::tcp::socket socket_;
-  proto::FrameDecoder decoder_{std::size_t{64} << 20};
-  std::array<char, 65536> buffer_{};
-  bool closed_ = false;
-};
-
 TEST(ObserverData, ASlowDataWatcherLosesItsOldestEventsIsToldHowManyAndTheDriverIsNotHeldUp) {
   TempDir dir;
   const auto config = dir.path() / "occgeod.yaml";
   std::ofstream(config) << "limits:\n  max_watch_queue_messages: 8\n";
   ServerProcess server(dir.path(), {"--config", config.string()});
-  StalledObserver watcher(server.port());
+  RawClient watcher(server.port());
   v1::ClientMessage hello;
   hello.mutable_hello()->set_protocol_version(1);
   hello.mutable_hello()->set_role(v1::ROLE_OBSERVER);
