@@ -15,6 +15,7 @@
 
 #include "occgeo/client/connection.h"
 #include "occgeo/client/json.h"
+#include "occgeo/client/option_values.h"
 
 namespace occgeo::client {
 namespace {
@@ -142,17 +143,11 @@ class Progress {
 };
 
 double positive_seconds(const std::string& option, const std::string& value) {
-  std::size_t used = 0;
-  double number = 0.0;
-  try {
-    number = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != value.size() || !std::isfinite(number) || number <= 0.0) {
+  const std::optional<double> number = finite_number(value);
+  if (!number || *number <= 0.0) {
     throw std::invalid_argument("option '" + option + "' needs a positive number of seconds, got '" + value + "'");
   }
-  return number;
+  return *number;
 }
 
 // Follows each recorded world's grid: the union of the cell boxes its sensor messages may have changed, fetched as a

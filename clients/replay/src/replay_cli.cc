@@ -2,23 +2,18 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "occgeo/client/option_values.h"
 #include "occgeo/replay/replay.h"
 
 namespace occgeo::replay {
 namespace {
 
 double positive_number(const std::string& option, const std::string& value) {
-  std::size_t used = 0;
-  double number = 0.0;
-  try {
-    number = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != value.size() || !std::isfinite(number) || number <= 0.0) {
+  const std::optional<double> number = client::finite_number(value);
+  if (!number || *number <= 0.0) {
     throw std::invalid_argument("option '" + option + "' needs a positive number, got '" + value + "'");
   }
-  return number;
+  return *number;
 }
 
 // "x,y,z,roll,pitch,yaw": six finite numbers.
@@ -31,15 +26,12 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
       throw std::invalid_argument("option '" + option + "' needs x,y,z,roll,pitch,yaw, got '" + value + "'");
     }
     const std::string part = value.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
-    std::size_t used = 0;
-    try {
-      out[i] = std::stod(part, &used);
-    } catch (const std::exception&) {
-      used = 0;
+    const std::optional<double> number = client::finite_number(part);
+    if (!number) {
+      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value +
+                                  "'");
     }
-    if (part.empty() || used != part.size() || !std::isfinite(out[i])) {
-      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value + "'");
-    }
+    out[i] = *number;
     at = comma + 1;
   }
   return out;
@@ -94,7 +86,8 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
     if (arg == "--format") {
       const std::string& name = value();
       const auto format = parse_format(name);
-      if (!format) throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
+      if (!format)
+        throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
       options.format = *format;
       have_format = true;
     } else if (arg == "--server") {

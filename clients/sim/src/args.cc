@@ -1,4 +1,5 @@
 #include "occgeo/sim/args.h"
+#include "occgeo/client/option_values.h"
 
 #include <charconv>
 #include <cmath>
@@ -29,12 +30,9 @@ const std::set<std::string_view> kValueFlags = {
 }
 
 double parse_number(std::string_view flag, std::string_view text, const std::string& what) {
-  double value = 0.0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (error != std::errc() || end != text.data() + text.size() || !std::isfinite(value)) {
-    fail(flag, "needs " + what + ", got '" + std::string(text) + "'");
-  }
-  return value;
+  const std::optional<double> value = client::finite_number(text);
+  if (!value) fail(flag, "needs " + what + ", got '" + std::string(text) + "'");
+  return *value;
 }
 
 double parse_positive(std::string_view flag, std::string_view text, const std::string& what) {
