@@ -29,8 +29,12 @@ using MinCircle = CGAL::Min_sphere_of_spheres_d<MinCircleTraits>;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
+[[noreturn]] void fail(const std::string& what, const std::string& rule, const std::string& value) {
+  throw std::invalid_argument(what + " must be " + rule + ", got " + value);
+}
+
 void require(bool condition, const std::string& what, const std::string& rule, const std::string& value) {
-  if (!condition) throw std::invalid_argument(what + " must be " + rule + ", got " + value);
+  if (!condition) fail(what, rule, value);
 }
 
 std::string format_point(const Eigen::Vector2d& p) {
@@ -80,21 +84,25 @@ bool circles_overlap(const PtemCluster& a, const PtemCluster& b) {
   return (a.centre_W - b.centre_W).norm() <= a.radius_m + b.radius_m;
 }
 
+// Checks each field before its value is formatted for the message: a valid scan costs no string work.
 void validate_scan(const PtemScan& scan, const std::optional<double>& latest_stamp_s) {
-  require(std::isfinite(scan.stamp_s), "PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
-  if (latest_stamp_s) {
-    require(scan.stamp_s >= *latest_stamp_s, "PtemScan.stamp_s",
-            ">= the previous scan's stamp " + format_number(*latest_stamp_s), format_number(scan.stamp_s));
+  if (!std::isfinite(scan.stamp_s)) fail("PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
+  if (latest_stamp_s && !(scan.stamp_s >= *latest_stamp_s)) {
+    fail("PtemScan.stamp_s", ">= the previous scan's stamp " + format_number(*latest_stamp_s),
+         format_number(scan.stamp_s));
   }
-  require(scan.p_WS.allFinite(), "PtemScan.p_WS", "finite", format_point(scan.p_WS));
-  require(std::isfinite(scan.yaw_WS), "PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
-  require(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi, "PtemScan.field_of_view_rad", "in (0, 2pi]",
-          format_number(scan.field_of_view_rad));
-  require(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0, "PtemScan.max_range_m", "a finite number > 0",
-          format_number(scan.max_range_m));
+  if (!scan.p_WS.allFinite()) fail("PtemScan.p_WS", "finite", format_point(scan.p_WS));
+  if (!std::isfinite(scan.yaw_WS)) fail("PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
+  if (!(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi)) {
+    fail("PtemScan.field_of_view_rad", "in (0, 2pi]", format_number(scan.field_of_view_rad));
+  }
+  if (!(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0)) {
+    fail("PtemScan.max_range_m", "a finite number > 0", format_number(scan.max_range_m));
+  }
   for (std::size_t i = 0; i < scan.points_W.size(); ++i) {
-    require(scan.points_W[i].allFinite(), "PtemScan.points_W[" + std::to_string(i) + "]", "finite",
-            format_point(scan.points_W[i]));
+    if (!scan.points_W[i].allFinite()) {
+      fail("PtemScan.points_W[" + std::to_string(i) + "]", "finite", format_point(scan.points_W[i]));
+    }
   }
 }
 
