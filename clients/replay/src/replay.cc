@@ -51,6 +51,7 @@ class Progress {
   Progress(std::ostream& err, bool tty, std::string label) : err_(err), tty_(tty), label_(std::move(label)) {}
 
   void update(double fraction, std::uint64_t scans, double elapsed_s) {
+    mark_tenths(fraction, scans, elapsed_s);
     const double rate = elapsed_s > 0.0 ? static_cast<double>(scans) / elapsed_s : 0.0;
     if (tty_) {
       const auto now = Clock::now();
@@ -72,7 +73,23 @@ class Progress {
     }
   }
 
+  // Scans per second within each tenth of the log (by position in the file), once finished. A tenth the reader
+  // jumped over at once (an MCAP chunk spanning it) gets the rate of the stretch that covered it.
+  [[nodiscard]] std::vector<double> scans_per_s_by_tenth() const {
+    std::vector<double> rates;
+    for (std::size_t i = 0; i + 1 < marks_.size(); ++i) {
+      const double dt = marks_[i + 1].elapsed_s - marks_[i].elapsed_s;
+      const auto ds = static_cast<double>(marks_[i + 1].scans - marks_[i].scans);
+      rates.push_back(dt > 0.0 ? ds / dt : (rates.empty() ? 0.0 : rates.back()));
+    }
+    // Leading tenths that took no time at all (a first chunk read at once) take the first measured rate.
+    const auto first = std::find_if(rates.begin(), rates.end(), [](double r) { return r > 0.0; });
+    if (first != rates.end()) std::fill(rates.begin(), first, *first);
+    return rates;
+  }
+
   void finish(std::uint64_t scans, double elapsed_s) {
+    mark_tenths(1.0, scans, elapsed_s);
     if (tty_ && drawn_) {
       drawn_ = false;  // draw the final state regardless of the rate limit
       update(1.0, scans, elapsed_s);
@@ -86,9 +103,21 @@ class Progress {
   std::ostream& err_;
   bool tty_;
   std::string label_;
+  // Where each tenth of the log began: marks_[i] is the count and time when the reader passed i/10 of it.
+  void mark_tenths(double fraction, std::uint64_t scans, double elapsed_s) {
+    if (marks_.empty()) marks_.push_back({0, 0.0});
+    const auto reached = static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * 10.0);
+    while (marks_.size() <= reached && marks_.size() <= 10) marks_.push_back({scans, elapsed_s});
+  }
+
+  struct Mark {
+    std::uint64_t scans = 0;
+    double elapsed_s = 0.0;
+  };
   Clock::time_point last_draw_;
   bool drawn_ = false;
   int last_decile_ = 0;
+  std::vector<Mark> marks_;
 };
 
 constexpr const char* kCloudSensor = "cloud";
@@ -132,6 +161,8 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
     model.set_max_points(100000);
   }
   spec.set_command_timeout_s(1.0);
+  // A log cannot be steered: the server need not plan motion for it.
+  spec.set_default_behaviour("stop");
   return spec;
 }
 
@@ -157,6 +188,7 @@ struct PassResult {
   std::uint64_t clouds_acked = 0;
   std::uint64_t errors = 0;
   double duration_s = 0.0;
+  std::vector<double> scans_per_s_by_tenth;
   ConsistencyCounter consistency;
   std::optional<v1::GridReply> grid;
   std::vector<mapfile::PicturePose> trajectory;  // base_link of every scan sent, world frame
@@ -218,6 +250,7 @@ class Pass {
     send_clouds(*source, connection, index);
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
+    result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
     if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
     v1::ClientMessage request;
     request.mutable_grid()->set_request_id(1);
@@ -394,6 +427,7 @@ class RecordingPass {
         if (!spec.ParseFromArray(message->data.data(), static_cast<int>(message->data.size()))) {
           fail("does not decode as occgeo.v1.RobotSpec");
         }
+        spec.set_default_behaviour("stop");  // a recording replayed cannot be steered either
         if (drivers_.count(world + "/" + robot) == 0) connect(world, robot, spec);
         continue;
       }
@@ -462,6 +496,7 @@ class RecordingPass {
     }
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans + result_.clouds, result_.duration_s);
+    result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
     if (drivers_.empty()) throw std::runtime_error("no robot spec in the recording '" + options_.file.string() + "'");
     v1::ClientMessage request;
     request.mutable_grid()->set_request_id(1);
@@ -628,6 +663,7 @@ ReplaySummary finish_summary(const ReplayOptions& options, PassResult full, std:
   summary.errors += full.errors;
   summary.duration_s = full.duration_s;
   summary.scans_per_s = full.duration_s > 0.0 ? static_cast<double>(full.scans) / full.duration_s : 0.0;
+  summary.scans_per_s_by_tenth = full.scans_per_s_by_tenth;
   if (options.consistency) {
     summary.consistency = full.consistency.fraction();
     summary.consistency_endpoints = full.consistency.endpoints();
@@ -664,8 +700,11 @@ std::string summary_json(const ReplayOptions& options, const ReplaySummary& summ
       << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
       << ",\"no_return_beams\":" << diagnostics.no_return_beams()
       << ",\"invalid_beams\":" << diagnostics.invalid_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
-      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"clouds\":" << summary.clouds
-      << ",\"clouds_acked\":" << summary.clouds_acked
+      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"scans_per_s_by_tenth\":[";
+  for (std::size_t i = 0; i < summary.scans_per_s_by_tenth.size(); ++i) {
+    out << (i ? "," : "") << fmt(summary.scans_per_s_by_tenth[i]);
+  }
+  out << "],\"clouds\":" << summary.clouds << ",\"clouds_acked\":" << summary.clouds_acked
       << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
   if (summary.consistency) {
     out << ",\"consistency\":" << fmt(*summary.consistency)

@@ -41,8 +41,8 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
 
 const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg|mcap FILE [options]
 Streams a recorded laser log (gzip or plain text, or a ROS 2 bag in MCAP) to occgeod as a driver: a RobotSpec
-matching the log's laser,
-then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck). Motion commands are ignored.
+matching the log's laser, then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck).
+The robot asks for the "stop" behaviour: a log cannot be steered.
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --world W            world to map into (default "default")
   --id ROBOT           robot id (default "replay")
@@ -162,6 +162,11 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
         << " warning(s)";
     for (const auto& [kind, count] : diagnostics.warnings_by_kind()) out << " " << kind << "=" << count;
     out << "\n";
+    if (!summary.scans_per_s_by_tenth.empty()) {
+      out << "scans/s per tenth of the log:";
+      for (const double rate : summary.scans_per_s_by_tenth) out << " " << std::llround(rate);
+      out << "\n";
+    }
     if (summary.consistency) {
       out << "consistency: " << *summary.consistency << " of " << summary.consistency_endpoints
           << " odd-scan endpoints lie within one cell of an occupied cell of the even-scan map\n";
