@@ -134,10 +134,15 @@ std::string last_state_of(const std::string& json) {
 
 }  // namespace
 
+std::filesystem::path world_path(const std::string& world) {
+  const std::filesystem::path path(world);
+  return path.is_absolute() ? path : source("clients/sim/worlds/" + world);
+}
+
 std::optional<OptimalPath> optimal_path_length(const std::string& world_file, const std::string& preset_name,
                                                const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                                                double goal_tolerance_m) {
-  std::unique_ptr<sim::SimWorld> world = sim::load_sim_world(source("clients/sim/worlds/" + world_file));
+  std::unique_ptr<sim::SimWorld> world = sim::load_sim_world(world_path(world_file));
   // Moving obstacles stand somewhere else by the time the robot gets there: the reference is the static layout.
   if (const auto* shapes = dynamic_cast<const sim::ShapeWorld*>(world.get());
       shapes && shapes->has_moving_obstacles()) {
@@ -311,7 +316,7 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
                                    "--robot",
                                    scenario.preset,
                                    "--world",
-                                   source("clients/sim/worlds/" + scenario.world).string(),
+                                   world_path(scenario.world).string(),
                                    "--start",
                                    scenario.start,
                                    "--id",
@@ -393,6 +398,8 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   }
   try {
     result.collisions = static_cast<int>(json_number(out, "collisions"));
+    result.collisions_moving = static_cast<int>(json_number(out, "collisions_moving"));
+    result.collisions_at_rest = static_cast<int>(json_number(out, "collisions_at_rest"));
   } catch (const std::exception& e) {
     result.failure = e.what();
     return result;

@@ -148,7 +148,7 @@ void SimulatedRobot::step() {
     // Standing still: only a moving obstacle can run into the robot.
     if (world_->has_moving_obstacles()) {
       const bool contact = world_->find_collision(footprint_, X_WB_, time_s()).has_value();
-      if (contact && !in_contact_) ++collisions_;
+      if (contact && !in_contact_) ++collisions_at_rest_;
       in_contact_ = contact;
     }
     return;
@@ -156,7 +156,7 @@ void SimulatedRobot::step() {
   const geometry::BodyVelocity body = body_velocity(wheels);
   const geometry::Pose2 X_WB_next = geometry::integrate(X_WB_, body, kPhysicsStep_s);
   if (world_->find_collision(footprint_, X_WB_next, time_s())) {
-    if (!in_contact_) ++collisions_;
+    if (!in_contact_) ++collisions_moving_;
     in_contact_ = true;
     return;
   }

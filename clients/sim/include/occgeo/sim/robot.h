@@ -78,7 +78,11 @@ class SimulatedRobot {
   // Sum of the position changes of all steps, metres.
   [[nodiscard]] double distance_m() const { return distance_m_; }
   // Number of times the robot ran into an obstacle (transitions into contact, not blocked steps).
-  [[nodiscard]] std::uint64_t collisions() const { return collisions_; }
+  [[nodiscard]] std::uint64_t collisions() const { return collisions_moving_ + collisions_at_rest_; }
+  // Contacts begun while the wheels turned (the robot ran into something) ...
+  [[nodiscard]] std::uint64_t collisions_moving() const { return collisions_moving_; }
+  // ... and while it stood still (a moving obstacle ran into it).
+  [[nodiscard]] std::uint64_t collisions_at_rest() const { return collisions_at_rest_; }
   // Each wheel's (track's rim) true signed travel since the start, metres, positive forwards.
   [[nodiscard]] double left_travel_m() const { return left_travel_m_; }
   [[nodiscard]] double right_travel_m() const { return right_travel_m_; }
@@ -114,7 +118,8 @@ class SimulatedRobot {
   double distance_m_ = 0.0;
   double left_travel_m_ = 0.0;
   double right_travel_m_ = 0.0;
-  std::uint64_t collisions_ = 0;
+  std::uint64_t collisions_moving_ = 0;
+  std::uint64_t collisions_at_rest_ = 0;
   bool in_contact_ = false;
 };
 
