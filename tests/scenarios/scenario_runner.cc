@@ -336,9 +336,22 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   }
   std::optional<BackgroundProcess> sim;
   try {
-    register_robot_offline(server.address(), robot, scenario);
     auto controller = open_controller(server.address());
     std::uint64_t id = 0;
+    if (scenario.drive_after_start_s) {
+      // The simulator registers the robot itself and holds at sim time 0 until the behaviour below is set.
+      argv.insert(argv.end(), {"--hold", "60"});
+      sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
+      const Clock::time_point connecting = Clock::now();
+      for (auto status = robot_status(controller, robot, ++id); !status || !status->connected();
+           status = robot_status(controller, robot, ++id)) {
+        if (seconds_since(connecting) > 20.0) throw std::runtime_error("the simulator never registered the robot");
+        std::this_thread::sleep_for(5ms);
+      }
+      std::this_thread::sleep_for(std::chrono::duration<double>(*scenario.drive_after_start_s));
+    } else {
+      register_robot_offline(server.address(), robot, scenario);
+    }
     if (!lease(controller, robot, v1::LeaseRequest::ACQUIRE, ++id).granted()) {
       throw std::runtime_error("the lease was refused");
     }
@@ -360,14 +373,18 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     }
     const v1::ServerMessage reply = controller.call(drive, id);
     if (!reply.has_drive()) throw std::runtime_error("drive refused: " + reply.DebugString());
-    // The simulator may connect as the robot's driver once the server has let the runner's driver session go.
-    const Clock::time_point releasing = Clock::now();
-    for (auto status = robot_status(controller, robot, ++id); !status || status->connected();
-         status = robot_status(controller, robot, ++id)) {
-      if (seconds_since(releasing) > 20.0) throw std::runtime_error("the runner's driver session was never released");
-      std::this_thread::sleep_for(5ms);
+    if (!sim) {
+      // The simulator may connect as the robot's driver once the server has let the runner's driver session go.
+      const Clock::time_point releasing = Clock::now();
+      for (auto status = robot_status(controller, robot, ++id); !status || status->connected();
+           status = robot_status(controller, robot, ++id)) {
+        if (seconds_since(releasing) > 20.0) {
+          throw std::runtime_error("the runner's driver session was never released");
+        }
+        std::this_thread::sleep_for(5ms);
+      }
+      sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
     }
-    sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
     // Hold the lease while the simulator runs (bounded: lockstep runs far faster than real time).
     Clock::time_point last_retain = Clock::now();
     while (sim->running()) {

@@ -35,6 +35,9 @@ struct Scenario {
   double command_latency_s = 0.0;
   std::string note;           // printed with the table: what the scenario shows
   double max_wall_s = 240.0;  // the run is abandoned (did not run) after this much wall time, seconds
+  // When set, the behaviour is given this many wall seconds after the simulator connected (which stands at sim time 0
+  // with --hold until then), as a user typing `occgeo goto` does, instead of before it connects.
+  std::optional<double> drive_after_start_s;
 };
 
 struct ScenarioResult {
