@@ -28,21 +28,6 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// The Bearcat's 181 beams inside a 12 m square room centred on the origin, at X_WB.
-std::vector<float> room_ranges(double x, double y, double theta) {
-  std::vector<float> ranges(181);
-  for (std::size_t i = 0; i < ranges.size(); ++i) {
-    const double angle = theta - std::numbers::pi / 2.0 + static_cast<double>(i) * std::numbers::pi / 180.0;
-    const double c = std::cos(angle);
-    const double s = std::sin(angle);
-    double range = 1e9;
-    if (std::abs(c) > 1e-9) range = std::min(range, ((c > 0 ? 6.0 : -6.0) - x) / c);
-    if (std::abs(s) > 1e-9) range = std::min(range, ((s > 0 ? 6.0 : -6.0) - y) / s);
-    ranges[i] = static_cast<float>(std::min(range, 8.5));
-  }
-  return ranges;
-}
-
 client::Connection open_observer(const std::string& address, bool with_data, const std::string& robot_id = "") {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
