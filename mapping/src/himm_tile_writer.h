@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/mapping/himm_grid.h"
@@ -26,7 +27,9 @@ class HimmGrid::TileWriter {
 
   // Applies one beam from sensor_origin_W to end_point_W (metres, checked to be traversable): clears every cell before
   // the end cell, then hits the end cell when is_hit and clears it otherwise.
-  void trace_beam(const Eigen::Vector2d& sensor_origin_W, const Eigen::Vector2d& end_point_W, bool is_hit) {
+  // When lowered_cells is given, every cell before the end cell that held a certainty above 0 is appended to it.
+  void trace_beam(const Eigen::Vector2d& sensor_origin_W, const Eigen::Vector2d& end_point_W, bool is_hit,
+                  std::vector<geometry::CellIndex>* lowered_cells = nullptr) {
     const geometry::GridRayTraversal start(grid_.geometry_, sensor_origin_W, end_point_W);
     cursor_ = on_tile_of(cursor_, start.cell());
     // The walk keeps its state in locals, which the optimiser holds in registers; it would have to reload members,
@@ -42,6 +45,10 @@ class HimmGrid::TileWriter {
     std::int32_t local_y = layout.local(start.cell().iy);
     while (!ray.done()) {
       std::uint8_t& value = cells[layout.offset_of_local(local_x, local_y)];
+      if (lowered_cells != nullptr && value != 0 && value != kUnobserved) {
+        const geometry::CellIndex first = layout.first_cell_of(cursor_.tile_index);
+        lowered_cells->push_back({first.ix + local_x, first.iy + local_y});
+      }
       if (lowering_leaves_occupied(value, decrement, occupied_threshold)) {
         --occupied_change;
         const geometry::CellIndex first = layout.first_cell_of(cursor_.tile_index);
@@ -68,6 +75,11 @@ class HimmGrid::TileWriter {
     }
   }
 
+  // Lowers the certainty of cell c by decrement, not below 0.
+  void lower(const geometry::CellIndex& c, std::uint8_t decrement) {
+    std::uint8_t& value = cell(c);
+    store(c, value, lowered(value, decrement));
+  }
   // Sets cell c to new_value, a certainty or kUnobserved.
   void set(const geometry::CellIndex& c, std::uint8_t new_value) { store(c, cell(c), new_value); }
 

@@ -85,7 +85,8 @@ void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, con
     // A box wider than the snapshot: walk the tiles rather than the box.
     for (const auto& [id, tile] : tiles) {
       bool inside = true;
-      for (unsigned axis = 0; axis < 3; ++axis) inside = inside && part(id, axis) >= part(first, axis) && part(id, axis) <= part(last, axis);
+      for (unsigned axis = 0; axis < 3; ++axis)
+        inside = inside && part(id, axis) >= part(first, axis) && part(id, axis) <= part(last, axis);
       if (inside && !visit(*tile)) return;
     }
     return;
@@ -268,7 +269,9 @@ struct OctoMapModel::Impl {
   // bitmap over their bounding box (or, when that box is too sparse, Morton-coded, sorted and uniqued). Either way the
   // updates run in an order where consecutive keys share most of their tree path, which update() exploits. The order
   // of the updates does not matter: each key gets exactly one, and a lazy update never changes another key's leaf.
-  void apply(const octomap::point3d& origin, const std::vector<Ray>& batch) {
+  // see_through: the batch is one laser scan, whose seen-through voxels are capped (OctoMapParams::
+  // laser_see_through_clears); only in the bitmap path, which every planar scan takes.
+  void apply(const octomap::point3d& origin, const std::vector<Ray>& batch, bool see_through = false) {
     ray_keys.clear();
     hit_keys.clear();
     // A ray's keys step monotonically along each axis (computeRayKeys is a 3D DDA), so its first and last key bound
@@ -302,7 +305,7 @@ struct OctoMapModel::Impl {
     const std::uint64_t volume = nx * ny * nz;
     const std::uint64_t n_keys = ray_keys.size() + hit_keys.size();
     if (volume <= kMaxBitmapCells && volume <= 256 * n_keys) {
-      apply_by_bitmap(lo, nx, ny, volume);
+      apply_by_bitmap(lo, nx, ny, nz, volume, see_through);
     } else {
       apply_by_sorting();
     }
@@ -310,7 +313,8 @@ struct OctoMapModel::Impl {
 
   // apply's deduplication for a compact batch (a planar scan): one free and one hit bit per cell of the keys' bounding
   // box, x fastest. The bitmaps are all zero between calls (each word is cleared as it is read).
-  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t volume) {
+  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t nz,
+                       std::uint64_t volume, bool see_through) {
     const std::size_t n_words = static_cast<std::size_t>((volume + 63) / 64);
     if (free_bits.size() < n_words) {
       free_bits.resize(n_words, 0);
@@ -319,6 +323,31 @@ struct OctoMapModel::Impl {
     const auto index = [&](const octomap::OcTreeKey& key) {
       return ((key[2] - lo[2]) * ny + (key[1] - lo[1])) * nx + (key[0] - lo[0]);
     };
+    if (see_through) {
+      if (near_hit_bits.size() < n_words) {
+        near_hit_bits.resize(n_words, 0);
+      }
+      // Voxels within kSeeThroughSpare_m of a hit (one voxel up and down) were not seen through: where beams graze a
+      // wall they cross some of its voxels to end on it further along, and the scan's other beams end close by.
+      const auto spare = static_cast<std::int64_t>(std::ceil(kSeeThroughSpare_m / tree->getResolution() - 1e-9));
+      for (const octomap::OcTreeKey& key : hit_keys) {
+        const std::int64_t x = key[0] - lo[0], y = key[1] - lo[1], z = key[2] - lo[2];
+        for (std::int64_t nzi = std::max<std::int64_t>(z - 1, 0); nzi <= std::min<std::int64_t>(z + 1, nz - 1); ++nzi) {
+          for (std::int64_t nyi = std::max<std::int64_t>(y - spare, 0);
+               nyi <= std::min<std::int64_t>(y + spare, static_cast<std::int64_t>(ny) - 1); ++nyi) {
+            for (std::int64_t nxi = std::max<std::int64_t>(x - spare, 0);
+                 nxi <= std::min<std::int64_t>(x + spare, static_cast<std::int64_t>(nx) - 1); ++nxi) {
+              const auto i = static_cast<std::uint64_t>(
+                  (nzi * static_cast<std::int64_t>(ny) + nyi) * static_cast<std::int64_t>(nx) + nxi);
+              std::uint64_t& word = near_hit_bits[i >> 6];
+              if (word == 0) near_hit_words.push_back(i >> 6);
+              word |= std::uint64_t{1} << (i & 63);
+            }
+          }
+        }
+      }
+    }
+    const float cap = tree->getOccupancyThresLog() - tree->getProbMissLog() / 2.0F;
     for (const octomap::OcTreeKey& key : ray_keys) {
       const std::uint64_t i = index(key);
       free_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
@@ -332,6 +361,8 @@ struct OctoMapModel::Impl {
       const std::uint64_t hits = hit_bits[w];
       std::uint64_t cells = free_bits[w] | hits;
       if (cells == 0) continue;
+      // Seen through: crossed by a beam, hit by none, and not near a hit.
+      const std::uint64_t seen_through = see_through ? free_bits[w] & ~hits & ~near_hit_bits[w] : 0;
       free_bits[w] = 0;
       hit_bits[w] = 0;
       while (cells != 0) {
@@ -342,9 +373,20 @@ struct OctoMapModel::Impl {
         const octomap::OcTreeKey key(static_cast<octomap::key_type>(lo[0] + i % nx),
                                      static_cast<octomap::key_type>(lo[1] + row % ny),
                                      static_cast<octomap::key_type>(lo[2] + row / ny));
-        update(key, ((hits >> b) & 1U) != 0 ? hit : miss);
+        const bool is_hit = ((hits >> b) & 1U) != 0;
+        update(key, is_hit ? hit : miss);
+        if (((seen_through >> b) & 1U) != 0 && path_depth == 16) {
+          // At most half a miss above the threshold, so the next such scan leaves it free.
+          octomap::OcTreeNode* leaf = path[16];
+          if (leaf->getLogOdds() > cap) {
+            leaf->setLogOdds(cap);
+            mark_dirty(key);
+          }
+        }
       }
     }
+    for (const std::uint64_t w : near_hit_words) near_hit_bits[w] = 0;
+    near_hit_words.clear();
   }
 
   // apply's deduplication for a sparse batch (a 3D cloud): Morton codes, sorted and uniqued, merged in Z order (the
@@ -487,8 +529,8 @@ struct OctoMapModel::Impl {
     for (const OctoTileId id : dirty_tiles) {
       for (int depth = kTileDepth; depth >= 0; --depth) {
         const unsigned shift = static_cast<unsigned>(kTileDepth - depth);
-        const OctoTileId prefix = ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U |
-                                  (((id >> 16U) & 0xFFU) >> shift) << 16U;
+        const OctoTileId prefix =
+            ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U | (((id >> 16U) & 0xFFU) >> shift) << 16U;
         if (!prefixes[static_cast<std::size_t>(depth)].insert(prefix).second) break;
       }
     }
@@ -643,10 +685,14 @@ struct OctoMapModel::Impl {
   std::shared_ptr<const OctoTile> empty_tile;
   // Reused between batches so that they are allocated once.
   static constexpr std::uint64_t kMaxBitmapCells = std::uint64_t{1} << 27;  // 16 MiB per bitmap
+  // The see-through rule spares voxels this close to a hit of the same scan (metres, in x and y).
+  static constexpr double kSeeThroughSpare_m = 0.2;
   octomap::KeyRay key_ray;
   std::vector<octomap::OcTreeKey> ray_keys;  // the free keys of every ray of the batch, repeats included
   std::vector<octomap::OcTreeKey> hit_keys;  // the end keys of the hits, repeats included
   std::vector<std::uint64_t> free_bits, hit_bits;
+  // The see-through rule's voxels near a hit (zero between calls) and the words it set.
+  std::vector<std::uint64_t> near_hit_bits, near_hit_words;
   std::vector<std::uint64_t> free_codes, hit_codes;
   // update()'s cache: the nodes on the last updated key's path, root first, and that key.
   std::array<octomap::OcTreeNode*, 17> path{};
@@ -692,7 +738,7 @@ void OctoMapModel::insert_scan(const geometry::Pose3& X_WS, float angle_min, flo
     const Eigen::Vector3d p_S{length * std::cos(angle), length * std::sin(angle), 0.0};
     rays.push_back({to_octo(X_WS.transform * p_S), hit});
   }
-  impl_->apply(origin, rays);
+  impl_->apply(origin, rays, params_.laser_see_through_clears);
   ++version_;
 }
 
@@ -796,7 +842,8 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
     }
   }
   snapshot_impl->nodes_above_tiles = above.size();
-  std::shared_ptr<const OctoMapSnapshot> snapshot{new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
+  std::shared_ptr<const OctoMapSnapshot> snapshot{
+      new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
   {
     const std::lock_guard lock(snapshot_mutex_);
     snapshot_ = snapshot;

@@ -38,6 +38,12 @@ struct OctoMapParams {
   double occupancy_threshold = 0.5;
   // Longest beam inserted, metres; a reading beyond it only clears its beam up to this length. Finite, > 0.
   double max_range_m = 10.0;
+  // A laser scan (insert_scan) that sees through an occupied voxel, a beam passing it with none ending within 0.2 m
+  // of it, caps the voxel's log-odds at the occupancy threshold's plus half a miss after the miss: the
+  // next such scan leaves it free, so a person who walked on is gone after two scans instead of after up to
+  // log-odds(clamping_max) / |log-odds(prob_miss)| (9 by default). Voxels near a hit are spared so that a wall that
+  // beams graze keeps its voxels. Off: plain OctoMap.
+  bool laser_see_through_clears = true;
   // Snap cloud end points to voxel centres before ray casting (OctoMap's computeDiscreteUpdate). Faster on dense
   // clouds but NOT the same map: the free rays end at voxel centres, so they cross other voxels
   // (octomap_insert_test measures how many differ). Off by default.
