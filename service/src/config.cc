@@ -394,6 +394,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    if (construction) p.construction = *construction;
                    s.field("cluster_distance_m", p.cluster_distance_m)
                        .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
+                       .field("max_cluster_radius_m", p.max_cluster_radius_m)
                        .field("restricted_threshold", p.restricted_threshold)
                        .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
                        .named_sections("worlds", [&](const std::string& name, Section& w) {

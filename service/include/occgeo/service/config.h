@@ -125,6 +125,7 @@ struct PtemWorldOverride {
 //                                    # robot of a world, so C_r is per world, not per robot: set it to the width of
 //                                    # the widest robot that must not pass between two obstacles
 //     initial_cluster_radius_m: 0.25 # radius of a new cluster, metres (how far behind its first return it reaches)
+//     max_cluster_radius_m: 0.5      # largest cluster circle, metres; a wall becomes a chain of clusters
 //     restricted_threshold: 0.04     # f_r, 1/m² (seed §4.3)
 //     first_cluster_sigma_m: 0.1     # optional: fix f_r from the first cluster instead (seed eq 4.2)
 //     worlds:                        # optional per-world overrides
