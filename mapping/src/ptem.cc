@@ -115,8 +115,9 @@ void PtemParams::validate() const {
           "a finite number >= 0", format_number(cluster_distance_m));
   require(std::isfinite(initial_cluster_radius_m) && initial_cluster_radius_m > 0.0,
           "PtemParams.initial_cluster_radius_m", "a finite number > 0", format_number(initial_cluster_radius_m));
-  require(std::isfinite(max_cluster_radius_m) && max_cluster_radius_m >= initial_cluster_radius_m,
-          "PtemParams.max_cluster_radius_m", "a finite number >= initial_cluster_radius_m",
+  require(std::isfinite(max_cluster_radius_m) &&
+              (max_cluster_radius_m == 0.0 || max_cluster_radius_m >= initial_cluster_radius_m),
+          "PtemParams.max_cluster_radius_m", "0 (unbounded) or a finite number >= initial_cluster_radius_m",
           format_number(max_cluster_radius_m));
   require(std::isfinite(restricted_threshold) && restricted_threshold > 0.0, "PtemParams.restricted_threshold",
           "a finite number > 0", format_number(restricted_threshold));
@@ -242,7 +243,8 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
     if (!start_new && nearest_distance > 0.0) {
       PtemCluster& cluster = clusters[nearest];
       const PtemCircle enclosing = enclose_circle_and_point(PtemCircle{cluster.centre_W, cluster.radius_m}, p_W);
-      if (enclosing.radius_m > params_.max_cluster_radius_m) {
+      const bool bounded = params_.max_cluster_radius_m > 0.0;
+      if (bounded && enclosing.radius_m > params_.max_cluster_radius_m) {
         // Growing on would let one circle span a wall and its disc cover the floor in front of it: the wall goes on
         // as the next cluster of a chain.
         start_new = true;

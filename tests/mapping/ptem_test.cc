@@ -106,7 +106,9 @@ TEST(PtemTest, ParamsValidationNamesTheField) {
   EXPECT_EQ(message_for([](PtemParams& p) { p.initial_cluster_radius_m = 0.0; }),
             "PtemParams.initial_cluster_radius_m must be a finite number > 0, got 0");
   EXPECT_EQ(message_for([](PtemParams& p) { p.max_cluster_radius_m = 0.2; }),
-            "PtemParams.max_cluster_radius_m must be a finite number >= initial_cluster_radius_m, got 0.2");
+            "PtemParams.max_cluster_radius_m must be 0 (unbounded) or a finite number >= initial_cluster_radius_m, got "
+            "0.2");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.max_cluster_radius_m = 0.0; }), "") << "0 is the seed's unbounded growth";
   EXPECT_EQ(message_for([](PtemParams& p) { p.restricted_threshold = std::numeric_limits<double>::quiet_NaN(); }),
             "PtemParams.restricted_threshold must be a finite number > 0, got nan");
   EXPECT_EQ(message_for([](PtemParams& p) { p.first_cluster_sigma_m = -1.0; }),
@@ -303,7 +305,7 @@ TEST(PtemTest, RestrictedRegionIsTheClusterCircle) {
 // and its whole circle is restricted.
 TEST(PtemTest, ClusterBeyondMaxRadiusIsRestrictedOverItsCircle) {
   PtemParams unbounded = params_for(PtemConstruction::kCumulative);
-  unbounded.max_cluster_radius_m = 100.0;
+  unbounded.max_cluster_radius_m = 0.0;  // unbounded
   PtemModel model(unbounded);
   std::vector<Eigen::Vector2d> wall;
   for (double x = 0.0; x <= 4.0; x += 0.05) wall.emplace_back(x, 1.0);
@@ -665,7 +667,7 @@ TEST(PtemTest, MovingObstacleCumulativeGrowsSingleScanDoesNot) {
   constexpr double kPeriod = 0.1;           // s, 10 Hz (§3.2.1: 100 ms per scan)
   constexpr int kScans = 150;               // 15 s: the obstacle ends at (1.8, 0)
   PtemParams unbounded = params_for(PtemConstruction::kCumulative);
-  unbounded.max_cluster_radius_m = 100.0;
+  unbounded.max_cluster_radius_m = 0.0;  // unbounded
   PtemModel cumulative(unbounded);
   PtemModel single(params_for(PtemConstruction::kSingleScan));
   std::printf(

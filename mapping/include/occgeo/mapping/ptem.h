@@ -47,7 +47,8 @@ struct PtemParams {
   // across) are then restricted (100 % and >= 96 % of their discs) from a single viewpoint, and a lone return costs
   // a 0.5 m disc. At 0.02 m (the URG-04LX's accuracy) only 52-87 % of the obstacles' discs were restricted.
   double initial_cluster_radius_m = 0.25;
-  // Largest radius a cluster's circle grows to, metres; finite, >= initial_cluster_radius_m. A point that would grow
+  // Largest radius a cluster's circle grows to, metres; finite, and either 0 (unbounded: the seed's clusters, which
+  // grow as far as their points reach, §4.2.2) or >= initial_cluster_radius_m. A point that would grow
   // its nearest cluster past it starts a new cluster instead, so a wall becomes a chain of bounded clusters rather than
   // one circle around its whole length (whose disc, and the restricted region around it, would cover the free floor in
   // front of it). Default 0.5 m: a person, a cart's end or the seed's obstacles (at most 0.30 m across) fit one
