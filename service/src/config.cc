@@ -153,6 +153,7 @@ mapping::PtemParams PtemConfig::params_for(const std::string& world) const {
   if (const auto it = worlds.find(world); it != worlds.end()) {
     if (it->second.construction) out.construction = *it->second.construction;
     if (it->second.cluster_distance_m) out.cluster_distance_m = *it->second.cluster_distance_m;
+    if (it->second.max_cluster_radius_m) out.max_cluster_radius_m = *it->second.max_cluster_radius_m;
   }
   return out;
 }
@@ -395,12 +396,14 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    if (construction) p.construction = *construction;
                    s.field("cluster_distance_m", p.cluster_distance_m)
                        .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
+                       .field("max_cluster_radius_m", p.max_cluster_radius_m)
                        .field("restricted_threshold", p.restricted_threshold)
                        .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
                        .named_sections("worlds", [&](const std::string& name, Section& w) {
                          PtemWorldOverride& world = config.ptem.worlds[name];
                          read_construction(w, "construction", world.construction);
-                         w.optional_field("cluster_distance_m", world.cluster_distance_m);
+                         w.optional_field("cluster_distance_m", world.cluster_distance_m)
+                             .optional_field("max_cluster_radius_m", world.max_cluster_radius_m);
                        });
                  })
         .section("octomap",

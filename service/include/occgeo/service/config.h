@@ -116,6 +116,7 @@ struct HttpConfig {
 struct PtemWorldOverride {
   std::optional<mapping::PtemConstruction> construction;
   std::optional<double> cluster_distance_m;
+  std::optional<double> max_cluster_radius_m;
 };
 
 // The PTEM (seed 004 §4, mapping/include/occgeo/mapping/ptem.h) every world builds from its laser scans. YAML:
@@ -125,10 +126,12 @@ struct PtemWorldOverride {
 //                                    # robot of a world, so C_r is per world, not per robot: set it to the width of
 //                                    # the widest robot that must not pass between two obstacles
 //     initial_cluster_radius_m: 0.25 # radius of a new cluster, metres (how far behind its first return it reaches)
+//     max_cluster_radius_m: 0.5      # largest cluster circle, metres; a wall becomes a chain of clusters.
+//                                    # 0: unbounded, the seed's clusters (§4.2.2), e.g. for a seed-faithful world
 //     restricted_threshold: 0.04     # f_r, 1/m² (seed §4.3)
 //     first_cluster_sigma_m: 0.1     # optional: fix f_r from the first cluster instead (seed eq 4.2)
 //     worlds:                        # optional per-world overrides
-//       lab: {construction: cumulative, cluster_distance_m: 0.8}
+//       lab: {construction: cumulative, cluster_distance_m: 0.8, max_cluster_radius_m: 0}
 struct PtemConfig {
   mapping::PtemParams params;
   std::map<std::string, PtemWorldOverride> worlds;
