@@ -38,6 +38,10 @@ TEST(LoadTest, RobotsClientsAndObserversRunWithoutAnyErrorAndTheServerSurvives) 
   EXPECT_GT(json_value(run.out, "scans"), 50.0) << "the robots streamed hardly any scans: " << run.out;
   EXPECT_GT(json_value(run.out, "observer_polls"), 100.0) << run.out;
   EXPECT_GT(json_value(run.out, "p99_us"), 0.0) << run.out;
+  // Every robot steers from its scans: the control loop is measured, command by command.
+  EXPECT_GT(json_value(run.out, "commands"), 20.0) << "hardly any MotionCommands answered the scans: " << run.out;
+  EXPECT_GT(json_value(run.out, "command_p99_us"), 0.0) << run.out;
+  EXPECT_LE(json_value(run.out, "command_p50_us"), json_value(run.out, "command_p99_us")) << run.out;
 }
 
 // A long-running server measured again and again. Each run's simulated robots send the previous run's scans again,

@@ -228,7 +228,8 @@ class StartedServer {
 
 struct RobotResult {
   std::uint64_t scans = 0;
-  Samples ingest;  // send of a sensor batch to the ScanAck of its last sensor message
+  Samples ingest;   // send of a sensor batch to the ScanAck of its last sensor message
+  Samples command;  // send of a steering scan to the MotionCommand answering it (the control loop)
 };
 
 // Drives one simulated robot until `stop` (or for `scan_limit` batches when set), recording ingest latency.
@@ -292,6 +293,7 @@ class RobotDriver {
     const auto sent_at = Clock::now();
     for (const v1::ClientMessage& message : batch.messages) connection_->send(message);
     if (batch.last_sensor_seq != 0) sent_at_[batch.last_sensor_seq] = sent_at;
+    if (batch.steering_scan_seq) command_sent_at_[*batch.steering_scan_seq] = sent_at;
     if (!await_answer) return;
     // Lockstep: the ScanAck of the batch's last sensor message and the command answering the steering scan.
     answered_ = !batch.steering_scan_seq.has_value();
@@ -305,6 +307,7 @@ class RobotDriver {
       errors_.add(robot_id_ + ": no answer to sensor batch " + std::to_string(batch.last_sensor_seq) + " within " +
                   std::to_string(kLockstepAnswerTimeout.count()) + " s");
       sent_at_.clear();
+      command_sent_at_.clear();
       answered_ = true;
     }
   }
@@ -321,6 +324,12 @@ class RobotDriver {
         sent_at_.erase(found);
       }
     } else if (message.has_motion_command()) {
+      const std::uint64_t answers = message.motion_command().answers_scan_seq();
+      const auto found = command_sent_at_.find(answers);
+      if (found != command_sent_at_.end()) add_sample(result_.command, Clock::now() - found->second);
+      // Commands come in scan order: steering scans before this one that got none never will.
+      if (answers != 0)
+        std::erase_if(command_sent_at_, [answers](const auto& entry) { return entry.first <= answers; });
       simulation_->apply_command(message.motion_command());
       if (message.motion_command().answers_scan_seq() == awaited_command_seq_) answered_ = true;
     } else if (message.has_error()) {
@@ -334,6 +343,7 @@ class RobotDriver {
   std::unique_ptr<sim::Simulation> simulation_;
   std::optional<client::Connection> connection_;
   std::unordered_map<std::uint64_t, Clock::time_point> sent_at_;
+  std::unordered_map<std::uint64_t, Clock::time_point> command_sent_at_;  // steering scans awaiting their command
   bool answered_ = true;
   std::uint64_t awaited_command_seq_ = 0;
   RobotResult result_;
@@ -911,9 +921,11 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   report.p999_us = quantile_us(all_queries, 0.999);
 
   Samples ingest;
+  Samples command;
   for (std::size_t i = 0; i < robots.size(); ++i) {
     report.scans += robots[i]->result().scans - robot_scans_start[i];
     ingest.insert(ingest.end(), robots[i]->result().ingest.begin(), robots[i]->result().ingest.end());
+    command.insert(command.end(), robots[i]->result().command.begin(), robots[i]->result().command.end());
     robots[i]->close();
   }
   seeder.close();
@@ -924,6 +936,10 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   report.ingest_mean_us = ingest.empty() ? 0.0 : ingest_sum_ns / static_cast<double>(ingest.size()) / 1000.0;
   report.ingest_p50_us = quantile_us(ingest, 0.5);
   report.ingest_p99_us = quantile_us(ingest, 0.99);
+  std::sort(command.begin(), command.end());
+  report.commands = command.size();
+  report.command_p50_us = quantile_us(command, 0.5);
+  report.command_p99_us = quantile_us(command, 0.99);
 
   report.errors = errors.count();
   report.error_samples = errors.samples();
@@ -954,7 +970,9 @@ std::string report_json(const LoadReport& report) {
   out << "},\"scans\":" << report.scans << ",\"scans_per_s\":" << json_number(report.scans_per_s)
       << ",\"ingest_mean_us\":" << json_number(report.ingest_mean_us)
       << ",\"ingest_p50_us\":" << json_number(report.ingest_p50_us)
-      << ",\"ingest_p99_us\":" << json_number(report.ingest_p99_us) << ",\"observer_polls\":" << report.observer_polls
+      << ",\"ingest_p99_us\":" << json_number(report.ingest_p99_us) << ",\"commands\":" << report.commands
+      << ",\"command_p50_us\":" << json_number(report.command_p50_us)
+      << ",\"command_p99_us\":" << json_number(report.command_p99_us) << ",\"observer_polls\":" << report.observer_polls
       << ",\"observer_events\":" << report.observer_events << ",\"observer_dropped\":"
       << (report.observer_dropped ? std::to_string(*report.observer_dropped) : std::string("null"))
       << ",\"server_alive\":" << (report.server_alive ? "true" : "false");
@@ -989,6 +1007,10 @@ std::string report_text(const LoadReport& report) {
                 "robots: %llu scans (%.1f/s), send to ScanAck mean %.0f us p50 %.0f us p99 %.0f us\n",
                 static_cast<unsigned long long>(report.scans), report.scans_per_s, report.ingest_mean_us,
                 report.ingest_p50_us, report.ingest_p99_us);
+  out << line;
+  std::snprintf(line, sizeof line,
+                "control loop: %llu commands, steering scan to MotionCommand p50 %.0f us p99 %.0f us\n",
+                static_cast<unsigned long long>(report.commands), report.command_p50_us, report.command_p99_us);
   out << line;
   out << "observers: " << report.observer_polls << " polls, " << report.observer_events
       << " watch events, dropped messages: "

@@ -50,6 +50,10 @@ struct LoadReport {
   double ingest_mean_us = 0.0;
   double ingest_p50_us = 0.0;
   double ingest_p99_us = 0.0;
+  // The control loop: the time from sending a steering scan to the MotionCommand answering it (not its ScanAck).
+  std::uint64_t commands = 0;
+  double command_p50_us = 0.0;
+  double command_p99_us = 0.0;
 
   std::uint64_t observer_polls = 0;
   std::uint64_t observer_events = 0;  // WatchEvents received in the window
