@@ -1,10 +1,17 @@
 #include "core.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <boost/asio/post.hpp>
+#include <cerrno>
+#include <cstring>
+#include <latch>
 
 #include "durability/world_store.h"
 #include "model_geometry.h"
+#include "occgeo/service/log.h"
 
 namespace occgeo::service {
 
@@ -169,7 +176,27 @@ control::BearcatParams bearcat_params_for(const RobotModel& model, control::Bear
 }
 
 ServerCore::ServerCore(ServerConfig config)
-    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {}
+    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
+  // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
+  // strand, which maps the scans and computes the robots' commands, gets the CPU first. Each pool thread takes one
+  // of these tasks (they wait for each other), so every thread is lowered.
+  const int nice = config_.queries.network_nice;
+  if (nice > 0) {
+    std::latch lowered(static_cast<std::ptrdiff_t>(kQueryThreads));
+    for (std::size_t i = 0; i < kQueryThreads; ++i) {
+      asio::post(query_pool_, [&lowered, nice] {
+        const auto thread = static_cast<id_t>(gettid());
+        errno = 0;
+        const int current = getpriority(PRIO_PROCESS, thread);
+        if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+          log::warn("query_pool_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
+        }
+        lowered.arrive_and_wait();
+      });
+    }
+    lowered.wait();
+  }
+}
 
 ServerCore::~ServerCore() { drain(); }
 

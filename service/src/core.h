@@ -365,6 +365,8 @@ class ServerCore {
                                         std::string& error);
 
   std::atomic<std::uint32_t> sessions{0};
+  // Queries admitted and not yet answered, over every session (limits.max_query_backlog); see Session.
+  std::atomic<std::size_t> queries_in_flight{0};
   std::atomic<std::uint64_t> next_session_id{1};
   [[nodiscard]] double uptime_s() const;
 
@@ -374,7 +376,8 @@ class ServerCore {
  private:
   ServerConfig config_;
   asio::thread_pool ingest_pool_{1};
-  asio::thread_pool query_pool_{2};
+  static constexpr std::size_t kQueryThreads = 2;
+  asio::thread_pool query_pool_{kQueryThreads};
   mutable std::mutex registry_mutex_;
   std::map<std::string, std::shared_ptr<World>> worlds_;
   std::map<std::string, std::shared_ptr<Robot>> robots_;
