@@ -94,6 +94,19 @@ std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
   return snapshot_.grid;
 }
 
+std::size_t World::octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const {
+  {
+    const std::lock_guard lock(leaf_count_mutex_);
+    if (leaf_count_of_ == &snapshot && leaf_count_version_ == snapshot.version()) return leaf_count_;
+  }
+  const std::size_t leaves = snapshot.leaf_count();  // outside the lock: other threads' statuses need not wait
+  const std::lock_guard lock(leaf_count_mutex_);
+  leaf_count_of_ = &snapshot;
+  leaf_count_version_ = snapshot.version();
+  leaf_count_ = leaves;
+  return leaves;
+}
+
 WorldSnapshot World::snapshots() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_;

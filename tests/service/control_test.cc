@@ -285,20 +285,20 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   go.mutable_drive()->mutable_goal()->set_y_m(1.0);
   ASSERT_TRUE(send(holder, go).has_drive());
   static_cast<void>(scan(d));
-  std::vector<Eigen::Vector2d> path = core_.find_robot("r1")->state().path_W;
+  std::vector<Eigen::Vector2d> path = core_.find_robot("r1")->state().path();
   ASSERT_EQ(path.size(), 2U) << "from the robot straight to the goal";
   EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(0.0, 0.0)));
   EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0)));
   // Teleop plans nothing; stopping clears the path.
   ASSERT_TRUE(drive(holder, "teleop", 0.2).has_drive());
   static_cast<void>(scan(d));
-  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   ASSERT_TRUE(send(holder, go).has_drive());
   static_cast<void>(scan(d));
-  EXPECT_FALSE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_FALSE(core_.find_robot("r1")->state().path().empty());
   ASSERT_TRUE(drive(holder, "stop").has_drive());
   static_cast<void>(scan(d));
-  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
 }
 

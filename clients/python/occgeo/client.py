@@ -407,10 +407,15 @@ class Client:
 
     # ----------------------------------------------------------------------------- queries
 
-    def status(self, timeout_s=None):
+    def status(self, detailed=False, timeout_s=None):
         """The server's ``StatusReply``: ``robots`` (id, world, pose, scans ...), ``worlds`` (name,
-        cell_size_m, version, occupied_cells, PTEM and OctoMap counts), ``clients``, ``uptime_s``."""
-        return self._call("status", lambda r: None, timeout_s)
+        cell_size_m, version, occupied_cells, PTEM and OctoMap counts), ``clients``, ``uptime_s``.
+        ``detailed``: each robot also carries ``path`` (its planned path) and ``scan`` (its first
+        laser's latest returns, at ``scan_stamp_s``), world frame, metres; heavier, so off by default."""
+
+        def fill(r):
+            r.detailed = bool(detailed)
+        return self._call("status", fill, timeout_s)
 
     def collision(self, robot, x, y, theta=0.0, models=None, footprint=None, timeout_s=None):
         """Is robot ``robot``'s footprint at pose (x, y, theta) — ``base_link`` in the world frame,
@@ -695,7 +700,7 @@ class Client:
         sent before; raises the first :class:`ServerError` about them (robot spec, odometry,
         sensor data) that arrived meanwhile."""
         self.errors.clear()
-        self.status(timeout_s)
+        self.status(timeout_s=timeout_s)
         if self.errors:
             raise self.errors.popleft()
 
