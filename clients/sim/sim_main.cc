@@ -134,6 +134,36 @@ void log_progress(const Simulation& simulation) {
                simulation.last_state().empty() ? "-" : simulation.last_state().c_str());
 }
 
+// --hold: the robot stands at sim time 0 until a client gives it a behaviour other than "stop", so that a lockstep
+// run is the same whether its goal came before the simulator started or a while after. Polls the robot's status on a
+// query session of its own; throws RunError when nothing was set within `hold_s` wall seconds.
+void hold_until_driven(const SimOptions& options, double hold_s) {
+  Connection query = Connection::open(options.server);
+  occgeo::v1::Hello hello;
+  hello.set_protocol_version(1);
+  hello.set_role(occgeo::v1::ROLE_QUERY);
+  hello.set_client_name("occgeo-sim --hold");
+  query.hello(hello);
+  const auto deadline =
+      SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(hold_s));
+  for (std::uint64_t id = 1; g_stop_requested == 0; ++id) {
+    occgeo::v1::ClientMessage request;
+    request.mutable_status()->set_request_id(id);
+    const occgeo::v1::ServerMessage reply = query.call(request, id);
+    for (const occgeo::v1::RobotStatus& robot : reply.status().robots()) {
+      if (robot.id() == options.robot_id && !robot.behaviour().empty() && robot.behaviour() != "stop") {
+        std::fprintf(stderr, "occgeo-sim: --hold: behaviour %s set, starting\n", robot.behaviour().c_str());
+        return;
+      }
+    }
+    if (SteadyClock::now() >= deadline) {
+      throw RunError("occgeo-sim: --hold: no behaviour other than stop was set for robot '" + options.robot_id +
+                     "' within " + std::to_string(hold_s) + " s");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 // Connects, introduces the robot, then scans, listens and steps until the duration is reached or a signal arrives.
 void run(const SimOptions& options, const occgeo::sim::RobotPreset& preset, Simulation& simulation,
          OutputFiles& files) {
@@ -142,6 +172,7 @@ void run(const SimOptions& options, const occgeo::sim::RobotPreset& preset, Simu
   occgeo::v1::ClientMessage spec;
   *spec.mutable_robot_spec() = occgeo::sim::make_robot_spec(preset, options.start);
   connection.send(spec);
+  if (options.hold_s) hold_until_driven(options, *options.hold_s);
 
   const std::optional<std::int64_t> last_step =
       options.duration_s ? std::optional(std::llround(*options.duration_s / occgeo::sim::kPhysicsStep_s))

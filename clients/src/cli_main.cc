@@ -17,6 +17,8 @@
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/client/json.h"
+#include "occgeo/client/option_values.h"
+#include "occgeo/client/record.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -28,6 +30,7 @@ using occgeo::client::ClientError;
 using occgeo::client::Connection;
 using occgeo::client::Endpoint;
 namespace v1 = occgeo::v1;
+using occgeo::client::finite_number;
 
 constexpr const char* kUsage = R"(usage: occgeo [--server HOST:PORT] [--json] COMMAND [options]
 commands:
@@ -83,6 +86,9 @@ commands:
   replay --format carmen|dpslam|urg|mcap FILE [--max | --speed X] [--consistency] [--out PREFIX] [--json] ...
                                              stream a recorded laser log or ROS 2 bag as a driver
                                              (occgeo replay --help)
+  record --out FILE.mcap [--robot ID] [--world W] [--duration S] [--compression zstd|lz4|none]
+                                             record what the server accepts as MCAP until Ctrl-C
+                                             (occgeo record --help)
 common options (before or after the command):
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --json               print the reply as one JSON object
@@ -96,19 +102,6 @@ class UsageError : public std::runtime_error {
 };
 
 // --name value options and bare --flags after the command words.
-// The whole of text as a finite number; nullopt for anything else (empty, trailing characters, inf, nan).
-std::optional<double> finite_number(const std::string& text) {
-  std::size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(value)) return std::nullopt;
-  return value;
-}
-
 struct Options {
   std::map<std::string, std::string> values;
   std::set<std::string> switches;  // bare --flags other than --json that the command allows, without the dashes
@@ -120,17 +113,17 @@ struct Options {
   }
   [[nodiscard]] std::string required(const std::string& name) const {
     const auto it = values.find(name);
-    if (it == values.end()) throw UsageError("missing required option --" + name);
+    if (it == values.end()) throw UsageError("missing required option '--" + name + "'");
     return it->second;
   }
   [[nodiscard]] double number(const std::string& name, std::optional<double> fallback = std::nullopt) const {
     const auto it = values.find(name);
     if (it == values.end()) {
       if (fallback) return *fallback;
-      throw UsageError("missing required option --" + name);
+      throw UsageError("missing required option '--" + name + "'");
     }
     const std::optional<double> value = finite_number(it->second);
-    if (!value) throw UsageError("option --" + name + " needs a number, not '" + it->second + "'");
+    if (!value) throw UsageError("option '--" + name + "' needs a number, got '" + it->second + "'");
     return *value;
   }
 };
@@ -191,7 +184,7 @@ std::vector<v1::Model> models_from(const Options& options) {
     } else if (name == "ptem") {
       models.push_back(v1::MODEL_PTEM);
     } else {
-      throw UsageError("option --models takes grid, octomap and ptem separated by commas, not '" + name + "'");
+      throw UsageError("option '--models' takes grid, octomap and ptem separated by commas, got '" + name + "'");
     }
   }
   return models;
@@ -217,7 +210,7 @@ std::vector<double> footprint_numbers(const std::string& text, const std::string
   std::string item;
   while (std::getline(list, item, ',')) {
     const std::optional<double> value = finite_number(item);
-    if (!value) throw UsageError("option --footprint: '" + item + "' in '" + spec + "' is not a number");
+    if (!value) throw UsageError("option '--footprint': '" + item + "' in '" + spec + "' is not a number");
     numbers.push_back(*value);
   }
   return numbers;
@@ -235,7 +228,7 @@ std::optional<v1::Footprint> footprint_from(const Options& options) {
   if (shape == "box") {
     const std::vector<double> n = footprint_numbers(rest, spec);
     if (n.size() != 3 && n.size() != 4) {
-      throw UsageError("option --footprint: box takes LENGTH,WIDTH,HEIGHT[,CENTER_X]");
+      throw UsageError("option '--footprint': box takes LENGTH,WIDTH,HEIGHT[,CENTER_X]");
     }
     auto* box = footprint.mutable_box();
     box->set_length_m(n[0]);
@@ -244,7 +237,7 @@ std::optional<v1::Footprint> footprint_from(const Options& options) {
     box->set_center_x_m(n.size() == 4 ? n[3] : 0.0);
   } else if (shape == "cylinder") {
     const std::vector<double> n = footprint_numbers(rest, spec);
-    if (n.size() != 2) throw UsageError("option --footprint: cylinder takes RADIUS,HEIGHT");
+    if (n.size() != 2) throw UsageError("option '--footprint': cylinder takes RADIUS,HEIGHT");
     footprint.mutable_cylinder()->set_radius_m(n[0]);
     footprint.mutable_cylinder()->set_height_m(n[1]);
   } else if (shape == "polygon") {
@@ -252,18 +245,18 @@ std::optional<v1::Footprint> footprint_from(const Options& options) {
     std::string part;
     std::getline(parts, part, ':');
     const std::vector<double> height = footprint_numbers(part, spec);
-    if (height.size() != 1) throw UsageError("option --footprint: polygon takes HEIGHT:X1,Y1:X2,Y2:X3,Y3...");
+    if (height.size() != 1) throw UsageError("option '--footprint': polygon takes HEIGHT:X1,Y1:X2,Y2:X3,Y3...");
     auto* polygon = footprint.mutable_polygon();
     polygon->set_height_m(height[0]);
     while (std::getline(parts, part, ':')) {
       const std::vector<double> xy = footprint_numbers(part, spec);
-      if (xy.size() != 2) throw UsageError("option --footprint: polygon vertex '" + part + "' is not X,Y");
+      if (xy.size() != 2) throw UsageError("option '--footprint': polygon vertex '" + part + "' is not X,Y");
       auto* vertex = polygon->add_vertices();
       vertex->set_x(xy[0]);
       vertex->set_y(xy[1]);
     }
   } else {
-    throw UsageError("option --footprint takes box:..., cylinder:... or polygon:..., not '" + spec + "'");
+    throw UsageError("option '--footprint' takes box:..., cylinder:... or polygon:..., got '" + spec + "'");
   }
   return footprint;
 }
@@ -577,7 +570,7 @@ int run_query_window(const Options& options) {
   query->mutable_max_corner()->set_x(options.number("max-x"));
   query->mutable_max_corner()->set_y(options.number("max-y"));
   const double since = options.number("since", 0.0);
-  if (since < 0.0 || since != std::floor(since)) throw UsageError("option --since takes a version number (>= 0)");
+  if (since < 0.0 || since != std::floor(since)) throw UsageError("option '--since' takes a version number (>= 0)");
   query->set_since_version(static_cast<std::uint64_t>(since));
   const v1::GridWindowReply reply = connection.call(request, 1, std::chrono::seconds(60)).grid_window();
   std::size_t changed_cells = 0;
@@ -644,7 +637,7 @@ std::uint32_t picture_scale(const Options& options) {
     used = 0;
   }
   if (used != text.size() || value < 1 || value > static_cast<long>(kMaxPictureScale)) {
-    throw UsageError("option --scale needs a whole number from 1 to " + std::to_string(kMaxPictureScale) + ", not '" +
+    throw UsageError("option '--scale' needs a whole number from 1 to " + std::to_string(kMaxPictureScale) + ", got '" +
                      text + "'");
   }
   return static_cast<std::uint32_t>(value);
@@ -654,9 +647,10 @@ std::uint32_t picture_scale(const Options& options) {
 // radians). Throws std::runtime_error naming --trajectory, the file and the line at fault.
 std::vector<occgeo::mapfile::PicturePose> read_trajectory(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw std::runtime_error("option --trajectory: cannot read '" + path + "'");
+  if (!in) throw std::runtime_error("option '--trajectory': cannot read '" + path + "'");
   const auto fail = [&](std::size_t line_number, const std::string& problem) {
-    return std::runtime_error("option --trajectory: " + path + " line " + std::to_string(line_number) + ": " + problem);
+    return std::runtime_error("option '--trajectory': " + path + " line " + std::to_string(line_number) + ": " +
+                              problem);
   };
   std::vector<occgeo::mapfile::PicturePose> poses;
   std::string line;
@@ -681,7 +675,7 @@ std::vector<occgeo::mapfile::PicturePose> read_trajectory(const std::string& pat
     if (values.size() != 4) throw fail(line_number, "expected 4 numbers t,x,y,theta, got '" + line + "'");
     poses.push_back({values[1], values[2], values[3]});
   }
-  if (line_number == 0) throw std::runtime_error("option --trajectory: '" + path + "' is empty");
+  if (line_number == 0) throw std::runtime_error("option '--trajectory': '" + path + "' is empty");
   return poses;
 }
 
@@ -762,11 +756,11 @@ int run_map_export(const Options& options) {
   if (format == "png") return run_picture_export(options);
   // The picture options draw on the png only; silently ignoring them would hide a mistake.
   for (const char* name : {"trajectory", "scale"}) {
-    if (options.values.contains(name)) throw UsageError(std::string("option --") + name + " needs --format png");
+    if (options.values.contains(name)) throw UsageError(std::string("option '--") + name + "' needs --format png");
   }
-  if (options.switches.contains("ptem")) throw UsageError("option --ptem needs --format png");
+  if (options.switches.contains("ptem")) throw UsageError("option '--ptem' needs --format png");
   if (format == "bt") return run_octree_export(options);
-  if (format != "pgm") throw UsageError("option --format takes pgm, png or bt, not '" + format + "'");
+  if (format != "pgm") throw UsageError("option '--format' takes pgm, png or bt, got '" + format + "'");
   const std::string prefix = options.required("out");
   Connection connection = connect_query(options);
   v1::ClientMessage request;
@@ -796,10 +790,11 @@ v1::Pose3D pose3_from(const std::string& text) {
   std::string item;
   while (std::getline(list, item, ',')) {
     const std::optional<double> value = finite_number(item);
-    if (!value) throw UsageError("option --pose needs x,y,z,roll,pitch,yaw numbers, not '" + text + "'");
+    if (!value) throw UsageError("option '--pose' needs x,y,z,roll,pitch,yaw numbers, got '" + text + "'");
     values.push_back(*value);
   }
-  if (values.size() != 6) throw UsageError("option --pose needs six numbers x,y,z,roll,pitch,yaw, not '" + text + "'");
+  if (values.size() != 6)
+    throw UsageError("option '--pose' needs six numbers x,y,z,roll,pitch,yaw, got '" + text + "'");
   v1::Pose3D pose;
   pose.mutable_position()->set_x(values[0]);
   pose.mutable_position()->set_y(values[1]);
@@ -966,7 +961,7 @@ int run_lease(const std::string& verb, const Options& options) {
   if (verb == "return") action = v1::LeaseRequest::RETURN;
   if (verb == "take") action = v1::LeaseRequest::TAKE;
   if (action == v1::LeaseRequest::ACTION_UNSPECIFIED) {
-    throw UsageError("lease takes acquire, retain, return or take, not '" + verb + "'");
+    throw UsageError("lease takes acquire, retain, return or take, got '" + verb + "'");
   }
   const std::string robot = options.required("robot");
   const double timeout_s = options.number("timeout", 0.0);
@@ -1008,10 +1003,10 @@ int run_drive(const std::vector<std::string>& args) {
   const double v = options.number("v", 0.0);
   const double w = options.number("w", 0.0);
   if (behaviour != "teleop" && (options.values.contains("v") || options.values.contains("w"))) {
-    throw UsageError("options --v and --w need the teleop behaviour");
+    throw UsageError("options '--v' and '--w' need the teleop behaviour");
   }
   const double hold_s = options.number("hold", 0.0);
-  if (hold_s < 0.0 || hold_s > 86400.0) throw UsageError("option --hold takes 0 to 86400 seconds");
+  if (hold_s < 0.0 || hold_s > 86400.0) throw UsageError("option '--hold' takes 0 to 86400 seconds");
   const double timeout_s = options.number("timeout", 0.0);
 
   Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
@@ -1077,7 +1072,7 @@ int run_goto(const std::vector<std::string>& args) {
   }
   const auto number = [](const std::string& text, const std::string& what) {
     const std::optional<double> value = finite_number(text);
-    if (!value) throw UsageError(what + " needs a number, not '" + text + "'");
+    if (!value) throw UsageError(what + " needs a number, got '" + text + "'");
     return *value;
   };
   std::vector<std::pair<double, double>> points;
@@ -1098,7 +1093,7 @@ int run_goto(const std::vector<std::string>& args) {
   const Options options = parse_options(rest, 0, {"robot", "limit", "timeout", "token"}, {"no-escape"});
   const std::string robot = options.required("robot");
   const double limit_s = options.number("limit", 600.0);
-  if (!(limit_s > 0.0 && limit_s <= 86400.0)) throw UsageError("option --limit takes (0, 86400] seconds");
+  if (!(limit_s > 0.0 && limit_s <= 86400.0)) throw UsageError("option '--limit' takes (0, 86400] seconds");
   const double timeout_s = options.number("timeout", 0.0);
 
   Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
@@ -1255,6 +1250,14 @@ int main(int argc, char** argv) {
         return 0;
       }
       return occgeo::replay::run_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
+    }
+    if (args[0] == "record") {
+      if (args.size() >= 2 && (args[1] == "--help" || args[1] == "-h")) {
+        std::fputs(occgeo::client::kRecordUsage, stdout);
+        return 0;
+      }
+      return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout,
+                                            std::cerr);
     }
     if (args[0] == "status") return run_status(parse_options(args, 1, {}, {"detailed"}));
     if (args[0] == "lease") {

@@ -25,10 +25,9 @@ using geometry::CellIndex;
 
 constexpr std::int32_t kInfiniteSquared = std::numeric_limits<std::int32_t>::max();
 
-// Largest field distance and side, in cells: distances need (2 * 2000)^2 < 2^31 buckets-worth of integers and the
-// references are int16.
+// Largest field distance, in cells: distances need (2 * 2000)^2 < 2^31 buckets-worth of integers and the references
+// (offsets) are int16.
 constexpr double kMaxDistanceCells = 2000.0;
-constexpr double kMaxExtentCells = 32000.0;
 
 std::int32_t squared_half_cells(std::int32_t dx, std::int32_t dy) {
   const std::int32_t ax = std::max(2 * std::abs(dx) - 1, 0);
@@ -53,25 +52,6 @@ std::optional<CellBox> intersect(const CellBox& a, const CellBox& b) {
 bool contains(const CellBox& outer, const CellBox& inner) {
   return inner.min.ix >= outer.min.ix && inner.min.iy >= outer.min.iy && inner.max.ix <= outer.max.ix &&
          inner.max.iy <= outer.max.iy;
-}
-
-// One axis of the box the field is built over: the tiles' range [lo, hi] grown by margin, cut to max_cells around
-// focus when longer.
-std::pair<std::int64_t, std::int64_t> field_range(std::int64_t lo, std::int64_t hi, std::int64_t focus,
-                                                  std::int64_t margin, std::int64_t max_cells) {
-  const std::int64_t padded_lo = lo - margin;
-  const std::int64_t padded_hi = hi + margin;
-  if (padded_hi - padded_lo + 1 <= max_cells) return {padded_lo, padded_hi};
-  const std::int64_t start = std::clamp(focus - max_cells / 2, padded_lo, padded_hi - max_cells + 1);
-  return {start, start + max_cells - 1};
-}
-
-// One axis of the part of the tiles the field must cover: all of them when they fit, else those near focus. Smaller
-// than field_range's cut by the margin, so that the focus can move that far before the field is rebuilt.
-std::pair<std::int64_t, std::int64_t> required_range(std::int64_t lo, std::int64_t hi, std::int64_t focus,
-                                                     std::int64_t margin, std::int64_t max_cells) {
-  const std::int64_t reach = max_cells / 2 - margin - 1;
-  return {std::max(lo, focus - reach), std::min(hi, focus + reach)};
 }
 
 // A footprint placed in the world, in 2D.
@@ -238,39 +218,34 @@ std::optional<std::pair<std::int32_t, std::int32_t>> cell_range(double lo, doubl
 
 void DistanceFieldParams::validate() const {
   require(std::isfinite(max_distance_m) && max_distance_m > 0.0, "max_distance_m", "finite and > 0", max_distance_m);
-  require(std::isfinite(growth_margin_m) && growth_margin_m >= 0.0, "growth_margin_m", "finite and >= 0",
-          growth_margin_m);
-  require(std::isfinite(max_extent_m) && max_extent_m > 2.0 * growth_margin_m, "max_extent_m",
-          "finite and > 2 * growth_margin_m", max_extent_m);
 }
 
 // The incremental brushfire of Lau, Sprunk & Burgard (2013), 2D, without the Voronoi part: cells hold a reference to
 // their nearest occupied cell; a new obstacle starts a lowering wavefront, a removed one a raising wavefront that
 // invalidates the cells referring to it and hands them back to the lowering wavefronts of the obstacles around.
+//
+// The cells live in 64x64 blocks allocated where a wavefront first writes, found through a directory (a dense array of
+// block pointers over the blocks' bounding box, grown as needed), so the field has no extent of its own and its memory
+// follows the area within max_distance of what the grid has seen. A reference is the nearest cell's offset from the
+// cell (|offset| <= 2000 cells fits int16).
 class DistanceField::Brushfire {
  public:
-  Brushfire(const CellBox& box, std::int32_t max_squared)
-      : box_(box),
-        width_(box.max.ix - box.min.ix + 1),
-        height_(box.max.iy - box.min.iy + 1),
-        cells_(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_)),
-        buckets_(static_cast<std::size_t>(max_squared) + 1),
-        max_squared_(max_squared) {}
+  static constexpr std::int32_t kBlockShift = DistanceFieldSnapshot::kBlockShift;
+  static constexpr std::int32_t kBlockCells = DistanceFieldSnapshot::kBlockCells;
+  static constexpr std::int16_t kNone = DistanceFieldSnapshot::kNone;
 
-  [[nodiscard]] const CellBox& box() const { return box_; }
-  [[nodiscard]] std::int32_t width() const { return width_; }
-  [[nodiscard]] std::int32_t height() const { return height_; }
+  explicit Brushfire(std::int32_t max_squared)
+      : buckets_(static_cast<std::size_t>(max_squared) + 1), max_squared_(max_squared) {}
 
   [[nodiscard]] bool is_obstacle(std::int32_t x, std::int32_t y) const {
-    const Cell& c = at(x, y);
-    return c.ref_x == x && c.ref_y == y;
+    const Cell* c = find(x, y);
+    return c != nullptr && c->dx == 0 && c->dy == 0;
   }
 
   void set_obstacle(std::int32_t x, std::int32_t y) {
     Cell& c = at(x, y);
-    if (c.ref_x == x && c.ref_y == y) return;
-    c.ref_x = static_cast<std::int16_t>(x);
-    c.ref_y = static_cast<std::int16_t>(y);
+    if (c.dx == 0 && c.dy == 0) return;
+    c.dx = c.dy = 0;
     c.squared = 0;
     c.raise = false;
     c.state = State::kLowerQueued;
@@ -278,12 +253,12 @@ class DistanceField::Brushfire {
   }
 
   void remove_obstacle(std::int32_t x, std::int32_t y) {
-    Cell& c = at(x, y);
-    if (!(c.ref_x == x && c.ref_y == y)) return;
-    c.raise = true;
-    c.ref_x = c.ref_y = DistanceFieldSnapshot::kNone;
-    c.squared = kInfiniteSquared;
-    c.state = State::kRaiseQueued;
+    Cell* c = find(x, y);
+    if (c == nullptr || !(c->dx == 0 && c->dy == 0)) return;
+    c->raise = true;
+    c->dx = c->dy = kNone;
+    c->squared = kInfiniteSquared;
+    c->state = State::kRaiseQueued;
     push(0, x, y);
   }
 
@@ -292,19 +267,19 @@ class DistanceField::Brushfire {
     std::size_t processed = 0;
     while (queued_ > 0) {
       while (buckets_[next_bucket_].empty()) ++next_bucket_;
-      const std::int32_t packed = buckets_[next_bucket_].back();
+      const std::uint64_t packed = buckets_[next_bucket_].back();
       buckets_[next_bucket_].pop_back();
       --queued_;
       ++processed;
-      const std::int32_t x = packed % width_;
-      const std::int32_t y = packed / width_;
-      Cell& c = at(x, y);
+      const auto x = static_cast<std::int32_t>(static_cast<std::uint32_t>(packed));
+      const auto y = static_cast<std::int32_t>(static_cast<std::uint32_t>(packed >> 32U));
+      Cell& c = *find(x, y);
       if (c.state == State::kLowerDone) continue;
       if (c.raise) {
         raise(x, y);
         c.raise = false;
         c.state = State::kRaiseDone;
-      } else if (c.ref_x != DistanceFieldSnapshot::kNone && is_obstacle(c.ref_x, c.ref_y)) {
+      } else if (c.dx != kNone && is_obstacle(x + c.dx, y + c.dy)) {
         c.state = State::kLowerDone;
         lower(x, y, c);
       }
@@ -313,89 +288,166 @@ class DistanceField::Brushfire {
     return processed;
   }
 
-  // The references, row-major from box().min.
-  [[nodiscard]] std::vector<DistanceFieldSnapshot::Ref> references() const {
-    std::vector<DistanceFieldSnapshot::Ref> refs(cells_.size());
-    std::transform(cells_.begin(), cells_.end(), refs.begin(), [](const Cell& c) {
-      return DistanceFieldSnapshot::Ref{c.ref_x, c.ref_y};
-    });
-    return refs;
+  // The references in blocks over the directory: the blocks unchanged since the previous call are the same shared
+  // ones, only those a wavefront wrote are copied out of the cells.
+  [[nodiscard]] DistanceFieldSnapshot::RefDirectory references() {
+    for (std::size_t b = 0; b < blocks_.size(); ++b) {
+      if (dirty_[b] == 0) continue;
+      dirty_[b] = 0;
+      auto refs = std::make_shared<DistanceFieldSnapshot::RefBlock>();
+      const Block& block = *blocks_[b];
+      for (std::size_t i = 0; i < block.cells.size(); ++i) refs->refs[i] = {block.cells[i].dx, block.cells[i].dy};
+      published_[b] = std::move(refs);
+    }
+    return {block_x0_, block_y0_, blocks_x_, published_};
   }
 
  private:
   enum class State : std::uint8_t { kIdle, kLowerQueued, kLowerDone, kRaiseQueued, kRaiseDone };
   struct Cell {
-    std::int16_t ref_x = DistanceFieldSnapshot::kNone;
-    std::int16_t ref_y = DistanceFieldSnapshot::kNone;
+    std::int16_t dx = kNone;  // The nearest occupied cell is (x + dx, y + dy); kNone: none within max_distance.
+    std::int16_t dy = kNone;
     std::int32_t squared = kInfiniteSquared;  // To the referred cell's square, in (cell_size / 2)^2.
     State state = State::kIdle;
     bool raise = false;
   };
+  struct Block {
+    std::array<Cell, static_cast<std::size_t>(kBlockCells) * kBlockCells> cells{};
+  };
 
-  Cell& at(std::int32_t x, std::int32_t y) { return cells_[static_cast<std::size_t>(y) * width_ + x]; }
-  [[nodiscard]] const Cell& at(std::int32_t x, std::int32_t y) const {
-    return cells_[static_cast<std::size_t>(y) * width_ + x];
+  static std::size_t local_index(std::int32_t x, std::int32_t y) {
+    return static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells + static_cast<std::size_t>(x & (kBlockCells - 1));
   }
 
+  // The slot of block (bx, by) in the directory, or -1 outside it.
+  [[nodiscard]] std::ptrdiff_t slot(std::int32_t bx, std::int32_t by) const {
+    const std::int32_t i = bx - block_x0_;
+    const std::int32_t j = by - block_y0_;
+    if (i < 0 || j < 0 || i >= blocks_x_ || j >= blocks_y_) return -1;
+    return static_cast<std::ptrdiff_t>(j) * blocks_x_ + i;
+  }
+
+  [[nodiscard]] const Cell* find(std::int32_t x, std::int32_t y) const {
+    const std::ptrdiff_t b = slot(x >> kBlockShift, y >> kBlockShift);
+    if (b < 0 || !blocks_[static_cast<std::size_t>(b)]) return nullptr;
+    return &blocks_[static_cast<std::size_t>(b)]->cells[local_index(x, y)];
+  }
+  [[nodiscard]] Cell* find(std::int32_t x, std::int32_t y) {
+    return const_cast<Cell*>(std::as_const(*this).find(x, y));  // NOLINT(cppcoreguidelines-pro-type-const-cast)
+  }
+
+  // Cell (x, y), its block allocated (and the directory grown) when missing.
+  Cell& at(std::int32_t x, std::int32_t y) {
+    const std::int32_t bx = x >> kBlockShift, by = y >> kBlockShift;
+    std::ptrdiff_t b = slot(bx, by);
+    if (b < 0) {
+      grow_directory(bx, by);
+      b = slot(bx, by);
+    }
+    auto& block = blocks_[static_cast<std::size_t>(b)];
+    if (!block) {
+      block = std::make_unique<Block>();
+      dirty_[static_cast<std::size_t>(b)] = 1;
+    }
+    return block->cells[local_index(x, y)];
+  }
+
+  // Makes the directory cover block (bx, by), with room for 8 more blocks on each side so that it seldom regrows.
+  void grow_directory(std::int32_t bx, std::int32_t by) {
+    constexpr std::int32_t kRoom = 8;
+    const bool empty = blocks_x_ == 0;
+    const std::int32_t x0 = empty ? bx - kRoom : std::min(block_x0_, bx - kRoom);
+    const std::int32_t y0 = empty ? by - kRoom : std::min(block_y0_, by - kRoom);
+    const std::int32_t x1 = empty ? bx + kRoom : std::max(block_x0_ + blocks_x_ - 1, bx + kRoom);
+    const std::int32_t y1 = empty ? by + kRoom : std::max(block_y0_ + blocks_y_ - 1, by + kRoom);
+    const std::int32_t width = x1 - x0 + 1, height = y1 - y0 + 1;
+    const std::size_t count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    std::vector<std::unique_ptr<Block>> blocks(count);
+    std::vector<std::uint8_t> dirty(count, 0);
+    DistanceFieldSnapshot::RefBlocks published(count);
+    for (std::int32_t j = 0; j < blocks_y_; ++j) {
+      for (std::int32_t i = 0; i < blocks_x_; ++i) {
+        const std::size_t from = static_cast<std::size_t>(j) * blocks_x_ + i;
+        const std::size_t to =
+            static_cast<std::size_t>(block_y0_ + j - y0) * static_cast<std::size_t>(width) + (block_x0_ + i - x0);
+        blocks[to] = std::move(blocks_[from]);
+        dirty[to] = dirty_[from];
+        published[to] = std::move(published_[from]);
+      }
+    }
+    blocks_ = std::move(blocks);
+    dirty_ = std::move(dirty);
+    published_ = std::move(published);
+    block_x0_ = x0;
+    block_y0_ = y0;
+    blocks_x_ = width;
+    blocks_y_ = height;
+  }
+
+  // Every change of a cell's reference goes with a push of that cell, so this is where its block becomes dirty.
   void push(std::int32_t squared, std::int32_t x, std::int32_t y) {
-    buckets_[static_cast<std::size_t>(squared)].push_back(y * width_ + x);
+    dirty_[static_cast<std::size_t>(slot(x >> kBlockShift, y >> kBlockShift))] = 1;
+    buckets_[static_cast<std::size_t>(squared)].push_back(static_cast<std::uint32_t>(x) |
+                                                          std::uint64_t{static_cast<std::uint32_t>(y)} << 32U);
     next_bucket_ = std::min(next_bucket_, static_cast<std::size_t>(squared));
     ++queued_;
   }
 
-  template <typename Visit>
-  void for_neighbours(std::int32_t x, std::int32_t y, Visit&& visit) {
-    for (std::int32_t ny = std::max(y - 1, 0); ny <= std::min(y + 1, height_ - 1); ++ny) {
-      for (std::int32_t nx = std::max(x - 1, 0); nx <= std::min(x + 1, width_ - 1); ++nx) {
-        if (nx != x || ny != y) visit(nx, ny, at(nx, ny));
+  // Invalidates the neighbours that refer to a removed obstacle, and queues those that refer to a live one so that
+  // their wavefront refills the invalidated cells. Neighbours in blocks never written hold no reference: skipped.
+  void raise(std::int32_t x, std::int32_t y) {
+    for (std::int32_t ny = y - 1; ny <= y + 1; ++ny) {
+      for (std::int32_t nx = x - 1; nx <= x + 1; ++nx) {
+        if (nx == x && ny == y) continue;
+        Cell* n = find(nx, ny);
+        if (n == nullptr || n->dx == kNone || n->raise) continue;
+        if (!is_obstacle(nx + n->dx, ny + n->dy)) {
+          push(n->squared, nx, ny);
+          n->state = State::kLowerQueued;
+          n->raise = true;
+          n->dx = n->dy = kNone;
+          n->squared = kInfiniteSquared;
+        } else if (n->state != State::kLowerQueued) {
+          push(n->squared, nx, ny);
+          n->state = State::kLowerQueued;
+        }
       }
     }
   }
 
-  // Invalidates the neighbours that refer to a removed obstacle, and queues those that refer to a live one so that
-  // their wavefront refills the invalidated cells.
-  void raise(std::int32_t x, std::int32_t y) {
-    for_neighbours(x, y, [this](std::int32_t nx, std::int32_t ny, Cell& n) {
-      if (n.ref_x == DistanceFieldSnapshot::kNone || n.raise) return;
-      if (!is_obstacle(n.ref_x, n.ref_y)) {
-        push(n.squared, nx, ny);
-        n.state = State::kLowerQueued;
-        n.raise = true;
-        n.ref_x = n.ref_y = DistanceFieldSnapshot::kNone;
-        n.squared = kInfiniteSquared;
-      } else if (n.state != State::kLowerQueued) {
-        push(n.squared, nx, ny);
-        n.state = State::kLowerQueued;
-      }
-    });
-  }
-
   // Offers c's obstacle to the neighbours; they take it when it is nearer than theirs (or as near, and theirs is gone).
   void lower(std::int32_t x, std::int32_t y, const Cell& c) {
-    const std::int32_t ref_x = c.ref_x;
-    const std::int32_t ref_y = c.ref_y;
-    for_neighbours(x, y, [this, ref_x, ref_y](std::int32_t nx, std::int32_t ny, Cell& n) {
-      if (n.raise) return;
-      const std::int32_t squared = squared_half_cells(nx - ref_x, ny - ref_y);
-      if (squared > max_squared_) return;
-      const bool overwrite =
-          squared < n.squared ||
-          (squared == n.squared && (n.ref_x == DistanceFieldSnapshot::kNone || !is_obstacle(n.ref_x, n.ref_y)));
-      if (!overwrite) return;
-      push(squared, nx, ny);
-      n.state = State::kLowerQueued;
-      n.squared = squared;
-      n.ref_x = static_cast<std::int16_t>(ref_x);
-      n.ref_y = static_cast<std::int16_t>(ref_y);
-    });
+    const std::int32_t ref_x = x + c.dx;
+    const std::int32_t ref_y = y + c.dy;
+    for (std::int32_t ny = y - 1; ny <= y + 1; ++ny) {
+      for (std::int32_t nx = x - 1; nx <= x + 1; ++nx) {
+        if (nx == x && ny == y) continue;
+        const std::int32_t squared = squared_half_cells(nx - ref_x, ny - ref_y);
+        if (squared > max_squared_) continue;
+        Cell* existing = find(nx, ny);
+        if (existing != nullptr) {
+          if (existing->raise) continue;
+          const bool overwrite = squared < existing->squared ||
+                                 (squared == existing->squared &&
+                                  (existing->dx == kNone || !is_obstacle(nx + existing->dx, ny + existing->dy)));
+          if (!overwrite) continue;
+        }
+        Cell& n = existing != nullptr ? *existing : at(nx, ny);
+        push(squared, nx, ny);
+        n.state = State::kLowerQueued;
+        n.squared = squared;
+        n.dx = static_cast<std::int16_t>(ref_x - nx);
+        n.dy = static_cast<std::int16_t>(ref_y - ny);
+      }
+    }
   }
 
-  CellBox box_;
-  std::int32_t width_;
-  std::int32_t height_;
-  std::vector<Cell> cells_;
-  // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as y * width + x.
-  std::vector<std::vector<std::int32_t>> buckets_;
+  std::int32_t block_x0_ = 0, block_y0_ = 0, blocks_x_ = 0, blocks_y_ = 0;
+  std::vector<std::unique_ptr<Block>> blocks_;   // The directory, row-major; nullptr: no cell written there.
+  std::vector<std::uint8_t> dirty_;              // Per block: a reference changed since the last references().
+  DistanceFieldSnapshot::RefBlocks published_;   // The blocks the last references() returned.
+  // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32.
+  std::vector<std::vector<std::uint64_t>> buckets_;
   std::size_t next_bucket_ = 0;
   std::size_t queued_ = 0;
   std::int32_t max_squared_;
@@ -405,8 +457,7 @@ DistanceField::DistanceField(const DistanceFieldParams& params) : params_(params
 
 DistanceField::~DistanceField() = default;
 
-DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched,
-                                          std::optional<Eigen::Vector2d> focus_W) {
+bool DistanceField::prepare(std::shared_ptr<const GridSnapshot>& grid, DistanceFieldUpdate& result) {
   if (!grid) throw std::invalid_argument("DistanceField::update: grid is null");
   const double cell_size = grid->cell_size();
   if (snapshot_ && snapshot_->cell_size() != cell_size) {
@@ -417,111 +468,111 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
     throw std::invalid_argument("DistanceFieldParams.max_distance_m must be at most 2000 cells, got " +
                                 std::to_string(params_.max_distance_m / cell_size) + " cells");
   }
-  if (params_.max_extent_m / cell_size > kMaxExtentCells) {
-    throw std::invalid_argument("DistanceFieldParams.max_extent_m must be at most 32000 cells, got " +
-                                std::to_string(params_.max_extent_m / cell_size) + " cells");
-  }
-  if (focus_W && !focus_W->allFinite()) throw std::invalid_argument("DistanceField::update: focus_W must be finite");
-
-  DistanceFieldUpdate result;
-  const std::optional<CellBox> tiles = grid->tile_bounds();
-  if (!tiles) {
+  if (!grid->tile_bounds()) {
     brushfire_.reset();
     snapshot_.reset(new DistanceFieldSnapshot(std::move(grid), std::nullopt, {}, params_.max_distance_m));
-    return result;
+    return false;
   }
+  if (brushfire_) return true;
 
-  const auto margin = static_cast<std::int64_t>(std::ceil(params_.growth_margin_m / cell_size));
-  const auto max_cells = static_cast<std::int64_t>(std::floor(params_.max_extent_m / cell_size));
-  std::array<std::int64_t, 2> focus{(static_cast<std::int64_t>(tiles->min.ix) + tiles->max.ix) / 2,
-                                    (static_cast<std::int64_t>(tiles->min.iy) + tiles->max.iy) / 2};
-  if (focus_W) {
-    const Eigen::Vector2d focus_cells = (*focus_W / cell_size).array().floor();
-    focus = {static_cast<std::int64_t>(std::clamp<double>(focus_cells.x(), tiles->min.ix, tiles->max.ix)),
-             static_cast<std::int64_t>(std::clamp<double>(focus_cells.y(), tiles->min.iy, tiles->max.iy))};
-  }
-  const auto [need_x0, need_x1] = required_range(tiles->min.ix, tiles->max.ix, focus[0], margin, max_cells);
-  const auto [need_y0, need_y1] = required_range(tiles->min.iy, tiles->max.iy, focus[1], margin, max_cells);
-  const CellBox required{{static_cast<std::int32_t>(need_x0), static_cast<std::int32_t>(need_y0)},
-                         {static_cast<std::int32_t>(need_x1), static_cast<std::int32_t>(need_y1)}};
+  const double max_half_cells = 2.0 * params_.max_distance_m / cell_size;
+  brushfire_ = std::make_unique<Brushfire>(static_cast<std::int32_t>(std::floor(max_half_cells * max_half_cells)));
+  Brushfire& brushfire = *brushfire_;
+  const CellBox tiles = *grid->tile_bounds();
+  grid->for_each_occupied(tiles.min, tiles.max, [&brushfire](const CellIndex& c) {
+    brushfire.set_obstacle(c.ix, c.iy);
+    return true;
+  });
+  result.rebuilt = true;
+  result.processed_cells = brushfire.propagate();
+  take_snapshot(std::move(grid));
+  return false;
+}
 
-  if (!brushfire_ || !contains(brushfire_->box(), required)) {
-    const auto [x0, x1] = field_range(tiles->min.ix, tiles->max.ix, focus[0], margin, max_cells);
-    const auto [y0, y1] = field_range(tiles->min.iy, tiles->max.iy, focus[1], margin, max_cells);
-    constexpr std::int64_t kLowest = std::numeric_limits<std::int32_t>::min();
-    constexpr std::int64_t kHighest = std::numeric_limits<std::int32_t>::max();
-    const CellBox box{
-        {static_cast<std::int32_t>(std::max(x0, kLowest)), static_cast<std::int32_t>(std::max(y0, kLowest))},
-        {static_cast<std::int32_t>(std::min(x1, kHighest)), static_cast<std::int32_t>(std::min(y1, kHighest))}};
-    const double max_half_cells = 2.0 * params_.max_distance_m / cell_size;
-    brushfire_ =
-        std::make_unique<Brushfire>(box, static_cast<std::int32_t>(std::floor(max_half_cells * max_half_cells)));
-    Brushfire& brushfire = *brushfire_;
-    grid->for_each_occupied(box.min, box.max, [&brushfire, &box](const CellIndex& c) {
-      brushfire.set_obstacle(c.ix - box.min.ix, c.iy - box.min.iy);
-      return true;
-    });
-    result.rebuilt = true;
-    result.processed_cells = brushfire.propagate();
-  } else {
-    Brushfire& brushfire = *brushfire_;
-    const CellBox& box = brushfire.box();
-    if (const std::optional<CellBox> region = touched ? intersect(*touched, box) : std::optional<CellBox>(box)) {
-      const std::int32_t width = region->max.ix - region->min.ix + 1;
-      const std::int32_t height = region->max.iy - region->min.iy + 1;
-      const std::vector<std::uint8_t> values = grid->window(region->min, width, height);
-      const int threshold = grid->occupied_threshold();
-      for (std::int32_t row = 0; row < height; ++row) {
-        const std::int32_t y = region->min.iy - box.min.iy + row;
-        for (std::int32_t col = 0; col < width; ++col) {
-          const std::uint8_t value = values[static_cast<std::size_t>(row) * width + col];
-          const bool occupied = value != kUnobserved && value >= threshold;
-          const std::int32_t x = region->min.ix - box.min.ix + col;
-          if (occupied == brushfire.is_obstacle(x, y)) continue;
-          ++result.changed_cells;
-          if (occupied) {
-            brushfire.set_obstacle(x, y);
-          } else {
-            brushfire.remove_obstacle(x, y);
-          }
+void DistanceField::take_snapshot(std::shared_ptr<const GridSnapshot> grid) {
+  // The field answers for every cell; bounds() says where occupied cells can be near: the grid's tiles grown by the
+  // field's reach.
+  const auto reach = static_cast<std::int32_t>(std::ceil(params_.max_distance_m / grid->cell_size())) + 1;
+  const CellBox tiles = *grid->tile_bounds();
+  const CellBox bounds{{tiles.min.ix - reach, tiles.min.iy - reach}, {tiles.max.ix + reach, tiles.max.iy + reach}};
+  snapshot_.reset(new DistanceFieldSnapshot(std::move(grid), bounds, brushfire_->references(), params_.max_distance_m));
+}
+
+DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched) {
+  DistanceFieldUpdate result;
+  if (!prepare(grid, result)) return result;
+  Brushfire& brushfire = *brushfire_;
+  // Cells outside the grid's tiles are unobserved, hence free: only those inside can have changed.
+  const CellBox tiles = *grid->tile_bounds();
+  if (const std::optional<CellBox> region = touched ? intersect(*touched, tiles) : std::optional<CellBox>(tiles)) {
+    const std::int32_t width = region->max.ix - region->min.ix + 1;
+    const std::int32_t height = region->max.iy - region->min.iy + 1;
+    const std::vector<std::uint8_t> values = grid->window(region->min, width, height);
+    const int threshold = grid->occupied_threshold();
+    for (std::int32_t row = 0; row < height; ++row) {
+      const std::int32_t y = region->min.iy + row;
+      for (std::int32_t col = 0; col < width; ++col) {
+        const std::uint8_t value = values[static_cast<std::size_t>(row) * width + col];
+        const bool occupied = value != kUnobserved && value >= threshold;
+        const std::int32_t x = region->min.ix + col;
+        if (occupied == brushfire.is_obstacle(x, y)) continue;
+        ++result.changed_cells;
+        if (occupied) {
+          brushfire.set_obstacle(x, y);
+        } else {
+          brushfire.remove_obstacle(x, y);
         }
       }
-      result.processed_cells = brushfire.propagate();
+    }
+    result.processed_cells = brushfire.propagate();
+  }
+  take_snapshot(std::move(grid));
+  return result;
+}
+
+DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid,
+                                          std::span<const geometry::CellIndex> changed) {
+  DistanceFieldUpdate result;
+  if (!prepare(grid, result)) return result;
+  Brushfire& brushfire = *brushfire_;
+  for (const CellIndex& c : changed) {
+    const bool occupied = grid->occupied(c);
+    const std::int32_t x = c.ix;
+    const std::int32_t y = c.iy;
+    if (occupied == brushfire.is_obstacle(x, y)) continue;
+    ++result.changed_cells;
+    if (occupied) {
+      brushfire.set_obstacle(x, y);
+    } else {
+      brushfire.remove_obstacle(x, y);
     }
   }
-  snapshot_.reset(
-      new DistanceFieldSnapshot(std::move(grid), brushfire_->box(), brushfire_->references(), params_.max_distance_m));
+  result.processed_cells = brushfire.propagate();
+  take_snapshot(std::move(grid));
   return result;
 }
 
 DistanceFieldSnapshot::DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds,
-                                             std::vector<Ref> refs, double max_distance_m)
-    : grid_(std::move(grid)),
-      bounds_(bounds),
-      width_(bounds ? bounds->max.ix - bounds->min.ix + 1 : 0),
-      refs_(std::move(refs)),
-      max_distance_m_(max_distance_m) {}
+                                             RefDirectory refs, double max_distance_m)
+    : grid_(std::move(grid)), bounds_(bounds), refs_(std::move(refs)), max_distance_m_(max_distance_m) {}
 
-const DistanceFieldSnapshot::Ref* DistanceFieldSnapshot::ref_of(const CellIndex& c) const {
-  if (!bounds_ || c.ix < bounds_->min.ix || c.iy < bounds_->min.iy || c.ix > bounds_->max.ix ||
-      c.iy > bounds_->max.iy) {
-    return nullptr;
-  }
-  const Ref& ref = refs_[static_cast<std::size_t>(c.iy - bounds_->min.iy) * width_ + (c.ix - bounds_->min.ix)];
-  return ref.x == kNone ? nullptr : &ref;
+std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
+  const std::int32_t i = (c.ix >> kBlockShift) - refs_.block_x0;
+  const std::int32_t j = (c.iy >> kBlockShift) - refs_.block_y0;
+  if (i < 0 || j < 0 || i >= refs_.blocks_x) return std::nullopt;
+  const std::size_t slot = static_cast<std::size_t>(j) * static_cast<std::size_t>(refs_.blocks_x) + i;
+  if (slot >= refs_.blocks.size() || !refs_.blocks[slot]) return std::nullopt;
+  const Ref& ref = refs_.blocks[slot]->refs[static_cast<std::size_t>(c.iy & (kBlockCells - 1)) * kBlockCells +
+                                            static_cast<std::size_t>(c.ix & (kBlockCells - 1))];
+  if (ref.x == kNone) return std::nullopt;
+  return CellIndex{c.ix + ref.x, c.iy + ref.y};
 }
 
 double DistanceFieldSnapshot::distance(const CellIndex& c) const {
-  const Ref* ref = ref_of(c);
-  if (ref == nullptr) return max_distance_m_;
-  const std::int32_t squared = squared_half_cells(c.ix - bounds_->min.ix - ref->x, c.iy - bounds_->min.iy - ref->y);
+  const std::optional<CellIndex> nearest = nearest_occupied(c);
+  if (!nearest) return max_distance_m_;
+  const std::int32_t squared = squared_half_cells(c.ix - nearest->ix, c.iy - nearest->iy);
   return std::sqrt(static_cast<double>(squared)) * cell_size() / 2.0;
-}
-
-std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
-  const Ref* ref = ref_of(c);
-  if (ref == nullptr) return std::nullopt;
-  return CellIndex{bounds_->min.ix + ref->x, bounds_->min.iy + ref->y};
 }
 
 struct DistanceFieldSnapshot::Answer {
@@ -561,32 +612,29 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const double scale = cell_size / 2.0;
   double lower = std::numeric_limits<double>::infinity();
   double upper = std::numeric_limits<double>::infinity();
-  Ref best_ref{kNone, kNone};
+  std::optional<CellIndex> best_cell;
   Eigen::Vector2d best_point = Eigen::Vector2d::Zero();
-  Ref last_ref{kNone, kNone};
+  std::optional<CellIndex> last_cell;
   for (std::int32_t iy = near.min.iy; iy <= near.max.iy; ++iy) {
-    const std::size_t row = static_cast<std::size_t>(iy - bounds_->min.iy) * width_;
     for (std::int32_t ix = near.min.ix; ix <= near.max.ix; ++ix) {
       const Eigen::Vector2d center_W((ix + 0.5) * cell_size, (iy + 0.5) * cell_size);
       if (placed.distance_to_point(center_W) > half_diagonal) continue;
-      const Ref& ref = refs_[row + (ix - bounds_->min.ix)];
-      if (ref.x == kNone) {
+      const std::optional<CellIndex> nearest = nearest_occupied({ix, iy});
+      if (!nearest) {
         lower = std::min(lower, max_distance_m_ - half_diagonal);
         continue;
       }
-      const std::int32_t x = ix - bounds_->min.ix;
-      const std::int32_t y = iy - bounds_->min.iy;
-      const double distance = std::sqrt(static_cast<double>(squared_half_cells(x - ref.x, y - ref.y))) * scale;
+      const double distance =
+          std::sqrt(static_cast<double>(squared_half_cells(ix - nearest->ix, iy - nearest->iy))) * scale;
       lower = std::min(lower, distance - half_diagonal);
       // The exact distance to a cell referred to from farther away than the best so far is unlikely to beat it.
-      if (distance - half_diagonal >= upper || (ref.x == last_ref.x && ref.y == last_ref.y)) continue;
-      last_ref = ref;
-      const Eigen::Vector2d square_W((bounds_->min.ix + ref.x + 0.5) * cell_size,
-                                     (bounds_->min.iy + ref.y + 0.5) * cell_size);
+      if (distance - half_diagonal >= upper || nearest == last_cell) continue;
+      last_cell = nearest;
+      const Eigen::Vector2d square_W((nearest->ix + 0.5) * cell_size, (nearest->iy + 0.5) * cell_size);
       const auto [exact_distance, point_W] = placed.distance_to_square(square_W, half_cell);
       if (exact_distance < upper) {
         upper = exact_distance;
-        best_ref = ref;
+        best_cell = nearest;
         best_point = point_W;
       }
     }
@@ -608,7 +656,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
       CellIndex cell;
       Eigen::Vector2d point_W;
     } best{placed, cells, upper, {}, best_point};
-    if (best_ref.x != kNone) best.cell = {bounds_->min.ix + best_ref.x, bounds_->min.iy + best_ref.y};
+    if (best_cell) best.cell = *best_cell;
     grid_->for_each_occupied(cells.cell_of(lo - Eigen::Vector2d::Constant(radius)),
                              cells.cell_of(hi + Eigen::Vector2d::Constant(radius)), [&best](const CellIndex& c) {
                                const auto [distance, point_W] =
@@ -622,14 +670,13 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
                              });
     upper = best.distance;
     best_point = best.point_W;
-    best_ref = {static_cast<std::int16_t>(best.cell.ix - bounds_->min.ix),
-                static_cast<std::int16_t>(best.cell.iy - bounds_->min.iy)};
+    best_cell = best.cell;
   }
   Answer answer{{}, placed};
   if (upper <= limit) {
     answer.result.found = true;
     answer.result.clearance_m = upper;
-    answer.result.nearest_cell = CellIndex{bounds_->min.ix + best_ref.x, bounds_->min.iy + best_ref.y};
+    answer.result.nearest_cell = best_cell;
     answer.result.nearest_point_W = best_point;
   } else {
     answer.result.clearance_m = limit;

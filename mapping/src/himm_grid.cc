@@ -5,6 +5,9 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <unordered_set>
+#include <utility>
+#include <vector>
 
 #include "format_number.h"
 #include "himm_tile_writer.h"
@@ -69,11 +72,42 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   // n * 1e-16 rad off.
   Eigen::Vector2d direction(std::cos(first_angle), std::sin(first_angle));
   const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(static_cast<double>(angle_increment)).toRotationMatrix();
+  const bool see_through = params_.seen_through_decrement > 0;
+  std::vector<geometry::CellIndex> lowered_cells;
+  std::unordered_set<geometry::CellIndex, geometry::CellIndexHash> hit_cells;
   for (const float reading : ranges) {
     const bool is_hit = reading < range_max;
     const double range = is_hit ? static_cast<double>(reading) : max_range;
-    writer.trace_beam(p_WS, p_WS + range * direction, is_hit);
+    const Eigen::Vector2d end_W = p_WS + range * direction;
+    // Only a return beyond a cell shows the sensor saw through it (a beam with none may have passed glass or a gap).
+    writer.trace_beam(p_WS, end_W, is_hit, see_through && is_hit ? &lowered_cells : nullptr);
+    if (see_through && is_hit) hit_cells.insert(geometry_.cell_of(end_W));
     direction = rotation * direction;
+  }
+  if (!see_through) return;
+  // The cells the scan saw through: a beam lowered them and none ended in them or next to them.
+  std::sort(lowered_cells.begin(), lowered_cells.end(), [](const geometry::CellIndex& a, const geometry::CellIndex& b) {
+    return a.ix != b.ix ? a.ix < b.ix : a.iy < b.iy;
+  });
+  lowered_cells.erase(std::unique(lowered_cells.begin(), lowered_cells.end(),
+                                  [](const geometry::CellIndex& a, const geometry::CellIndex& b) {
+                                    return a.ix == b.ix && a.iy == b.iy;
+                                  }),
+                      lowered_cells.end());
+  // Cells within kSeenThroughSpareCells of a hit are spared: where beams graze a wall they cross several of its
+  // cells before ending on it further along, and the scan's other beams end close by.
+  constexpr std::int32_t kSeenThroughSpareCells = 2;
+  const auto near_a_hit = [&hit_cells](const geometry::CellIndex& c) {
+    for (std::int32_t dy = -kSeenThroughSpareCells; dy <= kSeenThroughSpareCells; ++dy) {
+      for (std::int32_t dx = -kSeenThroughSpareCells; dx <= kSeenThroughSpareCells; ++dx) {
+        if (hit_cells.contains({c.ix + dx, c.iy + dy})) return true;
+      }
+    }
+    return false;
+  };
+  const auto decrement = static_cast<std::uint8_t>(params_.seen_through_decrement);
+  for (const geometry::CellIndex& c : lowered_cells) {
+    if (!near_a_hit(c)) writer.lower(c, decrement);
   }
 }
 
@@ -93,6 +127,14 @@ std::shared_ptr<const GridSnapshot> HimmGrid::snapshot() const {
   return std::shared_ptr<const GridSnapshot>(new GridSnapshot(std::move(shared_tiles), layout_, params_.cell_size_m,
                                                               params_.occupied_threshold, params_.max_certainty,
                                                               tile_bounds_, version_, occupied_cells_));
+}
+
+std::optional<std::vector<geometry::CellIndex>> HimmGrid::take_occupancy_changes() {
+  if (occupancy_changes_overflowed_) {
+    occupancy_changes_overflowed_ = false;
+    return std::nullopt;
+  }
+  return std::exchange(occupancy_changes_, {});
 }
 
 const Tile* HimmGrid::find_tile(const TileIndex& t) const {

@@ -27,6 +27,8 @@ void HimmParams::validate() const {
   require_in_range(max_certainty, 1, 15, "max_certainty");
   require_in_range(increment, 1, max_certainty, "increment");
   require_in_range(decrement, 1, max_certainty, "decrement");
+  // More than max_certainty simply empties the cell: a grid with a lower ceiling keeps the default.
+  require_in_range(seen_through_decrement, 0, 255, "seen_through_decrement");
   require_in_range(occupied_threshold, 1, max_certainty, "occupied_threshold");
   require(std::isfinite(growth_center_weight) && growth_center_weight >= 0.0, "growth_center_weight",
           "a finite number >= 0", format_number(growth_center_weight));

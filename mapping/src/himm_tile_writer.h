@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/mapping/himm_grid.h"
@@ -26,7 +27,9 @@ class HimmGrid::TileWriter {
 
   // Applies one beam from sensor_origin_W to end_point_W (metres, checked to be traversable): clears every cell before
   // the end cell, then hits the end cell when is_hit and clears it otherwise.
-  void trace_beam(const Eigen::Vector2d& sensor_origin_W, const Eigen::Vector2d& end_point_W, bool is_hit) {
+  // When lowered_cells is given, every cell before the end cell that held a certainty above 0 is appended to it.
+  void trace_beam(const Eigen::Vector2d& sensor_origin_W, const Eigen::Vector2d& end_point_W, bool is_hit,
+                  std::vector<geometry::CellIndex>* lowered_cells = nullptr) {
     const geometry::GridRayTraversal start(grid_.geometry_, sensor_origin_W, end_point_W);
     cursor_ = on_tile_of(cursor_, start.cell());
     // The walk keeps its state in locals, which the optimiser holds in registers; it would have to reload members,
@@ -42,7 +45,15 @@ class HimmGrid::TileWriter {
     std::int32_t local_y = layout.local(start.cell().iy);
     while (!ray.done()) {
       std::uint8_t& value = cells[layout.offset_of_local(local_x, local_y)];
-      occupied_change -= static_cast<int>(lowering_leaves_occupied(value, decrement, occupied_threshold));
+      if (lowered_cells != nullptr && value != 0 && value != kUnobserved) {
+        const geometry::CellIndex first = layout.first_cell_of(cursor_.tile_index);
+        lowered_cells->push_back({first.ix + local_x, first.iy + local_y});
+      }
+      if (lowering_leaves_occupied(value, decrement, occupied_threshold)) {
+        --occupied_change;
+        const geometry::CellIndex first = layout.first_cell_of(cursor_.tile_index);
+        grid_.note_occupancy_change({first.ix + local_x, first.iy + local_y});
+      }
       value = lowered(value, decrement);
       const geometry::CellStep step = ray.advance();
       local_x += step.dx;
@@ -64,8 +75,13 @@ class HimmGrid::TileWriter {
     }
   }
 
+  // Lowers the certainty of cell c by decrement, not below 0.
+  void lower(const geometry::CellIndex& c, std::uint8_t decrement) {
+    std::uint8_t& value = cell(c);
+    store(c, value, lowered(value, decrement));
+  }
   // Sets cell c to new_value, a certainty or kUnobserved.
-  void set(const geometry::CellIndex& c, std::uint8_t new_value) { store(cell(c), new_value); }
+  void set(const geometry::CellIndex& c, std::uint8_t new_value) { store(c, cell(c), new_value); }
 
  private:
   // The tile being written and its change of occupied cells not yet added to the tile and the grid.
@@ -105,7 +121,7 @@ class HimmGrid::TileWriter {
   // Lowers the certainty of cell c by the decrement, not below 0; an unobserved cell becomes observed at 0.
   void clear(const geometry::CellIndex& c) {
     std::uint8_t& value = cell(c);
-    store(value, lowered(value, decrement_));
+    store(c, value, lowered(value, decrement_));
   }
 
   // Raises the certainty of cell c by the increment, up to the maximum, then applies the growth-rate operator: the
@@ -115,7 +131,8 @@ class HimmGrid::TileWriter {
     std::uint8_t& value = cell(c);
     const int raised = std::min(params.max_certainty, certainty_of(value) + params.increment);
     const double grown = params.growth_center_weight * raised + params.growth_neighbour_weight * neighbour_sum(c);
-    store(value, static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
+    store(c, value,
+          static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
   }
 
   // Cell c, after moving the cursor to its tile.
@@ -178,9 +195,13 @@ class HimmGrid::TileWriter {
                                     (t.tx & (kCachedTilesSide - 1)));
   }
 
-  // Sets a cell value of the cursor's tile.
-  void store(std::uint8_t& value, std::uint8_t new_value) {
-    cursor_.occupied_change += static_cast<int>(is_occupied(new_value)) - static_cast<int>(is_occupied(value));
+  // Sets value, cell c's in the cursor's tile.
+  void store(const geometry::CellIndex& c, std::uint8_t& value, std::uint8_t new_value) {
+    const int change = static_cast<int>(is_occupied(new_value)) - static_cast<int>(is_occupied(value));
+    if (change != 0) {
+      cursor_.occupied_change += change;
+      grid_.note_occupancy_change(c);
+    }
     value = new_value;
   }
 

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -47,10 +48,37 @@ struct OccupiedColumns {
 OctoCollision collide_footprint(const FclOctreeView& view, const OccupiedColumns* columns,
                                 const geometry::Footprint& footprint, const geometry::Pose3& X_WB);
 
-struct OctoMapSnapshot::Impl {
+// A snapshot is cut into tiles: cubes of 2^kTileKeyBits voxels a side (the subtrees at depth 16 - kTileKeyBits), each
+// in a tree of its own with its FCL view and column summary. A publish rebuilds only the tiles whose voxels changed
+// and shares the others with the previous snapshot, so its cost follows what the scans changed, not the map's size.
+inline constexpr int kTileKeyBits = 8;
+inline constexpr int kTileDepth = 16 - kTileKeyBits;
+
+// A tile's index: each key component's top (16 - kTileKeyBits) bits, packed x | y << 8 | z << 16.
+using OctoTileId = std::uint32_t;
+inline OctoTileId tile_id_of(const octomap::OcTreeKey& key) {
+  return static_cast<OctoTileId>(key[0] >> kTileKeyBits) | static_cast<OctoTileId>(key[1] >> kTileKeyBits) << 8U |
+         static_cast<OctoTileId>(key[2] >> kTileKeyBits) << 16U;
+}
+
+// One tile of a snapshot: a full-depth tree holding only this tile's voxels (the same key space as the model's tree),
+// its FCL view and its column summary. Immutable; shared by every snapshot it did not change in.
+struct OctoTile {
   std::shared_ptr<const octomap::OcTree> tree;
   std::shared_ptr<const FclOctreeView> fcl_view;
   OccupiedColumns columns;
+  std::size_t leaf_count = 0;
+  std::size_t node_count = 0;
+};
+
+using OctoTiles = std::map<OctoTileId, std::shared_ptr<const OctoTile>>;
+
+struct OctoMapSnapshot::Impl {
+  // An empty tree with the model's parameters: key arithmetic, thresholds, and the collide of an empty snapshot.
+  std::shared_ptr<const OctoTile> empty;
+  OctoTiles tiles;
+  // The nodes above the tiles' depth that the model's tree has (every tile's tree repeats its own path to the root).
+  std::size_t nodes_above_tiles = 0;
 };
 
 // Runs the PCL filters params enables over points_W (all finite), in that order: voxel grid, then statistical outlier

@@ -7,7 +7,9 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <unordered_set>
 #include <utility>
+#include <vector>
 
 #include "octomap_internal.h"
 
@@ -69,25 +71,75 @@ OctoMapSnapshot::OctoMapSnapshot(std::unique_ptr<Impl> impl, std::uint64_t versi
 
 OctoMapSnapshot::~OctoMapSnapshot() = default;
 
+namespace {
+
+// The tiles of snapshot whose cubes overlap the key box [lo, hi], in id order.
+template <typename Visit>
+void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi,
+                       Visit&& visit) {
+  const OctoTileId first = tile_id_of(lo), last = tile_id_of(hi);
+  const auto part = [](OctoTileId id, unsigned axis) { return (id >> (8U * axis)) & 0xFFU; };
+  const std::uint64_t span = std::uint64_t{part(last, 0) - part(first, 0) + 1} * (part(last, 1) - part(first, 1) + 1) *
+                             (part(last, 2) - part(first, 2) + 1);
+  if (span > tiles.size()) {
+    // A box wider than the snapshot: walk the tiles rather than the box.
+    for (const auto& [id, tile] : tiles) {
+      bool inside = true;
+      for (unsigned axis = 0; axis < 3; ++axis)
+        inside = inside && part(id, axis) >= part(first, axis) && part(id, axis) <= part(last, axis);
+      if (inside && !visit(*tile)) return;
+    }
+    return;
+  }
+  for (OctoTileId z = part(first, 2); z <= part(last, 2); ++z) {
+    for (OctoTileId y = part(first, 1); y <= part(last, 1); ++y) {
+      for (OctoTileId x = part(first, 0); x <= part(last, 0); ++x) {
+        const auto it = tiles.find(x | y << 8U | z << 16U);
+        if (it != tiles.end() && !visit(*it->second)) return;
+      }
+    }
+  }
+}
+
+// The keys of the box [min_W, max_W], clamped to the key range.
+std::pair<octomap::OcTreeKey, octomap::OcTreeKey> key_box(const octomap::OcTree& tree, const Eigen::Vector3d& min_W,
+                                                          const Eigen::Vector3d& max_W) {
+  const auto [lo, hi] = clamped_box(tree, min_W, max_W);
+  return {tree.coordToKey(lo), tree.coordToKey(hi)};
+}
+
+}  // namespace
+
 std::optional<double> OctoMapSnapshot::occupancy(const Eigen::Vector3d& p_W) const {
-  return occupancy_in(*impl_->tree, p_W);
+  const octomap::OcTree& keys = *impl_->empty->tree;
+  octomap::OcTreeKey key;
+  if (!p_W.allFinite() || !keys.coordToKeyChecked(to_octo(p_W), key)) return std::nullopt;
+  const auto it = impl_->tiles.find(tile_id_of(key));
+  if (it == impl_->tiles.end()) return std::nullopt;
+  const octomap::OcTreeNode* node = it->second->tree->search(key);
+  if (node == nullptr) return std::nullopt;
+  return node->getOccupancy();
 }
 
 bool OctoMapSnapshot::occupied(const Eigen::Vector3d& p_W) const {
   const std::optional<double> p = occupancy(p_W);
-  return p.has_value() && *p >= impl_->tree->getOccupancyThres();
+  return p.has_value() && *p >= impl_->empty->tree->getOccupancyThres();
 }
 
 void OctoMapSnapshot::for_each_occupied(const Eigen::Vector3d& min_W, const Eigen::Vector3d& max_W,
                                         const std::function<bool(const OctoVoxel&)>& visit) const {
-  const octomap::OcTree& tree = *impl_->tree;
-  if (tree.getRoot() == nullptr || !min_W.allFinite() || !max_W.allFinite()) return;
+  if (impl_->tiles.empty() || !min_W.allFinite() || !max_W.allFinite()) return;
   if ((min_W.array() > max_W.array()).any()) return;
-  const auto [lo, hi] = clamped_box(tree, min_W, max_W);
-  for (auto it = tree.begin_leafs_bbx(lo, hi), end = tree.end_leafs_bbx(); it != end; ++it) {
-    if (!tree.isNodeOccupied(*it)) continue;
-    if (!visit({to_eigen(it.getCoordinate()), it.getSize(), it->getOccupancy()})) return;
-  }
+  const auto [lo, hi] = clamped_box(*impl_->empty->tree, min_W, max_W);
+  const auto [key_lo, key_hi] = key_box(*impl_->empty->tree, min_W, max_W);
+  for_tiles_in_keys(impl_->tiles, key_lo, key_hi, [&](const OctoTile& tile) {
+    const octomap::OcTree& tree = *tile.tree;
+    for (auto it = tree.begin_leafs_bbx(lo, hi), end = tree.end_leafs_bbx(); it != end; ++it) {
+      if (!tree.isNodeOccupied(*it)) continue;
+      if (!visit({to_eigen(it.getCoordinate()), it.getSize(), it->getOccupancy()})) return false;
+    }
+    return true;
+  });
 }
 
 std::vector<OctoVoxel> OctoMapSnapshot::occupied_in_box(const Eigen::Vector3d& min_W,
@@ -101,8 +153,10 @@ std::vector<OctoVoxel> OctoMapSnapshot::occupied_in_box(const Eigen::Vector3d& m
 }
 
 void OctoMapSnapshot::for_each_leaf(const std::function<void(const OctoVoxel&)>& visit) const {
-  const octomap::OcTree& tree = *impl_->tree;
-  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) visit(voxel_of(it));
+  for (const auto& [id, tile] : impl_->tiles) {
+    const octomap::OcTree& tree = *tile->tree;
+    for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) visit(voxel_of(it));
+  }
 }
 
 std::optional<OctoRayHit> OctoMapSnapshot::cast_ray(const Eigen::Vector3d& origin_W, const Eigen::Vector3d& direction_W,
@@ -113,30 +167,84 @@ std::optional<OctoRayHit> OctoMapSnapshot::cast_ray(const Eigen::Vector3d& origi
   if (!origin_W.allFinite() || !std::isfinite(max_range_m) || max_range_m <= 0.0) {
     throw std::invalid_argument("cast_ray: origin_W and max_range_m must be finite, max_range_m > 0");
   }
-  const octomap::OcTree& tree = *impl_->tree;
-  octomap::OcTreeKey key;
-  // castRay prints an error (and fails) when the origin lies beyond the key range; say "no hit" quietly instead.
-  if (tree.getRoot() == nullptr || !tree.coordToKeyChecked(to_octo(origin_W), key)) return std::nullopt;
-  octomap::point3d end;
-  if (!tree.castRay(to_octo(origin_W), to_octo(direction_W), end, /*ignoreUnknownCells=*/true, max_range_m)) {
-    return std::nullopt;
+  const octomap::OcTree& keys = *impl_->empty->tree;
+  octomap::OcTreeKey origin_key;
+  if (impl_->tiles.empty() || !keys.coordToKeyChecked(to_octo(origin_W), origin_key)) return std::nullopt;
+  // The voxels along the ray in order (OctoMap's 3D DDA, as castRay steps), the end voxel included, each looked up in
+  // its tile: castRay with ignoreUnknown, across tiles.
+  const Eigen::Vector3d end_W = origin_W + direction_W.normalized() * max_range_m;
+  const auto [end_lo, end_hi] = clamped_box(keys, end_W, end_W);
+  octomap::KeyRay ray;
+  if (!keys.computeRayKeys(to_octo(origin_W), end_lo, ray)) return std::nullopt;
+  const auto occupied_voxel = [&](const octomap::OcTreeKey& key) {
+    const auto it = impl_->tiles.find(tile_id_of(key));
+    if (it == impl_->tiles.end()) return false;
+    const octomap::OcTreeNode* node = it->second->tree->search(key);
+    return node != nullptr && it->second->tree->isNodeOccupied(node);
+  };
+  std::optional<octomap::OcTreeKey> hit;
+  for (const octomap::OcTreeKey& key : ray) {
+    if (occupied_voxel(key)) {
+      hit = key;
+      break;
+    }
   }
-  const Eigen::Vector3d center = to_eigen(end);
+  if (!hit) {
+    const octomap::OcTreeKey end_key = keys.coordToKey(end_lo);
+    if (occupied_voxel(end_key)) hit = end_key;
+  }
+  if (!hit) return std::nullopt;
+  const Eigen::Vector3d center = to_eigen(keys.keyToCoord(*hit));
   return OctoRayHit{center, (center - origin_W).norm()};
 }
 
+namespace {
+
+// Collides footprint with every tile its bounding sphere (about base_link's origin, height included) reaches; the
+// first hit answers. With no tile in reach the empty tile answers, which still checks the footprint's dimensions.
+OctoCollision collide_tiles(const OctoTiles& tiles, const OctoTile& empty, const geometry::Footprint& footprint,
+                            const geometry::Pose3& X_WB, bool with_columns) {
+  const double height = std::visit([](const auto& f) { return f.height; }, footprint);
+  const double radius = std::hypot(geometry::bounding_radius(footprint), height);
+  if (!std::isfinite(radius) || !X_WB.transform.matrix().allFinite() || tiles.empty()) {
+    return collide_footprint(*empty.fcl_view, with_columns ? &empty.columns : nullptr, footprint, X_WB);
+  }
+  // One voxel more on each side: FCL counts a voxel the footprint merely touches.
+  const Eigen::Vector3d reach = Eigen::Vector3d::Constant(radius + empty.tree->getResolution());
+  const auto [lo, hi] = key_box(*empty.tree, X_WB.translation() - reach, X_WB.translation() + reach);
+  OctoCollision collision;
+  bool checked = false;
+  for_tiles_in_keys(tiles, lo, hi, [&](const OctoTile& tile) {
+    checked = true;
+    collision = collide_footprint(*tile.fcl_view, with_columns ? &tile.columns : nullptr, footprint, X_WB);
+    return !collision.hit;
+  });
+  if (!checked) return collide_footprint(*empty.fcl_view, with_columns ? &empty.columns : nullptr, footprint, X_WB);
+  return collision;
+}
+
+}  // namespace
+
 OctoCollision OctoMapSnapshot::collide(const geometry::Footprint& footprint, const geometry::Pose3& X_WB) const {
-  return collide_footprint(*impl_->fcl_view, &impl_->columns, footprint, X_WB);
+  return collide_tiles(impl_->tiles, *impl_->empty, footprint, X_WB, true);
 }
 
 OctoCollision OctoMapSnapshot::collide_fcl_only(const geometry::Footprint& footprint,
                                                 const geometry::Pose3& X_WB) const {
-  return collide_footprint(*impl_->fcl_view, nullptr, footprint, X_WB);
+  return collide_tiles(impl_->tiles, *impl_->empty, footprint, X_WB, false);
 }
 
-double OctoMapSnapshot::resolution() const { return impl_->tree->getResolution(); }
-std::size_t OctoMapSnapshot::leaf_count() const { return impl_->tree->getNumLeafNodes(); }
-std::size_t OctoMapSnapshot::node_count() const { return impl_->tree->size(); }
+double OctoMapSnapshot::resolution() const { return impl_->empty->tree->getResolution(); }
+std::size_t OctoMapSnapshot::leaf_count() const {
+  std::size_t count = 0;
+  for (const auto& [id, tile] : impl_->tiles) count += tile->leaf_count;
+  return count;
+}
+std::size_t OctoMapSnapshot::node_count() const {
+  std::size_t count = impl_->nodes_above_tiles;
+  for (const auto& [id, tile] : impl_->tiles) count += tile->node_count - kTileDepth;
+  return count;
+}
 
 // ---------------------------------------------------------------------------------------------------------------------
 // Model
@@ -161,7 +269,9 @@ struct OctoMapModel::Impl {
   // bitmap over their bounding box (or, when that box is too sparse, Morton-coded, sorted and uniqued). Either way the
   // updates run in an order where consecutive keys share most of their tree path, which update() exploits. The order
   // of the updates does not matter: each key gets exactly one, and a lazy update never changes another key's leaf.
-  void apply(const octomap::point3d& origin, const std::vector<Ray>& batch) {
+  // see_through: the batch is one laser scan, whose seen-through voxels are capped (OctoMapParams::
+  // laser_see_through_clears); only in the bitmap path, which every planar scan takes.
+  void apply(const octomap::point3d& origin, const std::vector<Ray>& batch, bool see_through = false) {
     ray_keys.clear();
     hit_keys.clear();
     // A ray's keys step monotonically along each axis (computeRayKeys is a 3D DDA), so its first and last key bound
@@ -195,7 +305,7 @@ struct OctoMapModel::Impl {
     const std::uint64_t volume = nx * ny * nz;
     const std::uint64_t n_keys = ray_keys.size() + hit_keys.size();
     if (volume <= kMaxBitmapCells && volume <= 256 * n_keys) {
-      apply_by_bitmap(lo, nx, ny, volume);
+      apply_by_bitmap(lo, nx, ny, nz, volume, see_through);
     } else {
       apply_by_sorting();
     }
@@ -203,7 +313,8 @@ struct OctoMapModel::Impl {
 
   // apply's deduplication for a compact batch (a planar scan): one free and one hit bit per cell of the keys' bounding
   // box, x fastest. The bitmaps are all zero between calls (each word is cleared as it is read).
-  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t volume) {
+  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t nz,
+                       std::uint64_t volume, bool see_through) {
     const std::size_t n_words = static_cast<std::size_t>((volume + 63) / 64);
     if (free_bits.size() < n_words) {
       free_bits.resize(n_words, 0);
@@ -212,6 +323,31 @@ struct OctoMapModel::Impl {
     const auto index = [&](const octomap::OcTreeKey& key) {
       return ((key[2] - lo[2]) * ny + (key[1] - lo[1])) * nx + (key[0] - lo[0]);
     };
+    if (see_through) {
+      if (near_hit_bits.size() < n_words) {
+        near_hit_bits.resize(n_words, 0);
+      }
+      // Voxels within kSeeThroughSpare_m of a hit (one voxel up and down) were not seen through: where beams graze a
+      // wall they cross some of its voxels to end on it further along, and the scan's other beams end close by.
+      const auto spare = static_cast<std::int64_t>(std::ceil(kSeeThroughSpare_m / tree->getResolution() - 1e-9));
+      for (const octomap::OcTreeKey& key : hit_keys) {
+        const std::int64_t x = key[0] - lo[0], y = key[1] - lo[1], z = key[2] - lo[2];
+        for (std::int64_t nzi = std::max<std::int64_t>(z - 1, 0); nzi <= std::min<std::int64_t>(z + 1, nz - 1); ++nzi) {
+          for (std::int64_t nyi = std::max<std::int64_t>(y - spare, 0);
+               nyi <= std::min<std::int64_t>(y + spare, static_cast<std::int64_t>(ny) - 1); ++nyi) {
+            for (std::int64_t nxi = std::max<std::int64_t>(x - spare, 0);
+                 nxi <= std::min<std::int64_t>(x + spare, static_cast<std::int64_t>(nx) - 1); ++nxi) {
+              const auto i = static_cast<std::uint64_t>(
+                  (nzi * static_cast<std::int64_t>(ny) + nyi) * static_cast<std::int64_t>(nx) + nxi);
+              std::uint64_t& word = near_hit_bits[i >> 6];
+              if (word == 0) near_hit_words.push_back(i >> 6);
+              word |= std::uint64_t{1} << (i & 63);
+            }
+          }
+        }
+      }
+    }
+    const float cap = tree->getOccupancyThresLog() - tree->getProbMissLog() / 2.0F;
     for (const octomap::OcTreeKey& key : ray_keys) {
       const std::uint64_t i = index(key);
       free_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
@@ -225,6 +361,8 @@ struct OctoMapModel::Impl {
       const std::uint64_t hits = hit_bits[w];
       std::uint64_t cells = free_bits[w] | hits;
       if (cells == 0) continue;
+      // Seen through: crossed by a beam, hit by none, and not near a hit.
+      const std::uint64_t seen_through = see_through ? free_bits[w] & ~hits & ~near_hit_bits[w] : 0;
       free_bits[w] = 0;
       hit_bits[w] = 0;
       while (cells != 0) {
@@ -235,9 +373,20 @@ struct OctoMapModel::Impl {
         const octomap::OcTreeKey key(static_cast<octomap::key_type>(lo[0] + i % nx),
                                      static_cast<octomap::key_type>(lo[1] + row % ny),
                                      static_cast<octomap::key_type>(lo[2] + row / ny));
-        update(key, ((hits >> b) & 1U) != 0 ? hit : miss);
+        const bool is_hit = ((hits >> b) & 1U) != 0;
+        update(key, is_hit ? hit : miss);
+        if (((seen_through >> b) & 1U) != 0 && path_depth == 16) {
+          // At most half a miss above the threshold, so the next such scan leaves it free.
+          octomap::OcTreeNode* leaf = path[16];
+          if (leaf->getLogOdds() > cap) {
+            leaf->setLogOdds(cap);
+            mark_dirty(key);
+          }
+        }
       }
     }
+    for (const std::uint64_t w : near_hit_words) near_hit_bits[w] = 0;
+    near_hit_words.clear();
   }
 
   // apply's deduplication for a sparse batch (a 3D cloud): Morton codes, sorted and uniqued, merged in Z order (the
@@ -299,6 +448,7 @@ struct OctoMapModel::Impl {
     octomap::OcTree& t = *tree;
     if (t.getRoot() == nullptr || t.isChangeDetectionEnabled()) {
       t.updateNode(key, log_odds, /*lazy_eval=*/true);
+      mark_dirty(key);
       path_depth = -1;
       return;
     }
@@ -325,8 +475,10 @@ struct OctoMapModel::Impl {
             return;
           }
           t.expandNode(node);
+          mark_dirty(key);
         } else {
           t.createNodeChild(node, pos);
+          mark_dirty(key);
           created = true;
         }
       }
@@ -335,7 +487,18 @@ struct OctoMapModel::Impl {
       path[static_cast<std::size_t>(depth) + 1] = node;
     }
     path_depth = kDepth;
-    if (!clamped(node, log_odds)) t.updateNodeLogOdds(node, log_odds);
+    if (!clamped(node, log_odds)) {
+      t.updateNodeLogOdds(node, log_odds);
+      mark_dirty(key);
+    }
+  }
+
+  // The tile of key changed: the next publish rebuilds it.
+  void mark_dirty(const octomap::OcTreeKey& key) {
+    const OctoTileId id = tile_id_of(key);
+    if (id == last_dirty) return;
+    last_dirty = id;
+    dirty_tiles.insert(id);
   }
 
   bool clamped(const octomap::OcTreeNode* node, float log_odds) const {
@@ -352,14 +515,184 @@ struct OctoMapModel::Impl {
     inner_stale = false;
   }
 
+  // refresh_inner for the changed tiles only: their subtrees and the nodes above them, bottom-up, as
+  // updateInnerOccupancy then prune would (a node's occupancy is its children's maximum; a node whose eight children
+  // are equal leaves is pruned). The other subtrees are up to date already: lazy updates stale only their own paths.
+  void refresh_changed_tiles() {
+    if (!inner_stale) return;
+    if (all_tiles_dirty || tree->getRoot() == nullptr) {
+      refresh_inner();
+      return;
+    }
+    // The changed tiles' ancestors at each depth above the tiles, as key prefixes packed like tile ids.
+    std::array<std::unordered_set<OctoTileId>, kTileDepth + 1> prefixes;
+    for (const OctoTileId id : dirty_tiles) {
+      for (int depth = kTileDepth; depth >= 0; --depth) {
+        const unsigned shift = static_cast<unsigned>(kTileDepth - depth);
+        const OctoTileId prefix =
+            ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U | (((id >> 16U) & 0xFFU) >> shift) << 16U;
+        if (!prefixes[static_cast<std::size_t>(depth)].insert(prefix).second) break;
+      }
+    }
+    refresh_above(tree->getRoot(), 0, 0, 0, 0, prefixes);
+    inner_stale = false;
+  }
+
+  void refresh_above(octomap::OcTreeNode* node, int depth, OctoTileId x, OctoTileId y, OctoTileId z,
+                     const std::array<std::unordered_set<OctoTileId>, kTileDepth + 1>& prefixes) {
+    octomap::OcTree& t = *tree;
+    if (depth == kTileDepth) {
+      refresh_subtree(node, depth);
+      return;
+    }
+    if (!t.nodeHasChildren(node)) return;
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!t.nodeChildExists(node, i)) continue;
+      const OctoTileId cx = x << 1U | (i & 1U), cy = y << 1U | ((i >> 1U) & 1U), cz = z << 1U | ((i >> 2U) & 1U);
+      if (prefixes[static_cast<std::size_t>(depth) + 1].contains(cx | cy << 8U | cz << 16U)) {
+        refresh_above(t.getNodeChild(node, i), depth + 1, cx, cy, cz, prefixes);
+      }
+    }
+    node->updateOccupancyChildren();
+    static_cast<void>(t.pruneNode(node));
+  }
+
+  void refresh_subtree(octomap::OcTreeNode* node, int depth) {
+    octomap::OcTree& t = *tree;
+    if (!t.nodeHasChildren(node)) return;
+    for (unsigned i = 0; i < 8; ++i) {
+      if (t.nodeChildExists(node, i)) refresh_subtree(t.getNodeChild(node, i), depth + 1);
+    }
+    node->updateOccupancyChildren();
+    static_cast<void>(t.pruneNode(node));
+  }
+
+  // A tree that can be given a root (OcTree makes one only on the first update) and so be built node by node.
+  class TileTree : public octomap::OcTree {
+   public:
+    explicit TileTree(double resolution_m) : octomap::OcTree(resolution_m) {}
+    octomap::OcTreeNode* make_root() {
+      if (root == nullptr) {
+        root = new octomap::OcTreeNode();  // NOLINT(cppcoreguidelines-owning-memory): the tree owns and deletes it
+        ++tree_size;
+        size_changed = true;
+      }
+      return root;
+    }
+  };
+
+  static void copy_children(TileTree& to, octomap::OcTreeNode* to_node, const octomap::OcTree& from,
+                            const octomap::OcTreeNode* from_node) {
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!from.nodeChildExists(from_node, i)) continue;
+      const octomap::OcTreeNode* child = from.getNodeChild(from_node, i);
+      octomap::OcTreeNode* copy = to.createNodeChild(to_node, i);
+      copy->setLogOdds(child->getLogOdds());
+      copy_children(to, copy, from, child);
+    }
+  }
+
+  // Tile id cut out of the tree into a tree of its own: the path from the root (each node with the tile's occupancy,
+  // the maximum within it), then a copy of the tile's subtree; a pruned leaf above the tile's depth becomes one leaf
+  // of the tile's size. nullptr when the tree holds nothing there.
+  [[nodiscard]] std::shared_ptr<const OctoTile> build_tile(OctoTileId id, const OctoMapParams& params) const {
+    const octomap::OcTree& t = *tree;
+    const octomap::OcTreeNode* node = t.getRoot();
+    if (node == nullptr) return nullptr;
+    const auto child_index = [id](int depth) {
+      const unsigned shift = static_cast<unsigned>(kTileDepth - 1 - depth);
+      return ((id >> shift) & 1U) | ((id >> (8U + shift)) & 1U) << 1U | ((id >> (16U + shift)) & 1U) << 2U;
+    };
+    for (int depth = 0; depth < kTileDepth && t.nodeHasChildren(node); ++depth) {
+      const unsigned pos = child_index(depth);
+      if (!t.nodeChildExists(node, pos)) return nullptr;
+      node = t.getNodeChild(node, pos);
+    }
+    auto tile_tree = std::make_shared<TileTree>(t.getResolution());
+    apply_params(*tile_tree, params);
+    octomap::OcTreeNode* copy = tile_tree->make_root();
+    copy->setLogOdds(node->getLogOdds());
+    for (int depth = 0; depth < kTileDepth; ++depth) {
+      copy = tile_tree->createNodeChild(copy, child_index(depth));
+      copy->setLogOdds(node->getLogOdds());
+    }
+    copy_children(*tile_tree, copy, t, node);
+    return make_tile(std::move(tile_tree));
+  }
+
+  static std::shared_ptr<const OctoTile> make_tile(std::shared_ptr<const octomap::OcTree> tile_tree) {
+    auto tile = std::make_shared<OctoTile>();
+    tile->fcl_view = make_fcl_view(tile_tree);
+    tile->columns = OccupiedColumns::build(*tile_tree);
+    tile->leaf_count = tile_tree->getRoot() == nullptr ? 0 : tile_tree->getNumLeafNodes();
+    tile->node_count = tile_tree->size();
+    tile->tree = std::move(tile_tree);
+    return tile;
+  }
+
+  // Every tile the tree holds something in (after a load: all of them change).
+  [[nodiscard]] std::vector<OctoTileId> all_tile_ids() const {
+    std::vector<OctoTileId> ids;
+    if (tree->getRoot() != nullptr) collect_tile_ids(tree->getRoot(), 0, 0, 0, 0, ids);
+    return ids;
+  }
+  void collect_tile_ids(const octomap::OcTreeNode* node, int depth, OctoTileId x, OctoTileId y, OctoTileId z,
+                        std::vector<OctoTileId>& ids) const {
+    const octomap::OcTree& t = *tree;
+    if (depth == kTileDepth) {
+      ids.push_back(x | y << 8U | z << 16U);
+      return;
+    }
+    const bool leaf = !t.nodeHasChildren(node);
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!leaf && !t.nodeChildExists(node, i)) continue;
+      const OctoTileId cx = x << 1U | (i & 1U), cy = y << 1U | ((i >> 1U) & 1U), cz = z << 1U | ((i >> 2U) & 1U);
+      collect_tile_ids(leaf ? node : t.getNodeChild(node, i), depth + 1, cx, cy, cz, ids);
+    }
+  }
+
+  // Brings the published tiles in step with the tree: the changed ones rebuilt, the rest kept.
+  void update_tiles(const OctoMapParams& params) {
+    refresh_changed_tiles();
+    if (all_tiles_dirty) {
+      tiles.clear();
+      for (const OctoTileId id : all_tile_ids()) {
+        if (auto tile = build_tile(id, params)) tiles.emplace(id, std::move(tile));
+      }
+    } else {
+      for (const OctoTileId id : dirty_tiles) {
+        if (auto tile = build_tile(id, params)) {
+          tiles[id] = std::move(tile);
+        } else {
+          tiles.erase(id);
+        }
+      }
+    }
+    dirty_tiles.clear();
+    last_dirty = kNoTile;
+    all_tiles_dirty = false;
+  }
+
   std::unique_ptr<octomap::OcTree> tree;
   bool inner_stale = false;
+  // The tiles changed since the last publish (last_dirty: the latest one marked, which spares most set look-ups), and
+  // the tiles that publish gave out.
+  static constexpr OctoTileId kNoTile = 0xFFFFFFFFU;
+  std::unordered_set<OctoTileId> dirty_tiles;
+  OctoTileId last_dirty = kNoTile;
+  bool all_tiles_dirty = false;
+  OctoTiles tiles;
+  std::shared_ptr<const OctoTile> empty_tile;
   // Reused between batches so that they are allocated once.
   static constexpr std::uint64_t kMaxBitmapCells = std::uint64_t{1} << 27;  // 16 MiB per bitmap
+  // The see-through rule spares voxels this close to a hit of the same scan (metres, in x and y).
+  static constexpr double kSeeThroughSpare_m = 0.2;
   octomap::KeyRay key_ray;
   std::vector<octomap::OcTreeKey> ray_keys;  // the free keys of every ray of the batch, repeats included
   std::vector<octomap::OcTreeKey> hit_keys;  // the end keys of the hits, repeats included
   std::vector<std::uint64_t> free_bits, hit_bits;
+  // The see-through rule's voxels near a hit (zero between calls) and the words it set.
+  std::vector<std::uint64_t> near_hit_bits, near_hit_words;
   std::vector<std::uint64_t> free_codes, hit_codes;
   // update()'s cache: the nodes on the last updated key's path, root first, and that key.
   std::array<octomap::OcTreeNode*, 17> path{};
@@ -405,7 +738,7 @@ void OctoMapModel::insert_scan(const geometry::Pose3& X_WS, float angle_min, flo
     const Eigen::Vector3d p_S{length * std::cos(angle), length * std::sin(angle), 0.0};
     rays.push_back({to_octo(X_WS.transform * p_S), hit});
   }
-  impl_->apply(origin, rays);
+  impl_->apply(origin, rays, params_.laser_see_through_clears);
   ++version_;
 }
 
@@ -484,17 +817,33 @@ void OctoMapModel::load_bt(const std::filesystem::path& path) {
   params_ = params;
   impl_->tree = std::move(tree);
   impl_->inner_stale = false;
+  impl_->all_tiles_dirty = true;
+  impl_->empty_tile = nullptr;
   ++version_;
 }
 
 std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
-  impl_->refresh_inner();
-  auto copy = std::make_shared<const octomap::OcTree>(*impl_->tree);
+  impl_->update_tiles(params_);
+  if (!impl_->empty_tile) {
+    auto empty_tree = std::make_shared<octomap::OcTree>(params_.resolution_m);
+    apply_params(*empty_tree, params_);
+    impl_->empty_tile = Impl::make_tile(std::move(empty_tree));
+  }
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
-  snapshot_impl->fcl_view = make_fcl_view(copy);
-  snapshot_impl->columns = OccupiedColumns::build(*copy);
-  snapshot_impl->tree = std::move(copy);
-  std::shared_ptr<const OctoMapSnapshot> snapshot{new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
+  snapshot_impl->empty = impl_->empty_tile;
+  snapshot_impl->tiles = impl_->tiles;
+  std::unordered_set<OctoTileId> above;
+  for (const auto& [id, tile] : impl_->tiles) {
+    for (unsigned shift = 1; shift <= kTileDepth; ++shift) {
+      // Depth kTileDepth - shift, tagged with it so that prefixes of different depths stay apart.
+      const OctoTileId prefix = ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U |
+                                (((id >> 16U) & 0xFFU) >> shift) << 16U | shift << 24U;
+      if (!above.insert(prefix).second) break;
+    }
+  }
+  snapshot_impl->nodes_above_tiles = above.size();
+  std::shared_ptr<const OctoMapSnapshot> snapshot{
+      new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
   {
     const std::lock_guard lock(snapshot_mutex_);
     snapshot_ = snapshot;

@@ -29,8 +29,12 @@ using MinCircle = CGAL::Min_sphere_of_spheres_d<MinCircleTraits>;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
+[[noreturn]] void fail(const std::string& what, const std::string& rule, const std::string& value) {
+  throw std::invalid_argument(what + " must be " + rule + ", got " + value);
+}
+
 void require(bool condition, const std::string& what, const std::string& rule, const std::string& value) {
-  if (!condition) throw std::invalid_argument(what + " must be " + rule + ", got " + value);
+  if (!condition) fail(what, rule, value);
 }
 
 std::string format_point(const Eigen::Vector2d& p) {
@@ -75,26 +79,40 @@ double depth_in_scanned_sector(const Eigen::Vector2d& p_W, const PtemScan& scan)
       {to_arc, distance_to_segment(q, left, scan.max_range_m), distance_to_segment(q, right, scan.max_range_m)});
 }
 
+// Adds p_W to the cluster's extent unless a point already there lies within kPtemExtentSpacing_m of it.
+void add_to_extent(PtemCluster& cluster, const Eigen::Vector2d& p_W) {
+  constexpr double kSpacingSq = kPtemExtentSpacing_m * kPtemExtentSpacing_m;
+  // Newest first: a scan's returns come in beam order, so a near neighbour is usually among the last ones.
+  for (auto it = cluster.extent_W.rbegin(); it != cluster.extent_W.rend(); ++it) {
+    if ((*it - p_W).squaredNorm() < kSpacingSq) return;
+  }
+  cluster.extent_W.push_back(p_W);
+}
+
 // True when the two clusters' closed discs intersect (touching counts).
 bool circles_overlap(const PtemCluster& a, const PtemCluster& b) {
   return (a.centre_W - b.centre_W).norm() <= a.radius_m + b.radius_m;
 }
 
+// Checks each field before its value is formatted for the message: a valid scan costs no string work.
 void validate_scan(const PtemScan& scan, const std::optional<double>& latest_stamp_s) {
-  require(std::isfinite(scan.stamp_s), "PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
-  if (latest_stamp_s) {
-    require(scan.stamp_s >= *latest_stamp_s, "PtemScan.stamp_s",
-            ">= the previous scan's stamp " + format_number(*latest_stamp_s), format_number(scan.stamp_s));
+  if (!std::isfinite(scan.stamp_s)) fail("PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
+  if (latest_stamp_s && !(scan.stamp_s >= *latest_stamp_s)) {
+    fail("PtemScan.stamp_s", ">= the previous scan's stamp " + format_number(*latest_stamp_s),
+         format_number(scan.stamp_s));
   }
-  require(scan.p_WS.allFinite(), "PtemScan.p_WS", "finite", format_point(scan.p_WS));
-  require(std::isfinite(scan.yaw_WS), "PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
-  require(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi, "PtemScan.field_of_view_rad", "in (0, 2pi]",
-          format_number(scan.field_of_view_rad));
-  require(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0, "PtemScan.max_range_m", "a finite number > 0",
-          format_number(scan.max_range_m));
+  if (!scan.p_WS.allFinite()) fail("PtemScan.p_WS", "finite", format_point(scan.p_WS));
+  if (!std::isfinite(scan.yaw_WS)) fail("PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
+  if (!(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi)) {
+    fail("PtemScan.field_of_view_rad", "in (0, 2pi]", format_number(scan.field_of_view_rad));
+  }
+  if (!(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0)) {
+    fail("PtemScan.max_range_m", "a finite number > 0", format_number(scan.max_range_m));
+  }
   for (std::size_t i = 0; i < scan.points_W.size(); ++i) {
-    require(scan.points_W[i].allFinite(), "PtemScan.points_W[" + std::to_string(i) + "]", "finite",
-            format_point(scan.points_W[i]));
+    if (!scan.points_W[i].allFinite()) {
+      fail("PtemScan.points_W[" + std::to_string(i) + "]", "finite", format_point(scan.points_W[i]));
+    }
   }
 }
 
@@ -105,6 +123,10 @@ void PtemParams::validate() const {
           "a finite number >= 0", format_number(cluster_distance_m));
   require(std::isfinite(initial_cluster_radius_m) && initial_cluster_radius_m > 0.0,
           "PtemParams.initial_cluster_radius_m", "a finite number > 0", format_number(initial_cluster_radius_m));
+  require(std::isfinite(max_cluster_radius_m) &&
+              (max_cluster_radius_m == 0.0 || max_cluster_radius_m >= initial_cluster_radius_m),
+          "PtemParams.max_cluster_radius_m", "0 (unbounded) or a finite number >= initial_cluster_radius_m",
+          format_number(max_cluster_radius_m));
   require(std::isfinite(restricted_threshold) && restricted_threshold > 0.0, "PtemParams.restricted_threshold",
           "a finite number > 0", format_number(restricted_threshold));
   if (first_cluster_sigma_m) {
@@ -225,7 +247,22 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
         nearest = i;
       }
     }
-    if (nearest == clusters.size() || nearest_distance > params_.cluster_distance_m) {
+    bool start_new = nearest == clusters.size() || nearest_distance > params_.cluster_distance_m;
+    if (!start_new && nearest_distance > 0.0) {
+      PtemCluster& cluster = clusters[nearest];
+      const PtemCircle enclosing = enclose_circle_and_point(PtemCircle{cluster.centre_W, cluster.radius_m}, p_W);
+      const bool bounded = params_.max_cluster_radius_m > 0.0;
+      if (bounded && enclosing.radius_m > params_.max_cluster_radius_m) {
+        // Growing on would let one circle span a wall and its disc cover the floor in front of it: the wall goes on
+        // as the next cluster of a chain.
+        start_new = true;
+      } else {
+        cluster.centre_W = enclosing.centre_W;
+        cluster.radius_m = enclosing.radius_m;
+        grown[nearest] = true;
+      }
+    }
+    if (start_new) {
       PtemCluster cluster;
       cluster.centre_W = p_W;
       cluster.radius_m = params_.initial_cluster_radius_m;
@@ -233,13 +270,9 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
       cluster.first_seen_stamp_s = stamp_s;
       clusters.push_back(cluster);
       grown.push_back(true);
-    } else if (nearest_distance > 0.0) {
-      PtemCluster& cluster = clusters[nearest];
-      const PtemCircle enclosing = enclose_circle_and_point(PtemCircle{cluster.centre_W, cluster.radius_m}, p_W);
-      cluster.centre_W = enclosing.centre_W;
-      cluster.radius_m = enclosing.radius_m;
-      grown[nearest] = true;
+      nearest = clusters.size() - 1;
     }
+    add_to_extent(clusters[nearest], p_W);
   }
 }
 
@@ -313,7 +346,9 @@ std::shared_ptr<const PtemSnapshot> PtemModel::make_snapshot() const {
 
 namespace {
 
-constexpr std::string_view kStateMagic = "OCCGEOP1";
+constexpr std::string_view kStateMagic = "OCCGEOP2";
+// The layout before clusters kept their extents: read as "other parameters", so the PTEM restarts from the journal.
+constexpr std::string_view kExtentlessStateMagic = "OCCGEOP1";
 
 static_assert(std::endian::native == std::endian::little, "PTEM state is written in the host's byte order");
 
@@ -376,6 +411,7 @@ std::string PtemModel::serialize() const {
   out.put(static_cast<std::uint8_t>(params_.construction));
   out.put(params_.cluster_distance_m);
   out.put(params_.initial_cluster_radius_m);
+  out.put(params_.max_cluster_radius_m);
   out.put(params_.restricted_threshold);
   out.put_optional(params_.first_cluster_sigma_m);
   out.put_optional(f_r_);
@@ -390,6 +426,11 @@ std::string PtemModel::serialize() const {
     out.put<std::uint8_t>(cluster.threshold_reachable ? 1 : 0);
     out.put(cluster.first_seen_scan);
     out.put(cluster.first_seen_stamp_s);
+    out.put(static_cast<std::uint64_t>(cluster.extent_W.size()));
+    for (const Eigen::Vector2d& p_W : cluster.extent_W) {
+      out.put(p_W.x());
+      out.put(p_W.y());
+    }
   }
   out.put(fnv1a(out.bytes()));
   return std::move(out.bytes());
@@ -397,6 +438,7 @@ std::string PtemModel::serialize() const {
 
 bool PtemModel::restore(std::string_view bytes) {
   constexpr std::size_t kChecksumBytes = sizeof(std::uint64_t);
+  if (bytes.substr(0, kExtentlessStateMagic.size()) == kExtentlessStateMagic) return false;
   if (bytes.size() < kStateMagic.size() + kChecksumBytes || bytes.substr(0, kStateMagic.size()) != kStateMagic) {
     throw std::invalid_argument("PTEM state is damaged: it does not start with " + std::string(kStateMagic));
   }
@@ -411,14 +453,15 @@ bool PtemModel::restore(std::string_view bytes) {
   saved.construction = construction == 0 ? PtemConstruction::kCumulative : PtemConstruction::kSingleScan;
   saved.cluster_distance_m = in.get<double>("params.cluster_distance_m");
   saved.initial_cluster_radius_m = in.get<double>("params.initial_cluster_radius_m");
+  saved.max_cluster_radius_m = in.get<double>("params.max_cluster_radius_m");
   saved.restricted_threshold = in.get<double>("params.restricted_threshold");
   saved.first_cluster_sigma_m = in.get_optional("params.first_cluster_sigma_m");
   const auto f_r = in.get_optional("f_r");
   const auto scan_count = in.get<std::uint64_t>("scan_count");
   const auto latest_stamp_s = in.get_optional("latest_stamp_s");
   const auto count = in.get<std::uint64_t>("cluster count");
-  // Every cluster takes 49 bytes; a count the rest cannot hold is damage, not a reason to allocate.
-  if (count > body.size() / 49) throw std::invalid_argument("PTEM state is damaged: its cluster count is impossible");
+  // Every cluster takes at least 57 bytes; a count the rest cannot hold is damage, not a reason to allocate.
+  if (count > body.size() / 57) throw std::invalid_argument("PTEM state is damaged: its cluster count is impossible");
   std::vector<PtemCluster> clusters(static_cast<std::size_t>(count));
   for (PtemCluster& cluster : clusters) {
     cluster.centre_W.x() = in.get<double>("clusters.centre_W");
@@ -428,6 +471,14 @@ bool PtemModel::restore(std::string_view bytes) {
     cluster.threshold_reachable = in.get<std::uint8_t>("clusters.threshold_reachable") != 0;
     cluster.first_seen_scan = in.get<std::uint64_t>("clusters.first_seen_scan");
     cluster.first_seen_stamp_s = in.get<double>("clusters.first_seen_stamp_s");
+    const auto extent_count = in.get<std::uint64_t>("clusters.extent count");
+    if (extent_count > body.size() / 16) throw std::invalid_argument("PTEM state is damaged: an extent count is impossible");
+    cluster.extent_W.resize(static_cast<std::size_t>(extent_count));
+    for (Eigen::Vector2d& p_W : cluster.extent_W) {
+      p_W.x() = in.get<double>("clusters.extent_W");
+      p_W.y() = in.get<double>("clusters.extent_W");
+      if (!p_W.allFinite()) throw std::invalid_argument("PTEM state is damaged: an extent point is not finite");
+    }
     if (!cluster.centre_W.allFinite() || !(cluster.radius_m > 0.0) || !(cluster.sigma_m > 0.0) ||
         cluster.first_seen_scan >= scan_count) {
       throw std::invalid_argument("PTEM state is damaged: a cluster holds impossible values");
@@ -443,6 +494,7 @@ bool PtemModel::restore(std::string_view bytes) {
   const auto same_value = [&](double a, double b) { return same(a, b); };
   if (saved.construction != params_.construction || !same_value(saved.cluster_distance_m, params_.cluster_distance_m) ||
       !same_value(saved.initial_cluster_radius_m, params_.initial_cluster_radius_m) ||
+      !same_value(saved.max_cluster_radius_m, params_.max_cluster_radius_m) ||
       !same(saved.first_cluster_sigma_m, params_.first_cluster_sigma_m) ||
       (!params_.first_cluster_sigma_m && !same_value(saved.restricted_threshold, params_.restricted_threshold))) {
     return false;

@@ -153,6 +153,7 @@ mapping::PtemParams PtemConfig::params_for(const std::string& world) const {
   if (const auto it = worlds.find(world); it != worlds.end()) {
     if (it->second.construction) out.construction = *it->second.construction;
     if (it->second.cluster_distance_m) out.cluster_distance_m = *it->second.cluster_distance_m;
+    if (it->second.max_cluster_radius_m) out.max_cluster_radius_m = *it->second.max_cluster_radius_m;
   }
   return out;
 }
@@ -367,6 +368,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    s.field("cell_size_m", h.cell_size_m)
                        .field("increment", h.increment)
                        .field("decrement", h.decrement)
+                       .field("seen_through_decrement", h.seen_through_decrement)
                        .field("max_certainty", h.max_certainty)
                        .field("growth_center_weight", h.growth_center_weight)
                        .field("growth_neighbour_weight", h.growth_neighbour_weight)
@@ -396,12 +398,14 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    if (construction) p.construction = *construction;
                    s.field("cluster_distance_m", p.cluster_distance_m)
                        .field("initial_cluster_radius_m", p.initial_cluster_radius_m)
+                       .field("max_cluster_radius_m", p.max_cluster_radius_m)
                        .field("restricted_threshold", p.restricted_threshold)
                        .optional_field("first_cluster_sigma_m", p.first_cluster_sigma_m)
                        .named_sections("worlds", [&](const std::string& name, Section& w) {
                          PtemWorldOverride& world = config.ptem.worlds[name];
                          read_construction(w, "construction", world.construction);
-                         w.optional_field("cluster_distance_m", world.cluster_distance_m);
+                         w.optional_field("cluster_distance_m", world.cluster_distance_m)
+                             .optional_field("max_cluster_radius_m", world.max_cluster_radius_m);
                        });
                  })
         .section("octomap",
@@ -415,6 +419,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("occupancy_threshold", o.occupancy_threshold)
                        .field("max_range_m", o.max_range_m)
                        .field("discretize_endpoints", o.discretize_endpoints)
+                       .field("laser_see_through_clears", o.laser_see_through_clears)
                        .field("voxel_filter_enabled", o.voxel_filter_enabled)
                        .field("voxel_leaf_m", o.voxel_leaf_m)
                        .field("outlier_filter_enabled", o.outlier_filter_enabled)
@@ -450,9 +455,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                  })
         .section("distance_field", [&](Section& s) {
           auto& d = config.distance_field;
-          s.field("max_distance_m", d.max_distance_m)
-              .field("max_extent_m", d.max_extent_m)
-              .field("growth_margin_m", d.growth_margin_m);
+          s.field("max_distance_m", d.max_distance_m);
         });
     top.reject_unknown();
   } catch (const ConfigError& e) {

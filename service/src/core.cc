@@ -35,14 +35,21 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
       octomap_timer_(strand_),
       octomap_publish_every_messages_(params.octomap_publish_every_messages) {
   auto grid_snapshot = grid_.snapshot();
+  static_cast<void>(grid_.take_occupancy_changes());  // the field starts from the whole grid
   distance_field_.update(grid_snapshot);
   snapshot_ = {std::move(grid_snapshot), ptem_.snapshot(), distance_field_.snapshot(), octomap_.publish()};
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
-void World::publish_on_strand(std::optional<mapping::CellBox> touched, std::optional<Eigen::Vector2d> focus_W) {
+void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
   auto grid = grid_.snapshot();
-  distance_field_.update(grid, touched, focus_W);
+  // The grid's log of flipped cells keeps this step in proportion to what changed; `touched` (the area the
+  // messages could reach) is the fallback when the log overflowed.
+  if (const auto changed = grid_.take_occupancy_changes()) {
+    distance_field_.update(grid, std::span<const geometry::CellIndex>(*changed));
+  } else {
+    distance_field_.update(grid, touched);
+  }
   if (octomap_publish_every_messages_ > 0) {
     // Counted in messages, not wall time, so lockstep runs repeat exactly.
     if (++messages_since_octomap_ >= octomap_publish_every_messages_) {

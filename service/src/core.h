@@ -83,13 +83,12 @@ class World : public std::enable_shared_from_this<World> {
   // The mutable OctoMap; call only from the world's strand (or before any work reaches it).
   mapping::OctoMapModel& octomap_on_strand() { return octomap_; }
   // Makes the grid's and the PTEM's current state visible to readers, together, after bringing the
-  // distance field in step with the grid: only cells inside `touched` are compared (it must hold
-  // every cell whose occupancy may have flipped since the last publication; nullopt compares the
-  // whole field). The OctoMap is published too when its last snapshot is older than
+  // distance field in step with the grid: the grid's log of flipped cells says which cells to
+  // compare; when it overflowed, those inside `touched` (it must hold every cell whose occupancy may
+  // have flipped since the last publication; nullopt compares the whole grid). The OctoMap is published too when its last snapshot is older than
   // octomap.min_publish_interval_s; otherwise a timer on the strand publishes it when that
   // interval has passed, so readers never see it lag by more. Call only from the world's strand.
-  void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt,
-                         std::optional<Eigen::Vector2d> focus_W = std::nullopt);
+  void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt);
   // Publishes the OctoMap now (e.g. before an export); call only from the world's strand.
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
   // The latest published state of the grid; safe from any thread.

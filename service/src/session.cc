@@ -1,6 +1,8 @@
 #include "session.h"
 
 #include <google/protobuf/arena.h>
+
+#include <algorithm>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/write.hpp>
@@ -86,15 +88,35 @@ class FrameArena {
 
 }  // namespace
 
-void WatchHub::subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id) {
+void WatchHub::subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id,
+                         bool with_data) {
   const std::lock_guard lock(mutex_);
   std::erase_if(watchers_, [&](const Watcher& w) { return w.key == session.get() || w.session.expired(); });
-  watchers_.push_back({session.get(), session, std::move(world), std::move(robot_id)});
+  watchers_.push_back({session.get(), session, std::move(world), std::move(robot_id), with_data});
+  count_data_watchers_locked();
 }
 
 void WatchHub::unsubscribe(const Session* session) {
   const std::lock_guard lock(mutex_);
   std::erase_if(watchers_, [&](const Watcher& w) { return w.key == session; });
+  count_data_watchers_locked();
+}
+
+void WatchHub::count_data_watchers_locked() {
+  data_watchers_.store(static_cast<std::size_t>(std::ranges::count_if(watchers_, &Watcher::with_data)),
+                       std::memory_order_relaxed);
+}
+
+std::vector<std::shared_ptr<Session>> WatchHub::matching_locked(const std::string& world, const std::string& robot_id,
+                                                                bool with_data) const {
+  std::vector<std::shared_ptr<Session>> targets;
+  for (const Watcher& w : watchers_) {
+    if (w.with_data != with_data) continue;
+    if (!w.world.empty() && w.world != world) continue;
+    if (!w.robot_id.empty() && w.robot_id != robot_id) continue;
+    if (auto session = w.session.lock()) targets.push_back(std::move(session));
+  }
+  return targets;
 }
 
 void WatchHub::publish(const std::string& world, const std::string& robot_id, std::uint64_t seq,
@@ -102,11 +124,7 @@ void WatchHub::publish(const std::string& world, const std::string& robot_id, st
   std::vector<std::shared_ptr<Session>> targets;
   {
     const std::lock_guard lock(mutex_);
-    for (const Watcher& w : watchers_) {
-      if (!w.world.empty() && w.world != world) continue;
-      if (!w.robot_id.empty() && w.robot_id != robot_id) continue;
-      if (auto session = w.session.lock()) targets.push_back(std::move(session));
-    }
+    targets = matching_locked(world, robot_id, false);
   }
   if (targets.empty()) return;
   auto event = std::make_shared<v1::WatchEvent>();
@@ -114,6 +132,15 @@ void WatchHub::publish(const std::string& world, const std::string& robot_id, st
   event->set_robot_id(robot_id);
   event->set_seq(seq);
   event->set_world_version(world_version);
+  for (const auto& session : targets) session->push_watch_event(event);
+}
+
+void WatchHub::publish_data(const std::shared_ptr<const v1::WatchEvent>& event) {
+  std::vector<std::shared_ptr<Session>> targets;
+  {
+    const std::lock_guard lock(mutex_);
+    targets = matching_locked(event->world(), event->robot_id(), true);
+  }
   for (const auto& session : targets) session->push_watch_event(event);
 }
 
@@ -290,6 +317,13 @@ void Session::send(const v1::ServerMessage& message) {
   if (message.has_scan_ack() && info_.role == v1::ROLE_DRIVER) {
     shared_.watch.publish(info_.world, info_.robot_id, message.scan_ack().seq(), message.scan_ack().world_version());
   }
+  // Data watchers get a copy of every command sent to a driver (built only when some asked for data).
+  if (message.has_motion_command() && info_.role == v1::ROLE_DRIVER && shared_.watch.has_data_watchers()) {
+    auto event = std::make_shared<v1::WatchEvent>();
+    event->set_seq(message.motion_command().seq());
+    *event->mutable_motion_command() = message.motion_command();
+    publish_data(std::move(event));
+  }
   if (is_answer(message.body_case())) {
     std::size_t pending = pending_requests_.load();
     while (pending > 0 && !pending_requests_.compare_exchange_weak(pending, pending - 1)) {
@@ -345,11 +379,35 @@ void Session::watch(const v1::WatchRequest& request) {
                request.request_id());
     return;
   }
-  shared_.watch.subscribe(shared_from_this(), request.world(), request.robot_id());
+  shared_.watch.subscribe(shared_from_this(), request.world(), request.robot_id(), request.with_data());
   v1::ServerMessage reply;
   reply.mutable_watch()->set_request_id(request.request_id());
   send(reply);
-  log::info("session_watch", {{"session", info_.id}, {"world", request.world()}, {"robot", request.robot_id()}});
+  if (request.with_data()) {
+    // The specs of robots already registered, queued here (on this session's thread) ahead of any data event, which
+    // reaches this session only through a post: a recording can always place what follows.
+    for (const auto& robot : core_.robots()) {
+      const std::string& world = robot->world().name();
+      if (!request.world().empty() && request.world() != world) continue;
+      if (!request.robot_id().empty() && request.robot_id() != robot->model().id) continue;
+      auto event = std::make_shared<v1::WatchEvent>();
+      event->set_world(world);
+      event->set_robot_id(robot->model().id);
+      *event->mutable_robot_spec() = robot->model().spec;
+      enqueue_watch_event(std::move(event));
+    }
+  }
+  log::info("session_watch", {{"session", info_.id},
+                              {"world", request.world()},
+                              {"robot", request.robot_id()},
+                              {"with_data", request.with_data()}});
+}
+
+void Session::publish_data(std::shared_ptr<v1::WatchEvent> event) {
+  // A driver's world and robot are fixed at its hello, before any of its messages reach a strand.
+  event->set_world(info_.world);
+  event->set_robot_id(info_.robot_id);
+  shared_.watch.publish_data(event);
 }
 
 void Session::push_watch_event(std::shared_ptr<const v1::WatchEvent> event) {

@@ -23,11 +23,16 @@ class Session;
 // network thread; it only posts events to the watchers, so a slow watcher never slows ingest.
 class WatchHub {
  public:
-  // Replaces the session's filter (empty world or robot: all).
-  void subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id);
+  // Replaces the session's filter (empty world or robot: all); with_data: the session takes data events instead of
+  // ack-only ones.
+  void subscribe(const std::shared_ptr<Session>& session, std::string world, std::string robot_id, bool with_data);
   void unsubscribe(const Session* session);
-  // One accepted sensor message of robot_id in world.
+  // One accepted sensor message of robot_id in world (ack-only watchers).
   void publish(const std::string& world, const std::string& robot_id, std::uint64_t seq, std::uint64_t world_version);
+  // Whether any session asked for data events: the ingest path builds them only then. Lock-free.
+  [[nodiscard]] bool has_data_watchers() const { return data_watchers_.load(std::memory_order_relaxed) > 0; }
+  // One data event (world and robot_id set) to the data watchers whose filter matches.
+  void publish_data(const std::shared_ptr<const v1::WatchEvent>& event);
 
  private:
   struct Watcher {
@@ -35,9 +40,16 @@ class WatchHub {
     std::weak_ptr<Session> session;
     std::string world;
     std::string robot_id;
+    bool with_data = false;
   };
-  std::mutex mutex_;
+  // Sessions of watchers_ that still hold a reference; called with mutex_ held.
+  std::vector<std::shared_ptr<Session>> matching_locked(const std::string& world, const std::string& robot_id,
+                                                        bool with_data) const;
+  void count_data_watchers_locked();
+
+  mutable std::mutex mutex_;
   std::vector<Watcher> watchers_;
+  std::atomic<std::size_t> data_watchers_{0};
 };
 
 // What every session of one server shares.
@@ -75,6 +87,8 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   void close_after_send() override;
   HelloThrottle* hello_throttle() override { return &shared_.hello_throttle; }
   void watch(const v1::WatchRequest& request) override;
+  [[nodiscard]] bool data_watched() const override { return shared_.watch.has_data_watchers(); }
+  void publish_data(std::shared_ptr<v1::WatchEvent> event) override;
 
   // Queues one watch event (any thread).
   void push_watch_event(std::shared_ptr<const v1::WatchEvent> event);

@@ -385,6 +385,18 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
       return nullptr;
     }
   }
+  if (spec.command_units() == v1::COMMAND_UNITS_ACTIVITYBOT_TICKS) {
+    if (!model->encoders || !std::holds_alternative<geometry::DifferentialDriveParams>(model->drive)) {
+      error = field_error("robot_spec.command_units",
+                          "ActivityBot ticks need a differential drive and the spec's encoders (robot_spec.encoders)");
+      return nullptr;
+    }
+  } else if (spec.command_units() != v1::COMMAND_UNITS_SI) {
+    error =
+        field_error("robot_spec.command_units", "is " + std::to_string(spec.command_units()) +
+                                                    "; must be COMMAND_UNITS_SI or COMMAND_UNITS_ACTIVITYBOT_TICKS");
+    return nullptr;
+  }
   return model;
 }
 
@@ -398,7 +410,9 @@ std::optional<std::string> missing_sensor_for(const std::string& behaviour, cons
              "' has neither (no range sensor to wander by)";
     }
   } else if (behaviour == "goto") {
-    if (!laser) return "'goto' (PointBug) reads a laser scan and robot '" + model.id + "' has no laser";
+    if (!laser && model.servo_ranges.empty()) {
+      return "'goto' (PointBug) reads a laser scan or a servo-swept beam and robot '" + model.id + "' has neither";
+    }
   }
   return std::nullopt;
 }

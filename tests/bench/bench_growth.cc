@@ -169,7 +169,7 @@ void ingest_one(World& world, const LaserModel& laser, const geometry::Pose2& po
   IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   target.touch({pose.x, pose.y}, laser.range_max_m);
   insert_laser_scan(world, target, pose, laser, scan);
-  world.publish_on_strand(target.touched, Eigen::Vector2d(pose.x, pose.y));
+  world.publish_on_strand(target.touched);
   if (publish_octree) world.publish_octomap_on_strand();
 }
 

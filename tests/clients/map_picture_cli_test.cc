@@ -137,26 +137,26 @@ TEST(MapPictureCli, PictureOptionsNameTheFlagAtFault) {
   const ProcessResult ptem_on_pgm =
       run_process({occgeo, "map", "export", "--world", "w", "--out", "x", "--ptem"}, std::chrono::seconds(30));
   EXPECT_EQ(ptem_on_pgm.exit_code, 2);
-  EXPECT_NE(ptem_on_pgm.err.find("option --ptem needs --format png"), std::string::npos) << ptem_on_pgm.err;
+  EXPECT_NE(ptem_on_pgm.err.find("option '--ptem' needs --format png"), std::string::npos) << ptem_on_pgm.err;
   const ProcessResult bad_scale =
       run_process({occgeo, "map", "export", "--format", "png", "--world", "w", "--out", "x", "--scale", "0"},
                   std::chrono::seconds(30));
   EXPECT_EQ(bad_scale.exit_code, 2);
-  EXPECT_NE(bad_scale.err.find("option --scale needs a whole number from 1 to 16, not '0'"), std::string::npos)
+  EXPECT_NE(bad_scale.err.find("option '--scale' needs a whole number from 1 to 16, got '0'"), std::string::npos)
       << bad_scale.err;
   const auto missing = dir.path() / "missing.csv";
   const ProcessResult no_trace = run_process(
       {occgeo, "map", "export", "--format", "png", "--world", "w", "--out", "x", "--trajectory", missing.string()},
       std::chrono::seconds(30));
   EXPECT_EQ(no_trace.exit_code, 1);
-  EXPECT_NE(no_trace.err.find("option --trajectory: cannot read"), std::string::npos) << no_trace.err;
+  EXPECT_NE(no_trace.err.find("option '--trajectory': cannot read"), std::string::npos) << no_trace.err;
   const auto bad_csv = dir.path() / "bad.csv";
   std::ofstream(bad_csv) << "t,x,y,theta\n0,1,2,0\n0.1,1,oops,0\n";
   const ProcessResult bad_trace = run_process(
       {occgeo, "map", "export", "--format", "png", "--world", "w", "--out", "x", "--trajectory", bad_csv.string()},
       std::chrono::seconds(30));
   EXPECT_EQ(bad_trace.exit_code, 1);
-  EXPECT_NE(bad_trace.err.find("option --trajectory: " + bad_csv.string() + " line 3: expected 4 numbers"),
+  EXPECT_NE(bad_trace.err.find("option '--trajectory': " + bad_csv.string() + " line 3: expected 4 numbers"),
             std::string::npos)
       << bad_trace.err;
 }

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "occgeo/client/mcap_format.h"
 #include "occgeo/replay/mcap.h"
 #include "occgeo/replay/ros2_messages.h"
 #include "occgeo/replay/scan_source.h"
@@ -104,7 +105,7 @@ std::string chunk(const std::string& records, bool with_crc) {
   return record(0x06, Bytes().u64(0).u64(0).u64(records.size()).u32(crc).str("").u64(records.size()).add(records).data);
 }
 std::string file(const std::string& records) {
-  const std::string magic(kMcapMagic);
+  const std::string magic(mcap::kMagic);
   return magic + record(0x01, Bytes().str("ros2").str("test").data) + records +
          record(0x02, Bytes().u64(0).u64(0).u32(0).data) + magic;
 }

@@ -134,6 +134,7 @@ TEST(SummaryJson, HasTheDocumentedFields) {
   summary.errors = 1;
   summary.duration_s = 2.0;
   summary.scans_per_s = 5.0;
+  summary.scans_per_s_by_tenth = {4.0, 6.5};
   summary.consistency = 0.975;
   Diagnostics diagnostics;
   diagnostics.warn("truncated_line", 3, "cut");
@@ -141,7 +142,7 @@ TEST(SummaryJson, HasTheDocumentedFields) {
   EXPECT_NE(json.find("\"scans\":10"), std::string::npos) << json;
   EXPECT_NE(json.find("\"warnings\":1,\"warnings_by_kind\":{\"truncated_line\":1}"), std::string::npos) << json;
   EXPECT_NE(json.find("\"errors\":1"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"scans_per_s\":5"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"scans_per_s\":5,\"scans_per_s_by_tenth\":[4,6.5]"), std::string::npos) << json;
   EXPECT_NE(json.find("\"duration_s\":2"), std::string::npos) << json;
   EXPECT_NE(json.find("\"consistency\":0.975"), std::string::npos) << json;
   EXPECT_NE(json.find("\"file\":\"a\\\"b.log\""), std::string::npos) << json;

@@ -240,7 +240,7 @@ TEST(ServoRange, ActivityBotSendsEncodersThenOneReadingPerStep) {
       const v1::ServoRange& reading = batch.messages[1].servo_range();
       EXPECT_EQ(reading.seq(), ++seq);
       EXPECT_EQ(batch.last_sensor_seq, seq);
-      EXPECT_FALSE(batch.steering_scan_seq) << "no laser: the server does not steer it";
+      EXPECT_EQ(batch.steering_scan_seq, seq) << "no laser, no range array: the server answers each servo reading";
       EXPECT_NEAR(reading.stamp_s(), step * 0.01, 1e-12);
       EXPECT_EQ(batch.messages[0].wheel_encoders().stamp_s(), reading.stamp_s());
       EXPECT_GT(reading.range_m(), 0.5F);
@@ -514,6 +514,45 @@ TEST(Messages, SensorMessagesCarryTheirFields) {
   EXPECT_EQ(ticks.wheel_encoders().seq(), 3U);
   EXPECT_EQ(ticks.wheel_encoders().left_ticks(), 12);
   EXPECT_EQ(ticks.wheel_encoders().right_ticks(), -4);
+}
+
+// Seed 003 §3.4: the ActivityBot takes its commands in encoder ticks. drive_goto turns each wheel by its ticks once
+// per manoeuvre id (its repeats while it runs change nothing); drive_speed runs the wheels at ticks per second.
+TEST(ActivityBotUnits, DriveGotoOncePerIdAndDriveSpeedInTicksPerSecond) {
+  const RobotPreset& activitybot = preset_named("activitybot");
+  const v1::RobotSpec spec = make_robot_spec(activitybot, {});
+  EXPECT_EQ(spec.command_units(), v1::COMMAND_UNITS_ACTIVITYBOT_TICKS);
+  EXPECT_EQ(spec.default_behaviour(), "stop") << "server-steered: stands until a controller gives it a goal";
+  Simulation simulation(load_world(kWorlds / "room.yaml"), activitybot, {}, 1);
+  v1::MotionCommand go;
+  go.set_expires_after_s(0.5);
+  go.mutable_drive_goto()->set_left_ticks(100);
+  go.mutable_drive_goto()->set_right_ticks(100);
+  go.mutable_drive_goto()->set_id(1);
+  go.mutable_drive_goto()->set_max_ticks_per_s(64);
+  simulation.apply_command(go);
+  for (int step = 0; step < 100; ++step) {
+    simulation.step();
+    if (step % 10 == 0) simulation.apply_command(go);  // the same manoeuvre repeated while it runs
+  }
+  // 100 ticks at 64 ticks/s take 1.56 s: still going after 1 s, however long the watchdog.
+  EXPECT_TRUE(simulation.robot().drive_goto_active());
+  for (int step = 0; step < 100; ++step) simulation.step();
+  EXPECT_FALSE(simulation.robot().drive_goto_active());
+  EXPECT_EQ(simulation.robot().encoder_ticks().left, 100);
+  EXPECT_EQ(simulation.robot().encoder_ticks().right, 100);
+  EXPECT_NEAR(simulation.robot().pose().x, 100 * 3.25e-3, 1e-3);
+
+  v1::MotionCommand turn;
+  turn.set_expires_after_s(0.5);
+  turn.mutable_drive_speed()->set_left_ticks_per_s(-32);
+  turn.mutable_drive_speed()->set_right_ticks_per_s(32);
+  simulation.apply_command(turn);
+  for (int step = 0; step < 25; ++step) simulation.step();  // 0.25 s: 8 ticks each way
+  EXPECT_EQ(simulation.robot().encoder_ticks().left, 92);
+  EXPECT_EQ(simulation.robot().encoder_ticks().right, 108);
+  for (int step = 0; step < 100; ++step) simulation.step();  // the command expired after 0.5 s
+  EXPECT_EQ(simulation.robot().encoder_ticks().right, 116);
 }
 
 }  // namespace

@@ -244,6 +244,37 @@ TEST(MovingObstacle, FollowsItsWaypointsAtConstantSpeed) {
   EXPECT_TRUE(crossing.center_at(22.5).isApprox(Eigen::Vector2d(1.75, -0.5)));
 }
 
+TEST(MovingObstacle, StandsAtItsFirstWaypointUntilItsStartTime) {
+  const MovingObstacle late{.shape = Shape::circle({0.0, 0.0}, 0.15),
+                            .waypoints = {{1.75, -1.0}, {1.75, 1.0}},
+                            .speed_mps = 0.2,
+                            .loop = false,
+                            .start_s = 4.0};
+  EXPECT_TRUE(late.center_at(0.0).isApprox(Eigen::Vector2d(1.75, -1.0)));
+  EXPECT_TRUE(late.center_at(4.0).isApprox(Eigen::Vector2d(1.75, -1.0)));
+  EXPECT_TRUE(late.center_at(9.0).isApprox(Eigen::Vector2d(1.75, 0.0)));
+}
+
+TEST(MovingObstacle, ContactsAreSplitIntoRunningIntoItAndBeingRunInto) {
+  // A person walks through where the robot stands: a contact at rest. Then the robot drives into a wall: moving.
+  const MovingObstacle person{.shape = Shape::circle({0.0, 0.0}, 0.25),
+                              .waypoints = {{0.0, -3.0}, {0.0, 3.0}},
+                              .speed_mps = 1.0,
+                              .loop = false};
+  const ShapeWorld world({Shape::box({4.0, 0.0}, 0.2, 4.0, 0.0)}, {person});
+  SimulatedRobot robot(world, bearcat(), {0.0, 0.0, 0.0});
+  for (int i = 0; i < 800; ++i) robot.step();  // 8 s standing: the person passes through at t 3 s
+  EXPECT_EQ(robot.collisions_at_rest(), 1u);
+  EXPECT_EQ(robot.collisions_moving(), 0u);
+  for (int i = 0; i < 800; ++i) {
+    if (i % 40 == 0) robot.command({.left_mps = 0.5, .right_mps = 0.5});
+    robot.step();
+  }
+  EXPECT_EQ(robot.collisions_moving(), 1u);
+  EXPECT_EQ(robot.collisions_at_rest(), 1u);
+  EXPECT_EQ(robot.collisions(), 2u);
+}
+
 TEST(MovingObstacle, SuccessiveScansSeeTheApproachingObstacleCloser) {
   RobotPreset preset = bearcat();
   preset.laser()->range_noise_sigma_m = 0.0;

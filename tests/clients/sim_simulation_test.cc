@@ -209,6 +209,8 @@ TEST(Report, JsonHasEveryField) {
                            .world_file = "worlds/open_field.yaml",
                            .distance_m = 12.5,
                            .collisions = 2,
+                           .collisions_moving = 1,
+                           .collisions_at_rest = 1,
                            .sim_time_s = 60.0,
                            .scans_sent = 600,
                            .commands_received = 598,
@@ -220,7 +222,8 @@ TEST(Report, JsonHasEveryField) {
                            .commands_ignored = 3};
   EXPECT_EQ(to_json(summary),
             "{\"robot\": \"bc \\\"1\\\"\", \"world\": \"worlds/open_field.yaml\", \"distance_m\": 12.5, "
-            "\"collisions\": 2, \"sim_time_s\": 60, \"scans_sent\": 600, \"commands_received\": 598, "
+            "\"collisions\": 2, \"collisions_moving\": 1, \"collisions_at_rest\": 1, \"sim_time_s\": 60, "
+            "\"scans_sent\": 600, \"commands_received\": 598, "
             "\"final_pose\": {\"x\": 1.25, \"y\": -2, \"theta\": 0.5}, \"deadlock_reported\": true, "
             "\"last_state\": \"deadlock\", \"state_counts\": {\"clear\": 590, \"deadlock\": 8}, "
             "\"messages_sent\": {\"laser_scan\": 600, \"odometry\": 600}, \"commands_ignored\": 3}");

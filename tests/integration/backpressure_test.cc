@@ -22,6 +22,7 @@
 
 #include "occgeo/proto/framing.h"
 #include "process.h"
+#include "raw_client.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -58,21 +59,6 @@ std::size_t server_rss_bytes(const TempDir& dir) {
     }
   }
   return 0;
-}
-
-// Ranges of the Bearcat's laser (181 beams over 180 degrees) at X_WB inside a 12 m square room centred on the origin.
-std::vector<float> room_ranges(double x, double y, double theta) {
-  std::vector<float> ranges(181);
-  for (std::size_t i = 0; i < ranges.size(); ++i) {
-    const double angle = theta - std::numbers::pi / 2.0 + static_cast<double>(i) * std::numbers::pi / 180.0;
-    const double c = std::cos(angle);
-    const double s = std::sin(angle);
-    double range = 1e9;
-    if (std::abs(c) > 1e-9) range = std::min(range, ((c > 0 ? 6.0 : -6.0) - x) / c);
-    if (std::abs(s) > 1e-9) range = std::min(range, ((s > 0 ? 6.0 : -6.0) - y) / s);
-    ranges[i] = static_cast<float>(std::min(range, 8.5));  // past 8 m: no return
-  }
-  return ranges;
 }
 
 // A driver in lockstep: each scan waits for its ScanAck; the latency of each is kept.
@@ -151,74 +137,6 @@ class LockstepDriver {
   std::uint64_t seq_ = 0;
   std::vector<double> latencies_us_;
   std::vector<v1::MotionCommand> commands_;
-};
-
-// A raw observer socket whose receive buffer is tiny, so the server's writes to it stall as soon as it stops
-// reading (a phone on a bad link, a hung process).
-class RawClient {
- public:
-  explicit RawClient(std::uint16_t port, int receive_buffer_bytes = 4096) : socket_(io_) {
-    socket_.open(boost::asio::ip::tcp::v4());
-    socket_.set_option(boost::asio::socket_base::receive_buffer_size(receive_buffer_bytes));
-    socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
-  }
-  void send(const v1::ClientMessage& message) {
-    boost::asio::write(socket_, boost::asio::buffer(proto::encode_frame(message)));
-  }
-  // Sends without ever blocking longer than `limit`; false when the bytes could not all be written in time.
-  bool send_within(const v1::ClientMessage& message, std::chrono::milliseconds limit) {
-    const std::string frame = proto::encode_frame(message);
-    bool done = false;
-    boost::asio::async_write(socket_, boost::asio::buffer(frame),
-                             [&](const boost::system::error_code& error, std::size_t) { done = !error; });
-    io_.restart();
-    io_.run_for(limit);
-    if (!io_.stopped()) {
-      boost::system::error_code ignored;
-      socket_.cancel(ignored);
-      io_.restart();
-      io_.run();
-      return false;
-    }
-    return done;
-  }
-  // The next message, or nullopt at end of stream or after `limit`.
-  std::optional<v1::ServerMessage> receive(std::chrono::milliseconds limit) {
-    const auto deadline = Clock::now() + limit;
-    v1::ServerMessage message;
-    while (decoder_.next(message) != proto::FrameStatus::frame) {
-      if (closed_ || Clock::now() >= deadline) return std::nullopt;
-      std::size_t got = 0;
-      boost::system::error_code result = boost::asio::error::would_block;
-      socket_.async_read_some(boost::asio::buffer(buffer_), [&](const boost::system::error_code& error, std::size_t n) {
-        result = error;
-        got = n;
-      });
-      io_.restart();
-      io_.run_until(deadline);
-      if (!io_.stopped()) {
-        boost::system::error_code ignored;
-        socket_.cancel(ignored);
-        io_.restart();
-        io_.run();
-        return std::nullopt;
-      }
-      if (result) {
-        closed_ = true;
-        return std::nullopt;
-      }
-      decoder_.append(buffer_.data(), got);
-    }
-    return message;
-  }
-  [[nodiscard]] bool closed() const { return closed_; }
-
- private:
-  boost::asio::io_context io_;
-  boost::asio::ip::tcp::socket socket_;
-  proto::FrameDecoder decoder_{std::size_t{64} << 20};
-  std::array<char, 65536> buffer_{};
-  bool closed_ = false;
 };
 
 v1::ClientMessage hello_message(v1::Role role) {

@@ -38,7 +38,8 @@ bool closed_by_server(int fd, std::chrono::seconds limit) {
   timeval timeout{static_cast<time_t>(limit.count()), 0};
   setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
   char byte = 0;
-  return recv(fd, &byte, 1, 0) <= 0 && (errno != EAGAIN && errno != EWOULDBLOCK);
+  const ssize_t received = recv(fd, &byte, 1, 0);
+  return received == 0 || (received < 0 && errno != EAGAIN && errno != EWOULDBLOCK);
 }
 
 // One odometry and one scan of the Bearcat's laser; the scan's MotionCommand is awaited for at most `limit`.

@@ -35,7 +35,10 @@ constexpr double kApproachSpeed_mps = 0.1;
 std::string server_config(const std::vector<std::string>& cumulative_worlds) {
   std::ostringstream yaml;
   yaml << "ptem:\n  construction: single_scan\n  worlds:\n";
-  for (const std::string& world : cumulative_worlds) yaml << "    " << world << ": {construction: cumulative}\n";
+  // The seed's cumulative construction lets a cluster grow without bound (§4.2.2): that growth is what is measured.
+  for (const std::string& world : cumulative_worlds) {
+    yaml << "    " << world << ": {construction: cumulative, max_cluster_radius_m: 0}\n";
+  }
   return yaml.str();
 }
 

@@ -54,6 +54,10 @@ TEST_F(Replay, IntelCorrectedLogMapsConsistentlyAndWritesPgmYamlPng) {
   EXPECT_GE(json_number(json, "consistency"), 0.95);
   std::cout << "intel scans_per_s " << json_number(json, "scans_per_s") << ", consistency "
             << json_number(json, "consistency") << "\n";
+  // The rate within each tenth of the log shows whether ingest slows as the map grows.
+  const std::vector<double> tenths = json_number_array(json, "scans_per_s_by_tenth");
+  ASSERT_EQ(tenths.size(), 10U) << json;
+  for (const double rate : tenths) EXPECT_GT(rate, 0.0) << json;
   for (const char* suffix : {".pgm", ".yaml", ".png"}) {
     const auto path = prefix.string() + suffix;
     ASSERT_TRUE(std::filesystem::exists(path)) << path;

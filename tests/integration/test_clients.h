@@ -1,6 +1,10 @@
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <string>
+#include <vector>
 
 #include "occgeo/client/connection.h"
 #include "occgeo/sim/messages.h"
@@ -35,6 +39,22 @@ inline client::Connection open_driver_session(const std::string& address, const 
   *spec.mutable_robot_spec() = bearcat_spec();
   connection.send(spec);
   return connection;
+}
+
+// Ranges of the Bearcat's laser (181 beams over 180 degrees) at X_WB inside a 12 m square room centred on the origin;
+// past 8 m (the laser's range) a beam has no return.
+inline std::vector<float> room_ranges(double x, double y, double theta) {
+  std::vector<float> ranges(181);
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    const double angle = theta - std::numbers::pi / 2.0 + static_cast<double>(i) * std::numbers::pi / 180.0;
+    const double c = std::cos(angle);
+    const double s = std::sin(angle);
+    double range = 1e9;
+    if (std::abs(c) > 1e-9) range = std::min(range, ((c > 0 ? 6.0 : -6.0) - x) / c);
+    if (std::abs(s) > 1e-9) range = std::min(range, ((s > 0 ? 6.0 : -6.0) - y) / s);
+    ranges[i] = static_cast<float>(std::min(range, 8.5));
+  }
+  return ranges;
 }
 
 }  // namespace occgeo::testing

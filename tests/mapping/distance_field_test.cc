@@ -10,6 +10,7 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -100,7 +101,7 @@ void expect_field_exact(const DistanceFieldSnapshot& field) {
 
 void expect_same_field(const DistanceFieldSnapshot& a, const DistanceFieldSnapshot& b) {
   ASSERT_EQ(a.bounds(), b.bounds());
-  const CellBox box = *a.bounds();
+  const CellBox box = *a.bounds();  // every cell beyond is at max_distance in both
   int mismatches = 0;
   for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
     for (int ix = box.min.ix; ix <= box.max.ix; ++ix) {
@@ -126,25 +127,19 @@ TEST(DistanceFieldParamsTest, ValidationNamesTheField) {
   params.max_distance_m = 0.0;
   EXPECT_NE(message(params).find("max_distance_m"), std::string::npos) << message(params);
   params = {};
-  params.growth_margin_m = -1.0;
-  EXPECT_NE(message(params).find("growth_margin_m"), std::string::npos) << message(params);
-  params = {};
-  params.max_extent_m = 2.0 * params.growth_margin_m;
-  EXPECT_NE(message(params).find("max_extent_m"), std::string::npos) << message(params);
-  params = {};
-  params.max_extent_m = std::nan("");
+  params.max_distance_m = std::nan("");
   EXPECT_THROW(DistanceField{params}, std::invalid_argument);
   EXPECT_NO_THROW(DistanceFieldParams{}.validate());
 
   // Limits in cells are checked against the grid's cell size at the first update.
   params = {};
-  params.max_extent_m = 5000.0;
+  params.max_distance_m = 500.0;  // 5000 cells of 0.1 m
   DistanceField field(params);
   try {
     static_cast<void>(field.update(World(4, 4).snapshot()));
     ADD_FAILURE() << "no error";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("max_extent_m"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("max_distance_m"), std::string::npos) << e.what();
   }
   EXPECT_THROW(static_cast<void>(DistanceField(DistanceFieldParams{}).update(nullptr)), std::invalid_argument);
 }
@@ -187,7 +182,6 @@ TEST(DistanceFieldTest, DistancesEqualBruteForce) {
   std::mt19937 rng(7);
   DistanceFieldParams params;
   params.max_distance_m = 1.5;
-  params.growth_margin_m = 0.5;
   for (int trial = 0; trial < 3; ++trial) {
     DistanceField field(params);
     static_cast<void>(field.update(random_world(rng, 70, 50, 8, 40).snapshot()));
@@ -202,7 +196,6 @@ TEST(DistanceFieldTest, IncrementalUpdatesEqualFromScratch) {
   std::mt19937 rng(11);
   DistanceFieldParams params;
   params.max_distance_m = 2.0;
-  params.growth_margin_m = 0.5;
   World world = random_world(rng, 80, 60, 6, 30);
   DistanceField field(params);
   ASSERT_TRUE(field.update(world.snapshot()).rebuilt);
@@ -250,7 +243,7 @@ TEST(DistanceFieldTest, FollowsHimmScans) {
     const double reach = static_cast<double>(kRangeMax) + grid.params().cell_size_m;
     const CellBox touched{cells.cell_of(X_WS.position() - Eigen::Vector2d::Constant(reach)),
                           cells.cell_of(X_WS.position() + Eigen::Vector2d::Constant(reach))};
-    changed += field.update(grid.snapshot(), touched, X_WS.position()).changed_cells;
+    changed += field.update(grid.snapshot(), touched).changed_cells;
     EXPECT_EQ(field.snapshot()->version(), grid.version());
   }
   EXPECT_GT(changed, 0U);
@@ -273,9 +266,9 @@ TEST(DistanceFieldTest, OldSnapshotsStayUnchanged) {
   EXPECT_EQ(field.snapshot()->nearest_occupied({11, 11}), (CellIndex{20, 20}));
 }
 
-// Grows the grid beyond the field's box: the field is rebuilt to cover it; with a small max_extent_m it covers the
-// part around the focus only, and queries beyond it fall back to the exact search.
-TEST(DistanceFieldTest, FollowsGridGrowth) {
+// Grows the grid far in every direction: the field follows without a rebuild, exact everywhere, its older snapshots
+// untouched, and its memory in blocks near what was seen.
+TEST(DistanceFieldTest, FollowsGridGrowthWithoutRebuilding) {
   HimmGrid grid(HimmParams{});
   const auto hit = [&grid](double x, double y) {
     for (int i = 0; i < 3; ++i) grid.insert_ray({x - 0.5, y}, {x, y}, true);
@@ -283,36 +276,29 @@ TEST(DistanceFieldTest, FollowsGridGrowth) {
   hit(1.0, 1.0);
   DistanceFieldParams params;
   params.max_distance_m = 1.0;
-  params.growth_margin_m = 1.0;
-  params.max_extent_m = 30.0;
   DistanceField field(params);
   EXPECT_TRUE(field.update(grid.snapshot()).rebuilt);
-  const CellBox first = *field.snapshot()->bounds();
-  hit(1.2, 1.3);
-  EXPECT_FALSE(field.update(grid.snapshot()).rebuilt);
-  hit(20.0, 1.0);  // A new tile far east.
-  EXPECT_TRUE(field.update(grid.snapshot()).rebuilt);
-  const CellBox grown = *field.snapshot()->bounds();
-  EXPECT_GT(grown.max.ix, first.max.ix);
-  expect_field_exact(*field.snapshot());
-
-  hit(60.0, 1.0);  // Now wider than max_extent_m: the field covers 30 m around the focus.
-  EXPECT_TRUE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(60.0, 1.0)).rebuilt);
-  const CellBox clipped = *field.snapshot()->bounds();
-  EXPECT_LE(clipped.max.ix - clipped.min.ix + 1, 300);
-  EXPECT_EQ(field.snapshot()->distance(grid.grid_geometry().cell_of({60.0, 1.0})), 0.0);
-  geometry::ClearanceRequest far;
-  far.footprint = geometry::CylinderFootprint{.radius = 0.3};
-  far.pose = {1.0, 2.0, 0.0};
-  far.max_distance_m = 1.0;
+  const auto first = field.snapshot();
+  for (const auto& [x, y] : {std::pair{1.2, 1.3}, {20.0, 1.0}, {-150.0, 3.0}, {400.0, -250.0}, {1.0, 900.0}}) {
+    hit(x, y);
+    const auto changed = grid.take_occupancy_changes();
+    ASSERT_TRUE(changed.has_value());
+    EXPECT_FALSE(field.update(grid.snapshot(), std::span<const CellIndex>(*changed)).rebuilt);
+    EXPECT_EQ(field.snapshot()->distance(grid.grid_geometry().cell_of({x, y})), 0.0);
+    EXPECT_EQ(field.snapshot()->distance(grid.grid_geometry().cell_of({x, y + 5.0})), 1.0);
+  }
+  EXPECT_EQ(first->distance(grid.grid_geometry().cell_of({20.0, 1.0})), 1.0);
+  EXPECT_EQ(first->distance(grid.grid_geometry().cell_of({1.0, 1.0})), 0.0);
+  // Clearance near a far obstacle comes from the field, within a cell of the exact answer.
+  geometry::ClearanceRequest near_far;
+  near_far.footprint = geometry::CylinderFootprint{.radius = 0.3};
+  near_far.pose = {400.0, -249.2, 0.0};
+  near_far.max_distance_m = 1.0;
   const auto snapshot = field.snapshot();
-  const std::uint64_t fallbacks = snapshot->exact_fallback_count();
-  EXPECT_EQ(snapshot->compute_clearance(far).clearance_m,
-            geometry::compute_clearance(far, snapshot->grid()).clearance_m);
-  EXPECT_EQ(snapshot->exact_fallback_count(), fallbacks + 1);
-  // Moving a little keeps the field; moving far re-centres it.
-  EXPECT_FALSE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(59.0, 1.0)).rebuilt);
-  EXPECT_TRUE(field.update(grid.snapshot(), std::nullopt, Eigen::Vector2d(20.0, 1.0)).rebuilt);
+  const double exact = geometry::compute_clearance(near_far, snapshot->grid()).clearance_m;
+  const double from_field = snapshot->compute_clearance(near_far).clearance_m;
+  EXPECT_GE(from_field, exact - 1e-9);
+  EXPECT_LE(from_field, exact + grid.params().cell_size_m);
 }
 
 // FCL's distance between the footprint box and the cell prisms near it (GST_INDEP: FCL 0.7's libccd GJK is off by up
@@ -493,6 +479,95 @@ TEST(DistanceFieldClearanceTest, GradientPointsAwayFromTheNearestObstacle) {
   }
   EXPECT_GT(tested, 100);
   EXPECT_GE(rising, tested * 9 / 10);
+}
+
+}  // namespace
+}  // namespace occgeo::mapping
+
+namespace occgeo::mapping {
+namespace {
+
+// Scans into a HimmGrid, the field fed only the grid's log of flipped cells (as the server feeds it), agree with brute
+// force; and a snapshot taken earlier keeps its own distances while later updates change the shared field.
+TEST(DistanceFieldTest, FollowsTheGridsLogOfFlippedCellsAndKeepsOlderSnapshotsIntact) {
+  HimmGrid grid(HimmParams{});
+  DistanceFieldParams params;
+  params.max_distance_m = 1.0;
+  DistanceField field(params);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> range(0.5F, 6.0F);
+  std::shared_ptr<const DistanceFieldSnapshot> early;
+  std::vector<double> early_distances;
+  std::size_t changed = 0;
+  for (int scan = 0; scan < 60; ++scan) {
+    const geometry::Pose2 X_WS{0.07 * scan, -0.03 * scan, 0.41 * scan};
+    std::vector<float> ranges(181);
+    for (float& r : ranges) r = range(rng);
+    grid.insert_scan(X_WS, -std::numbers::pi_v<float> / 2, std::numbers::pi_v<float> / 180, ranges, 5.5F);
+    const auto flipped = grid.take_occupancy_changes();
+    ASSERT_TRUE(flipped.has_value());
+    changed += field.update(grid.snapshot(), std::span<const CellIndex>(*flipped)).changed_cells;
+    if (scan == 20) {
+      early = field.snapshot();
+      const CellBox box = *early->bounds();
+      for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+        for (int ix = box.min.ix; ix <= box.max.ix; ++ix) early_distances.push_back(early->distance({ix, iy}));
+      }
+    }
+  }
+  EXPECT_GT(changed, 0U);
+  expect_field_exact(*field.snapshot());
+  // The early snapshot still answers for its own grid version.
+  const CellBox box = *early->bounds();
+  std::size_t i = 0;
+  for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+    for (int ix = box.min.ix; ix <= box.max.ix; ++ix) ASSERT_EQ(early->distance({ix, iy}), early_distances[i++]);
+  }
+  expect_field_exact(*early);
+}
+
+// The grid's log names every cell whose occupancy changed, and overflows to "compare everything" rather than growing
+// without bound.
+TEST(DistanceFieldTest, TheGridsLogNamesEveryFlippedCell) {
+  HimmGrid grid(HimmParams{});
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> range(0.3F, 4.0F);
+  const CellBox box{{-60, -60}, {60, 60}};
+  const auto occupied_cells = [&] {
+    std::vector<bool> cells;
+    for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+      for (int ix = box.min.ix; ix <= box.max.ix; ++ix) cells.push_back(grid.occupied({ix, iy}));
+    }
+    return cells;
+  };
+  std::size_t flips = 0;
+  for (int scan = 0; scan < 30; ++scan) {
+    const std::vector<bool> before = occupied_cells();
+    std::vector<float> ranges(91);
+    for (float& r : ranges) r = range(rng);
+    grid.insert_scan({0.0, 0.0, 0.2 * scan}, -1.5F, 1.5F * 2.0F / 90.0F, ranges, 3.8F);
+    const std::vector<bool> after = occupied_cells();
+    const auto logged = grid.take_occupancy_changes();
+    ASSERT_TRUE(logged.has_value());
+    std::size_t i = 0;
+    for (int iy = box.min.iy; iy <= box.max.iy; ++iy) {
+      for (int ix = box.min.ix; ix <= box.max.ix; ++ix, ++i) {
+        if (before[i] == after[i]) continue;
+        ++flips;
+        EXPECT_NE(std::find(logged->begin(), logged->end(), CellIndex{ix, iy}), logged->end())
+            << "cell (" << ix << ", " << iy << ") flipped but was not logged";
+      }
+    }
+  }
+  EXPECT_GT(flips, 0U);
+  // A map loaded from an image larger than the log's bound says "compare everything".
+  mapfile::OccupancyImage image;
+  image.width = image.height = 1100;
+  image.resolution = kCell;
+  image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, 0);
+  HimmGrid loaded = HimmGrid::from_image(image, HimmParams{});
+  EXPECT_FALSE(loaded.take_occupancy_changes().has_value());
+  EXPECT_TRUE(loaded.take_occupancy_changes().has_value());
 }
 
 }  // namespace

@@ -176,6 +176,33 @@ TEST(HimmGridTest, ScanBeamsStartAtTheSensorNotTheRobot) {
                                            }));
 }
 
+// Something that stood at 1 m for 20 scans and left: the scans that see through its cell (their beams now end on a
+// wall at 3 m) clear it within two with the default seen_through_decrement; plain HIMM (0) takes a scan per
+// certainty point. The wall's cells, which the beams end in, stay.
+TEST(HimmGridTest, TwoScansThatSeeThroughACellClearIt) {
+  const auto scans_to_clear = [](int seen_through_decrement) {
+    HimmParams params;
+    params.seen_through_decrement = seen_through_decrement;
+    HimmGrid grid(params);
+    const geometry::Pose2 X_WS{0.05, 0.05, 0.0};
+    const std::vector<float> standing = {1.0F, 1.0F, 1.0F};
+    const std::vector<float> gone = {3.0F, 3.0F, 3.0F};
+    // Three beams 0.5 degrees apart: all end in cell (10, 0) at 1 m, and in (30, 0) at 3 m.
+    const float step = 0.5F * std::numbers::pi_v<float> / 180.0F;
+    for (int k = 0; k < 20; ++k) grid.insert_scan(X_WS, -step, step, standing, 4.0F);
+    EXPECT_EQ(grid.certainty({10, 0}), params.max_certainty);
+    int scans = 0;
+    while (grid.occupied({10, 0}) && scans < 100) {
+      grid.insert_scan(X_WS, -step, step, gone, 4.0F);
+      ++scans;
+    }
+    EXPECT_TRUE(grid.occupied({30, 0}));
+    return scans;
+  };
+  EXPECT_EQ(scans_to_clear(HimmParams{}.seen_through_decrement), 2);
+  EXPECT_GT(scans_to_clear(0), 2);
+}
+
 TEST(HimmGridTest, TilesGrowInAllFourQuadrants) {
   HimmGrid grid{HimmParams{}};
   EXPECT_EQ(grid.tile_count(), 0U);

@@ -105,6 +105,10 @@ TEST(PtemTest, ParamsValidationNamesTheField) {
             "PtemParams.cluster_distance_m must be a finite number >= 0, got -0.1");
   EXPECT_EQ(message_for([](PtemParams& p) { p.initial_cluster_radius_m = 0.0; }),
             "PtemParams.initial_cluster_radius_m must be a finite number > 0, got 0");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.max_cluster_radius_m = 0.2; }),
+            "PtemParams.max_cluster_radius_m must be 0 (unbounded) or a finite number >= initial_cluster_radius_m, got "
+            "0.2");
+  EXPECT_EQ(message_for([](PtemParams& p) { p.max_cluster_radius_m = 0.0; }), "") << "0 is the seed's unbounded growth";
   EXPECT_EQ(message_for([](PtemParams& p) { p.restricted_threshold = std::numeric_limits<double>::quiet_NaN(); }),
             "PtemParams.restricted_threshold must be a finite number > 0, got nan");
   EXPECT_EQ(message_for([](PtemParams& p) { p.first_cluster_sigma_m = -1.0; }),
@@ -297,9 +301,12 @@ TEST(PtemTest, RestrictedRegionIsTheClusterCircle) {
   EXPECT_EQ(snapshot->restricted_threshold(), std::optional<double>(0.04));
 }
 
-// A cluster too large for any σ to put f_r on its circle (a wall): σ = R/√2, and its whole circle is restricted.
+// A cluster too large for any σ to put f_r on its circle (a wall, with the growth unbounded as in the seed): σ = R/√2,
+// and its whole circle is restricted.
 TEST(PtemTest, ClusterBeyondMaxRadiusIsRestrictedOverItsCircle) {
-  PtemModel model(params_for(PtemConstruction::kCumulative));
+  PtemParams unbounded = params_for(PtemConstruction::kCumulative);
+  unbounded.max_cluster_radius_m = 0.0;  // unbounded
+  PtemModel model(unbounded);
   std::vector<Eigen::Vector2d> wall;
   for (double x = 0.0; x <= 4.0; x += 0.05) wall.emplace_back(x, 1.0);
   model.insert_scan(omniscient_scan(0.0, wall));
@@ -652,13 +659,16 @@ double restricted_area(const PtemSnapshot& snapshot, double x_min, double x_max,
 }
 
 // Seed §6.1.1: an obstacle moving toward the robot at 0.1 m/s from (3.3, 0), scanned at 10 Hz. The cumulative
-// restricted region keeps growing along the obstacle's track; the single-scan one stays the obstacle's size.
+// restricted region keeps growing along the obstacle's track (its clusters' growth unbounded, as in the seed); the
+// single-scan one stays the obstacle's size.
 TEST(PtemTest, MovingObstacleCumulativeGrowsSingleScanDoesNot) {
   constexpr double kObstacleRadius = 0.15;  // the cone of §6.2
   constexpr double kSpeed = 0.1;            // m/s
   constexpr double kPeriod = 0.1;           // s, 10 Hz (§3.2.1: 100 ms per scan)
   constexpr int kScans = 150;               // 15 s: the obstacle ends at (1.8, 0)
-  PtemModel cumulative(params_for(PtemConstruction::kCumulative));
+  PtemParams unbounded = params_for(PtemConstruction::kCumulative);
+  unbounded.max_cluster_radius_m = 0.0;  // unbounded
+  PtemModel cumulative(unbounded);
   PtemModel single(params_for(PtemConstruction::kSingleScan));
   std::printf(
       "  t[s]  obstacle_x | cumulative: n  mean_x  mean_y  sigma  area[m2] | single-scan: n  mean_x  mean_y  "
@@ -713,6 +723,7 @@ void expect_same_clusters(const PtemSnapshot& expected, const PtemSnapshot& actu
     EXPECT_EQ(a.first_seen_scan, b.first_seen_scan) << "cluster " << i;
     EXPECT_EQ(a.first_seen_stamp_s, b.first_seen_stamp_s) << "cluster " << i;
     EXPECT_EQ(a.age_scans, b.age_scans) << "cluster " << i;
+    EXPECT_EQ(a.extent_W, b.extent_W) << "cluster " << i;
   }
 }
 
@@ -767,10 +778,54 @@ TEST(PtemTest, RestoreRefusesOtherParametersAndDamagedStateChangingNothing) {
   EXPECT_THROW(same.restore(flipped), std::invalid_argument);
   EXPECT_THROW(same.restore(std::string_view(bytes).substr(0, bytes.size() - 3)), std::invalid_argument);
   EXPECT_THROW(same.restore("not a PTEM state"), std::invalid_argument);
+  // The layout before clusters kept their extents is not read: the model starts afresh instead.
+  EXPECT_FALSE(same.restore("OCCGEOP1" + bytes.substr(8)));
   EXPECT_EQ(same.scan_count(), 0u);
   EXPECT_EQ(same.cluster_count(), 0u);
   ASSERT_TRUE(same.restore(bytes));
   EXPECT_EQ(same.cluster_count(), 2u);
+}
+
+// A long wall does not become one circle over its whole length (which would reach metres into the free floor in
+// front of it): its clusters stay within max_cluster_radius_m, their extents are the wall's returns, and the
+// restricted region ends within about that radius of the wall.
+TEST(PtemTest, AWallBecomesAChainOfBoundedClustersWhoseExtentsAreItsReturns) {
+  for (const auto construction : {PtemConstruction::kSingleScan, PtemConstruction::kCumulative}) {
+    const PtemParams params = params_for(construction);
+    PtemModel model(params);
+    // The URG-04LX at the origin facing a wall y = 1.5 from x = -3 to 3 (an axis-aligned slab, 0.2 m thick).
+    for (int step = 0; step < 3; ++step) {
+      std::vector<Eigen::Vector2d> points;
+      for (int beam = 0; beam < kUrgBeams; ++beam) {
+        const double angle = -kUrgFieldOfView / 2.0 + kUrgFieldOfView * beam / (kUrgBeams - 1) + std::numbers::pi / 2;
+        const Eigen::Vector2d u(std::cos(angle), std::sin(angle));
+        if (u.y() <= 0.0) continue;
+        const double t = 1.5 / u.y();
+        const Eigen::Vector2d p = t * u;
+        if (t <= kUrgMaxRange && std::abs(p.x()) <= 3.0) points.push_back(p);
+      }
+      model.insert_scan(urg_scan(0.1 * step, Eigen::Vector2d::Zero(), std::numbers::pi / 2, points));
+    }
+    const auto snapshot = model.snapshot();
+    ASSERT_GE(snapshot->clusters().size(), 4u);
+    std::size_t extent_points = 0;
+    for (const PtemCluster& cluster : snapshot->clusters()) {
+      EXPECT_LE(cluster.radius_m, params.max_cluster_radius_m + 1e-12);
+      ASSERT_FALSE(cluster.extent_W.empty());
+      for (const Eigen::Vector2d& p : cluster.extent_W) {
+        EXPECT_NEAR(p.y(), 1.5, 1e-9);
+        EXPECT_LE((p - cluster.centre_W).norm(), cluster.radius_m + 1e-9);
+      }
+      extent_points += cluster.extent_W.size();
+    }
+    // Thinned, not dropped: the wall's returns from x = -2.6 to 2.6 (the 4 m range) every ~2 cm or closer.
+    EXPECT_GE(extent_points, 200u);
+    // The keep-out in front of the wall ends within the bounded radius (plus the overlap of neighbouring PDFs).
+    for (double x = -2.0; x <= 2.0; x += 0.1) {
+      EXPECT_TRUE(snapshot->restricted({x, 1.5})) << x;
+      EXPECT_FALSE(snapshot->restricted({x, 1.5 - params.max_cluster_radius_m - 0.15})) << x;
+    }
+  }
 }
 
 }  // namespace

@@ -134,5 +134,27 @@ TEST(Repeatability, MovingObstacleLockstepRunsRepeatExactly) {
   }
 }
 
+// A user starts the simulator, then types the goal: with --hold the robot stands at sim time 0 until the behaviour is
+// set, so the run is the same however long that took, and the same as when the goal came first.
+TEST(Repeatability, AGoalSetAfterTheSimulatorStartedGivesTheSameRun) {
+  Scenario scenario = approaching_obstacle();
+  const ScenarioResult goal_first = run_scenario(scenario, std::nullopt);
+  std::vector<ScenarioResult> later;
+  for (const double delay_s : {0.2, 1.5}) {
+    scenario.drive_after_start_s = delay_s;
+    later.push_back(run_scenario(scenario, std::nullopt));
+  }
+  ASSERT_TRUE(goal_first.ran) << goal_first.failure;
+  std::cout << "goal first: " << describe(goal_first) << '\n';
+  EXPECT_GT(goal_first.path_m, 1.0) << "the robot must drive for the comparison to mean anything";
+  for (const ScenarioResult& r : later) {
+    ASSERT_TRUE(r.ran) << r.failure;
+    std::cout << "goal later: " << describe(r) << '\n';
+    EXPECT_NEAR(r.path_m, goal_first.path_m, 1e-9);
+    EXPECT_EQ(r.collisions, goal_first.collisions);
+    EXPECT_EQ(first_difference(goal_first, r), std::nullopt) << "the trajectories part";
+  }
+}
+
 }  // namespace
 }  // namespace occgeo::testing

@@ -134,10 +134,15 @@ std::string last_state_of(const std::string& json) {
 
 }  // namespace
 
+std::filesystem::path world_path(const std::string& world) {
+  const std::filesystem::path path(world);
+  return path.is_absolute() ? path : source("clients/sim/worlds/" + world);
+}
+
 std::optional<OptimalPath> optimal_path_length(const std::string& world_file, const std::string& preset_name,
                                                const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                                                double goal_tolerance_m) {
-  std::unique_ptr<sim::SimWorld> world = sim::load_sim_world(source("clients/sim/worlds/" + world_file));
+  std::unique_ptr<sim::SimWorld> world = sim::load_sim_world(world_path(world_file));
   // Moving obstacles stand somewhere else by the time the robot gets there: the reference is the static layout.
   if (const auto* shapes = dynamic_cast<const sim::ShapeWorld*>(world.get());
       shapes && shapes->has_moving_obstacles()) {
@@ -311,7 +316,7 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
                                    "--robot",
                                    scenario.preset,
                                    "--world",
-                                   source("clients/sim/worlds/" + scenario.world).string(),
+                                   world_path(scenario.world).string(),
                                    "--start",
                                    scenario.start,
                                    "--id",
@@ -331,9 +336,22 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   }
   std::optional<BackgroundProcess> sim;
   try {
-    register_robot_offline(server.address(), robot, scenario);
     auto controller = open_controller(server.address());
     std::uint64_t id = 0;
+    if (scenario.drive_after_start_s) {
+      // The simulator registers the robot itself and holds at sim time 0 until the behaviour below is set.
+      argv.insert(argv.end(), {"--hold", "60"});
+      sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
+      const Clock::time_point connecting = Clock::now();
+      for (auto status = robot_status(controller, robot, ++id); !status || !status->connected();
+           status = robot_status(controller, robot, ++id)) {
+        if (seconds_since(connecting) > 20.0) throw std::runtime_error("the simulator never registered the robot");
+        std::this_thread::sleep_for(5ms);
+      }
+      std::this_thread::sleep_for(std::chrono::duration<double>(*scenario.drive_after_start_s));
+    } else {
+      register_robot_offline(server.address(), robot, scenario);
+    }
     if (!lease(controller, robot, v1::LeaseRequest::ACQUIRE, ++id).granted()) {
       throw std::runtime_error("the lease was refused");
     }
@@ -355,14 +373,18 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     }
     const v1::ServerMessage reply = controller.call(drive, id);
     if (!reply.has_drive()) throw std::runtime_error("drive refused: " + reply.DebugString());
-    // The simulator may connect as the robot's driver once the server has let the runner's driver session go.
-    const Clock::time_point releasing = Clock::now();
-    for (auto status = robot_status(controller, robot, ++id); !status || status->connected();
-         status = robot_status(controller, robot, ++id)) {
-      if (seconds_since(releasing) > 20.0) throw std::runtime_error("the runner's driver session was never released");
-      std::this_thread::sleep_for(5ms);
+    if (!sim) {
+      // The simulator may connect as the robot's driver once the server has let the runner's driver session go.
+      const Clock::time_point releasing = Clock::now();
+      for (auto status = robot_status(controller, robot, ++id); !status || status->connected();
+           status = robot_status(controller, robot, ++id)) {
+        if (seconds_since(releasing) > 20.0) {
+          throw std::runtime_error("the runner's driver session was never released");
+        }
+        std::this_thread::sleep_for(5ms);
+      }
+      sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
     }
-    sim.emplace(argv, dir.path() / "sim.out", dir.path() / "sim.err");
     // Hold the lease while the simulator runs (bounded: lockstep runs far faster than real time).
     Clock::time_point last_retain = Clock::now();
     while (sim->running()) {
@@ -393,6 +415,8 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   }
   try {
     result.collisions = static_cast<int>(json_number(out, "collisions"));
+    result.collisions_moving = static_cast<int>(json_number(out, "collisions_moving"));
+    result.collisions_at_rest = static_cast<int>(json_number(out, "collisions_at_rest"));
   } catch (const std::exception& e) {
     result.failure = e.what();
     return result;

@@ -6,6 +6,7 @@
 // (collisions, the true trajectory) and compares its path with the shortest any-angle path on the true world.
 
 #include <Eigen/Core>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,7 +15,7 @@ namespace occgeo::testing {
 
 struct Scenario {
   std::string name;
-  std::string world;                       // file under clients/sim/worlds/
+  std::string world;                       // file under clients/sim/worlds/, or an absolute path
   std::string preset;                      // occgeo-sim --robot
   std::string start;                       // occgeo-sim --start X,Y,THETA
   std::string behaviour;                   // DriveRequest.behaviour: bearcat | wander | goto | teleop
@@ -34,6 +35,9 @@ struct Scenario {
   double command_latency_s = 0.0;
   std::string note;           // printed with the table: what the scenario shows
   double max_wall_s = 240.0;  // the run is abandoned (did not run) after this much wall time, seconds
+  // When set, the behaviour is given this many wall seconds after the simulator connected (which stands at sim time 0
+  // with --hold until then), as a user typing `occgeo goto` does, instead of before it connects.
+  std::optional<double> drive_after_start_s;
 };
 
 struct ScenarioResult {
@@ -42,6 +46,8 @@ struct ScenarioResult {
   std::string failure;              // why it did not run, when it did not
   std::optional<bool> reached;      // set when the scenario has a goal
   int collisions = -1;              // ground truth, whole run
+  int collisions_moving = -1;       // of those, begun while the robot moved (it ran into something)
+  int collisions_at_rest = -1;      // and while it stood (a moving obstacle ran into it)
   double path_m = 0.0;              // true trajectory length until the goal was reached (or the run ended)
   std::optional<double> optimal_m;  // shortest any-angle path to the goal's tolerance circle, when there is a goal
   std::optional<double> lattice_m;  // shortest 8-connected path on a 0.05 m lattice to the goal's cell (for comparison)
@@ -57,6 +63,9 @@ struct ScenarioResult {
     return path_m / *optimal_m;
   }
 };
+
+// A scenario's world file: under clients/sim/worlds/ unless the name is an absolute path.
+std::filesystem::path world_path(const std::string& world);
 
 // Runs the scenario; every wait is bounded. picture_dir, when set, receives NAME.png of the true trajectory.
 ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir);

@@ -118,6 +118,9 @@ TEST(ScenarioCatalogue, PtemStaticObstacles) {
   });
 }
 
+// The seed's cumulative PTEM (§4.2.2): clusters persist and grow as far as their points reach (an unbounded radius).
+const std::string kSeedCumulativePtem = "ptem:\n  construction: cumulative\n  max_cluster_radius_m: 0\n";
+
 // Seed 004 §6: obstacles moving across and toward the robot. The seed's cumulative PTEM keeps every place the moving
 // obstacle was (§6.3.1), so the robot loops or detours round its trail; single-scan construction (ours) does not.
 TEST(ScenarioCatalogue, PtemMovingObstacles) {
@@ -125,7 +128,7 @@ TEST(ScenarioCatalogue, PtemMovingObstacles) {
   Scenario cumulative_approach =
       seed_only(make("ptem_approaching_waypoints_cumulative", "ptem_approaching.yaml", "ugv", "waypoints", 40.0,
                      Eigen::Vector2d(4.5, 0.0)),
-                "seed 004 §6.3: cumulative PTEM around a moving obstacle", "ptem:\n  construction: cumulative\n");
+                "seed 004 §6.3: cumulative PTEM around a moving obstacle", kSeedCumulativePtem);
   run_all({
       {make("ptem_crossing_waypoints", "ptem_crossing.yaml", "ugv", "waypoints", 40.0, past_obstacle),
        Expect::kFullStack},
@@ -142,7 +145,7 @@ TEST(ScenarioCatalogue, PtemMovingObstacles) {
 // loop detector's stall verdict hands over to the global path, which gets there, late (printed only).
 TEST(ScenarioCatalogue, PtemLoopCumulative) {
   const Eigen::Vector2d past_obstacle(4.5, 0.0);
-  const std::string cumulative = "ptem:\n  construction: cumulative\n";
+  const std::string& cumulative = kSeedCumulativePtem;
   Scenario with_escape =
       make("ptem_loop_waypoints_cumulative_escape", "ptem_loop.yaml", "ugv", "waypoints", 60.0, past_obstacle);
   with_escape.extra_config = cumulative;

@@ -148,7 +148,7 @@ TEST(Config, PtemSectionIsReadWithPerWorldOverrides) {
                          "  restricted_threshold: 0.05\n"
                          "  first_cluster_sigma_m: 0.2\n"
                          "  worlds:\n"
-                         "    lab: {construction: single_scan}\n"
+                         "    lab: {construction: single_scan, max_cluster_radius_m: 0}\n"
                          "    yard: {cluster_distance_m: 0.9}\n"
                          "limits:\n  max_ptem_query_points: 10\n";
   const ServerConfig config = load_config(file);
@@ -163,6 +163,8 @@ TEST(Config, PtemSectionIsReadWithPerWorldOverrides) {
   const mapping::PtemParams lab = config.ptem.params_for("lab");
   EXPECT_EQ(lab.construction, mapping::PtemConstruction::kSingleScan);
   EXPECT_DOUBLE_EQ(lab.cluster_distance_m, 0.5);
+  EXPECT_EQ(lab.max_cluster_radius_m, 0.0) << "the lab's clusters grow unbounded, as the seed's";
+  EXPECT_DOUBLE_EQ(base.max_cluster_radius_m, 0.5) << "the others' stay bounded";
   const mapping::PtemParams yard = config.ptem.params_for("yard");
   EXPECT_EQ(yard.construction, mapping::PtemConstruction::kCumulative);
   EXPECT_DOUBLE_EQ(yard.cluster_distance_m, 0.9);
@@ -179,6 +181,8 @@ TEST(Config, PtemErrorsNameTheKey) {
   EXPECT_NE(load_error("ptem:\n  cluster_distance_m: -1\n").find("cluster_distance_m"), std::string::npos);
   EXPECT_NE(load_error("ptem:\n  restricted_threshold: many\n").find("ptem.restricted_threshold"), std::string::npos);
   EXPECT_NE(load_error("ptem:\n  worlds:\n    lab: {cluster_distance_m: -2}\n").find("ptem.worlds.lab"),
+            std::string::npos);
+  EXPECT_NE(load_error("ptem:\n  worlds:\n    lab: {max_cluster_radius_m: 0.1}\n").find("ptem.worlds.lab"),
             std::string::npos);
   EXPECT_NE(load_error("ptem:\n  worlds: [lab]\n").find("ptem.worlds"), std::string::npos);
   EXPECT_NE(load_error("limits:\n  max_ptem_query_points: 0\n").find("limits.max_ptem_query_points"),

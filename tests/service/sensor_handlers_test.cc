@@ -435,6 +435,8 @@ TEST_F(SensorHandlers, RobotSpecErrorsForTheNewKindsNameTheField) {
        },
        "robot_spec.kinematics.differential.wheel_radius_m"},
       {[](v1::RobotSpec& s) { s.mutable_kinematics()->Clear(); }, "robot_spec.kinematics"},
+      // ActivityBot ticks need encoders and a differential drive.
+      {[](v1::RobotSpec& s) { s.set_command_units(v1::COMMAND_UNITS_ACTIVITYBOT_TICKS); }, "robot_spec.command_units"},
   };
   for (const auto& c : robot_cases) {
     auto spec = skid_steer_spec(1.0);
@@ -479,6 +481,7 @@ TEST_F(SensorHandlers, RobotSpecErrorsForTheNewKindsNameTheField) {
        "robot_spec.sensors[2].point_cloud.max_points"},
       {[&](v1::RobotSpec& s) { sensor(s, 2)->set_name("sonar"); }, "robot_spec.sensors[2].name"},
       {[&](v1::RobotSpec& s) { sensor(s, 1)->clear_servo_range(); }, "robot_spec.sensors[1]"},
+      {[](v1::RobotSpec& s) { s.set_command_units(static_cast<v1::CommandUnits>(7)); }, "robot_spec.command_units"},
   };
   for (const auto& c : sensor_cases) {
     auto spec = testing::sensor_robot_spec();

@@ -4,7 +4,9 @@
 
 #include <regex>
 #include <stdexcept>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace occgeo::testing {
 
@@ -23,6 +25,17 @@ inline bool json_bool(const std::string& json, const std::string& key) {
   std::smatch match;
   if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no '" + key + "' in " + json);
   return match[1] == "true";
+}
+
+// The array of numbers stored under key; throws std::runtime_error naming the key when it is absent.
+inline std::vector<double> json_number_array(const std::string& json, const std::string& key) {
+  const std::regex pattern("\"" + key + "\"\\s*:\\s*\\[([^\\]]*)\\]");
+  std::smatch match;
+  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no array '" + key + "' in " + json);
+  std::vector<double> values;
+  std::stringstream items(match[1]);
+  for (std::string item; std::getline(items, item, ',');) values.push_back(std::stod(item));
+  return values;
 }
 
 }  // namespace occgeo::testing

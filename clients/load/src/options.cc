@@ -1,4 +1,5 @@
 #include "occgeo/load/options.h"
+#include "occgeo/client/option_values.h"
 
 #include <boost/asio/ip/address.hpp>
 #include <charconv>
@@ -28,19 +29,15 @@ std::uint64_t parse_unsigned(std::string_view flag, std::string_view text, std::
 }
 
 double parse_positive(std::string_view flag, std::string_view text, double max) {
-  double value = 0.0;
-  try {
-    std::size_t used = 0;
-    value = std::stod(std::string(text), &used);
-    if (used != text.size()) throw std::invalid_argument("trailing text");
-  } catch (const std::exception&) {
+  const std::optional<double> value = client::finite_number(text);
+  if (!value) {
     throw LoadArgsError("option '" + std::string(flag) + "' needs a number, got '" + std::string(text) + "'");
   }
-  if (!std::isfinite(value) || value <= 0.0 || value > max) {
+  if (*value <= 0.0 || *value > max) {
     throw LoadArgsError("option '" + std::string(flag) + "' needs a number > 0 and <= " + std::to_string(max) +
-                        ", got " + std::string(text));
+                        ", got '" + std::string(text) + "'");
   }
-  return value;
+  return *value;
 }
 
 std::map<QueryKind, std::uint32_t> parse_mix(std::string_view text) {

@@ -32,6 +32,12 @@ class ReadmeExampleTest(test_client.ClientTest):
         # The robot stands at (0, 0, 0), so the printed pose is exact; the clearance is printed to 1 mm.
         self.assertAlmostEqual(float(match.group(5)), cli["clearance_m"], delta=0.0005)
         self.assertAlmostEqual(float(match.group(6)), cli.get("restricted_clearance_m", 0.0), delta=0.0005)
+        # The robot stands in the open, 2 m short of the wall: the default models answer against matter, as the grid
+        # alone does (to a cell), not 0 inside the PTEM's keep-out.
+        grid = self.query.clearance(test_client.ROBOT, x, y, theta, models=["grid"])
+        self.assertTrue(grid.found)
+        self.assertGreater(grid.clearance_m, 1.0)
+        self.assertAlmostEqual(float(match.group(5)), grid.clearance_m, delta=0.1)
         cells = re.search(r"world %s: (\d+) occupied cells" % test_client.WORLD, out)
         self.assertIsNotNone(cells, out)
         self.assertEqual(int(cells.group(1)), len(self.query.grid(test_client.WORLD).occupied_cells()))

@@ -1,5 +1,7 @@
 #include "occgeo/replay/mcap.h"
 
+#include "occgeo/client/mcap_format.h"
+
 #include <lz4frame.h>
 #include <zlib.h>
 #include <zstd.h>
@@ -10,16 +12,8 @@
 namespace occgeo::replay {
 namespace {
 
-enum Opcode : std::uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-};
-
-constexpr std::uint64_t kRecordPrefix = 9;  // opcode + uint64 length
+using namespace mcap;  // opcodes and magic
+constexpr std::uint64_t kRecordPrefix = kRecordPrefixBytes;
 // Largest chunk we decompress: guards memory against a forged uncompressed_size.
 constexpr std::uint64_t kMaxChunkBytes = std::uint64_t{1} << 31;
 
@@ -90,14 +84,14 @@ McapReader::McapReader(const std::filesystem::path& path) : name_(path.string())
   input_ = std::move(file);
   char magic[8];
   read_exact(magic, 8, 0, "the opening magic");
-  if (std::string_view(magic, 8) != kMcapMagic) fail("not an MCAP file (bad magic)", 0);
+  if (std::string_view(magic, 8) != kMagic) fail("not an MCAP file (bad magic)", 0);
 }
 
 McapReader::McapReader(std::unique_ptr<std::istream> input, std::string name, std::uint64_t size)
     : input_(std::move(input)), name_(std::move(name)), size_(size) {
   char magic[8];
   read_exact(magic, 8, 0, "the opening magic");
-  if (std::string_view(magic, 8) != kMcapMagic) fail("not an MCAP file (bad magic)", 0);
+  if (std::string_view(magic, 8) != kMagic) fail("not an MCAP file (bad magic)", 0);
 }
 
 McapReader::~McapReader() = default;
@@ -163,7 +157,7 @@ std::optional<McapMessage> McapReader::next() {
     if (opcode == kFooter) {
       char magic[8];
       read_exact(magic, 8, position_, "the closing magic");
-      if (std::string_view(magic, 8) != kMcapMagic) fail("bad closing magic after the Footer", position_ - 8);
+      if (std::string_view(magic, 8) != kMagic) fail("bad closing magic after the Footer", position_ - 8);
       done_ = true;
       return std::nullopt;
     }
@@ -333,7 +327,7 @@ bool is_mcap_file(const std::filesystem::path& path) {
   std::ifstream file(path, std::ios::binary);
   char magic[8] = {};
   file.read(magic, 8);
-  return file.gcount() == 8 && std::string_view(magic, 8) == kMcapMagic;
+  return file.gcount() == 8 && std::string_view(magic, 8) == kMagic;
 }
 
 }  // namespace occgeo::replay

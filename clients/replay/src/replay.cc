@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -50,6 +51,7 @@ class Progress {
   Progress(std::ostream& err, bool tty, std::string label) : err_(err), tty_(tty), label_(std::move(label)) {}
 
   void update(double fraction, std::uint64_t scans, double elapsed_s) {
+    mark_tenths(fraction, scans, elapsed_s);
     const double rate = elapsed_s > 0.0 ? static_cast<double>(scans) / elapsed_s : 0.0;
     if (tty_) {
       const auto now = Clock::now();
@@ -71,7 +73,23 @@ class Progress {
     }
   }
 
+  // Scans per second within each tenth of the log (by position in the file), once finished. A tenth the reader
+  // jumped over at once (an MCAP chunk spanning it) gets the rate of the stretch that covered it.
+  [[nodiscard]] std::vector<double> scans_per_s_by_tenth() const {
+    std::vector<double> rates;
+    for (std::size_t i = 0; i + 1 < marks_.size(); ++i) {
+      const double dt = marks_[i + 1].elapsed_s - marks_[i].elapsed_s;
+      const auto ds = static_cast<double>(marks_[i + 1].scans - marks_[i].scans);
+      rates.push_back(dt > 0.0 ? ds / dt : (rates.empty() ? 0.0 : rates.back()));
+    }
+    // Leading tenths that took no time at all (a first chunk read at once) take the first measured rate.
+    const auto first = std::find_if(rates.begin(), rates.end(), [](double r) { return r > 0.0; });
+    if (first != rates.end()) std::fill(rates.begin(), first, *first);
+    return rates;
+  }
+
   void finish(std::uint64_t scans, double elapsed_s) {
+    mark_tenths(1.0, scans, elapsed_s);
     if (tty_ && drawn_) {
       drawn_ = false;  // draw the final state regardless of the rate limit
       update(1.0, scans, elapsed_s);
@@ -85,9 +103,21 @@ class Progress {
   std::ostream& err_;
   bool tty_;
   std::string label_;
+  // Where each tenth of the log began: marks_[i] is the count and time when the reader passed i/10 of it.
+  void mark_tenths(double fraction, std::uint64_t scans, double elapsed_s) {
+    if (marks_.empty()) marks_.push_back({0, 0.0});
+    const auto reached = static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * 10.0);
+    while (marks_.size() <= reached && marks_.size() <= 10) marks_.push_back({scans, elapsed_s});
+  }
+
+  struct Mark {
+    std::uint64_t scans = 0;
+    double elapsed_s = 0.0;
+  };
   Clock::time_point last_draw_;
   bool drawn_ = false;
   int last_decile_ = 0;
+  std::vector<Mark> marks_;
 };
 
 constexpr const char* kCloudSensor = "cloud";
@@ -131,6 +161,8 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
     model.set_max_points(100000);
   }
   spec.set_command_timeout_s(1.0);
+  // A log cannot be steered: the server need not plan motion for it.
+  spec.set_default_behaviour("stop");
   return spec;
 }
 
@@ -156,6 +188,7 @@ struct PassResult {
   std::uint64_t clouds_acked = 0;
   std::uint64_t errors = 0;
   double duration_s = 0.0;
+  std::vector<double> scans_per_s_by_tenth;
   ConsistencyCounter consistency;
   std::optional<v1::GridReply> grid;
   std::vector<mapfile::PicturePose> trajectory;  // base_link of every scan sent, world frame
@@ -217,6 +250,7 @@ class Pass {
     send_clouds(*source, connection, index);
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
+    result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
     if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
     v1::ClientMessage request;
     request.mutable_grid()->set_request_id(1);
@@ -340,6 +374,215 @@ class Pass {
   double last_stamp_ = 0.0;        // of the last scan sent
 };
 
+// Whether `file` is an occgeo recording (`occgeo record`): its first message is protobuf with an occgeo.v1 schema.
+bool is_occgeo_recording(const std::filesystem::path& file) {
+  McapReader reader(file);
+  const auto first = reader.next();
+  return first && first->schema != nullptr && first->channel->message_encoding == "protobuf" &&
+         first->schema->name.rfind("occgeo.v1.", 0) == 0;
+}
+
+// Replays an occgeo recording: each recorded robot connects as a driver under its recorded id, into its recorded
+// world (or --world when given), sends its recorded RobotSpec, then per accepted sensor message an Odometry at the
+// pose the live server placed it at and the message itself, unchanged, each waiting for its ScanAck. So the server
+// applies what the live one applied, in the same order, and builds the same map.
+class RecordingPass {
+ public:
+  RecordingPass(const ReplayOptions& options, Diagnostics& diagnostics, std::ostream& err)
+      : options_(options), diagnostics_(diagnostics), err_(err) {}
+
+  PassResult run() {
+    McapReader reader(options_.file);
+    Progress progress(err_, ::isatty(STDERR_FILENO) == 1 && &err_ == &std::cerr, "recording -> server");
+    const auto start = Clock::now();
+    std::optional<double> first_stamp;
+    std::uint64_t sensor_messages = 0;
+    while (const auto message = reader.next()) {
+      const std::string& topic = message->channel->topic;
+      auto fail = [&](const std::string& what) -> void {
+        throw McapError(
+            reader.name() + ": offset " + std::to_string(message->offset) + ": topic '" + topic + "' " + what,
+            message->offset);
+      };
+      if (message->schema == nullptr || message->channel->message_encoding != "protobuf" ||
+          message->schema->name.rfind("occgeo.v1.", 0) != 0) {
+        if (foreign_topics_.insert(topic).second) {
+          diagnostics_.warn("foreign_topic", sensor_messages,
+                            "topic '" + topic + "' is not an occgeo recording's; its messages are skipped");
+        }
+        continue;
+      }
+      // /WORLD/ROBOT/KIND
+      const std::size_t second = topic.find('/', 1);
+      const std::size_t third = second == std::string::npos ? std::string::npos : topic.find('/', second + 1);
+      if (topic.empty() || topic[0] != '/' || second == std::string::npos) fail("is not /WORLD/ROBOT/KIND");
+      if (third == std::string::npos) continue;  // /WORLD/grid: the live grid's changes, rebuilt here from the scans
+      const std::string world = topic.substr(1, second - 1);
+      const std::string robot = topic.substr(second + 1, third - second - 1);
+      const std::string kind = topic.substr(third + 1);
+      v1::ClientMessage sensor;
+      google::protobuf::Message* body = nullptr;
+      if (kind == "robot_spec") {
+        v1::RobotSpec spec;
+        if (!spec.ParseFromArray(message->data.data(), static_cast<int>(message->data.size()))) {
+          fail("does not decode as occgeo.v1.RobotSpec");
+        }
+        spec.set_default_behaviour("stop");  // a recording replayed cannot be steered either
+        if (drivers_.count(world + "/" + robot) == 0) connect(world, robot, spec);
+        continue;
+      }
+      Driver* driver = nullptr;
+      if (const auto it = drivers_.find(world + "/" + robot); it != drivers_.end()) driver = &it->second;
+      if (kind == "placement") {
+        v1::WatchEvent placement;
+        if (!placement.ParseFromArray(message->data.data(), static_cast<int>(message->data.size()))) {
+          fail("does not decode as occgeo.v1.WatchEvent");
+        }
+        if (driver != nullptr) driver->placement = placement;
+        continue;
+      }
+      if (kind == "laser_scan") {
+        body = sensor.mutable_laser_scan();
+      } else if (kind == "range_array") {
+        body = sensor.mutable_range_array();
+      } else if (kind == "servo_range") {
+        body = sensor.mutable_servo_range();
+      } else if (kind == "point_cloud") {
+        body = sensor.mutable_point_cloud();
+      } else {
+        continue;  // odometry and motion commands: the placements carry the poses, and a log cannot obey commands
+      }
+      if (!body->ParseFromArray(message->data.data(), static_cast<int>(message->data.size()))) {
+        fail("does not decode as occgeo.v1." + std::string(body->GetDescriptor()->name()));
+      }
+      const auto* fields = body->GetDescriptor();
+      const auto* reflection = body->GetReflection();
+      const std::uint64_t seq = reflection->GetUInt64(*body, fields->FindFieldByName("seq"));
+      const double stamp = reflection->GetDouble(*body, fields->FindFieldByName("stamp_s"));
+      ++sensor_messages;
+      if (driver == nullptr) {
+        diagnostics_.warn("no_robot_spec", sensor_messages,
+                          "topic '" + topic + "' has a message before the robot's spec; message skipped");
+        continue;
+      }
+      if (!driver->placement || driver->placement->seq() != seq) {
+        diagnostics_.warn("no_placement", sensor_messages,
+                          "topic '" + topic + "' message " + std::to_string(seq) +
+                              " has no placement (the recorder lost events); message skipped");
+        continue;
+      }
+      if (!first_stamp) first_stamp = stamp;
+      if (!options_.as_fast_as_possible) {
+        const auto due = start + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>((stamp - *first_stamp) / options_.speed));
+        std::this_thread::sleep_until(due);
+      }
+      v1::ClientMessage odometry;
+      auto& odom = *odometry.mutable_odometry();
+      odom.set_seq(seq);
+      odom.set_stamp_s(stamp);
+      *odom.mutable_pose() = driver->placement->pose();
+      driver->connection.send(odometry);
+      driver->connection.send(sensor);
+      const bool cloud = kind == "point_cloud";
+      ++(cloud ? result_.clouds : result_.scans);
+      if (await_answer(*driver, seq)) ++(cloud ? result_.clouds_acked : result_.acked);
+      if (drivers_.size() > 1 && ++since_drain_ >= kDrainEvery) drain_others(*driver);
+      if (world == grid_world_) {
+        result_.trajectory.push_back(
+            {driver->placement->pose().x(), driver->placement->pose().y(), driver->placement->pose().theta()});
+      }
+      progress.update(reader.progress(), result_.scans + result_.clouds, seconds_since(start));
+    }
+    result_.duration_s = seconds_since(start);
+    progress.finish(result_.scans + result_.clouds, result_.duration_s);
+    result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
+    if (drivers_.empty()) throw std::runtime_error("no robot spec in the recording '" + options_.file.string() + "'");
+    v1::ClientMessage request;
+    request.mutable_grid()->set_request_id(1);
+    request.mutable_grid()->set_world(grid_world_);
+    result_.grid = drivers_.begin()->second.connection.call(request, 1, std::chrono::seconds(60)).grid();
+    return std::move(result_);
+  }
+
+  [[nodiscard]] const std::string& grid_world() const { return grid_world_; }
+
+ private:
+  struct Driver {
+    client::Connection connection;
+    std::optional<v1::WatchEvent> placement;  // of the sensor message that follows it
+  };
+
+  void connect(const std::string& recorded_world, const std::string& robot, const v1::RobotSpec& spec) {
+    const std::string world = options_.world == "default" ? recorded_world : options_.world;
+    auto connection = client::Connection::open(client::Endpoint::parse(options_.server));
+    v1::Hello hello;
+    hello.set_protocol_version(1);
+    hello.set_role(v1::ROLE_DRIVER);
+    hello.set_robot_id(robot);
+    hello.set_world(world);
+    hello.set_client_name("occgeo-replay");
+    connection.hello(hello);
+    v1::ClientMessage message;
+    *message.mutable_robot_spec() = spec;
+    connection.send(message);
+    if (drivers_.empty()) grid_world_ = world;
+    err_ << "occgeo replay: robot " << robot << " of the recording -> world " << world << "\n";
+    drivers_.emplace(recorded_world + "/" + robot, Driver{std::move(connection), std::nullopt});
+  }
+
+  // Lockstep: the message's ScanAck (true) or its Error (false); motion commands are read and dropped.
+  bool await_answer(Driver& driver, std::uint64_t seq) {
+    const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                             std::chrono::duration<double>(options_.ack_timeout_s));
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      if (left.count() <= 0) {
+        throw std::runtime_error("no answer to message " + std::to_string(seq) + " within " +
+                                 fmt(options_.ack_timeout_s) + " s");
+      }
+      const auto message = driver.connection.receive(left);
+      if (!message) continue;
+      if (message->has_scan_ack() && message->scan_ack().seq() == seq) return true;
+      if (!message->has_error()) continue;
+      const v1::Error& error = message->error();
+      if (error.field().rfind("robot_spec", 0) == 0 || error.field().rfind("hello", 0) == 0) {
+        throw std::runtime_error("the server refused the recorded robot spec: " + client::describe(error));
+      }
+      ++result_.errors;
+      if (result_.errors <= 5) err_ << "occgeo replay: server error: " << client::describe(error) << "\n";
+      if (result_.errors == 5) err_ << "occgeo replay: further server errors are counted but not printed\n";
+      if (error.seq() == seq && error.field().rfind("odometry", 0) != 0) return false;
+    }
+  }
+
+  // The robots not being sent to also get commands (and the watchdog's stops): read and dropped now and then, so their
+  // unread replies never pile up on the server.
+  void drain_others(Driver& current) {
+    since_drain_ = 0;
+    for (auto& [key, driver] : drivers_) {
+      if (&driver == &current) continue;
+      while (const auto message = driver.connection.receive(std::chrono::milliseconds(0))) {
+        if (message->has_error()) {
+          ++result_.errors;
+          if (result_.errors <= 5)
+            err_ << "occgeo replay: server error: " << client::describe(message->error()) << "\n";
+        }
+      }
+    }
+  }
+
+  static constexpr std::uint64_t kDrainEvery = 32;
+  const ReplayOptions& options_;
+  Diagnostics& diagnostics_;
+  std::ostream& err_;
+  std::uint64_t since_drain_ = 0;
+  std::map<std::string, Driver> drivers_;  // by recorded "world/robot"
+  std::string grid_world_;                 // the first robot's: --out and the summary's map
+  std::set<std::string> foreign_topics_;
+  PassResult result_;
+};
+
 }  // namespace
 
 bool occupied_near(const mapfile::CertaintyWindow& grid, double x, double y) {
@@ -371,8 +614,19 @@ void ConsistencyCounter::add_scan(const mapfile::CertaintyWindow& grid, const Sc
   }
 }
 
+namespace {
+ReplaySummary finish_summary(const ReplayOptions& options, PassResult full, std::ostream& err);
+}  // namespace
+
 ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics, std::ostream& err) {
   ReplaySummary summary;
+  if (options.format == LogFormat::mcap && is_occgeo_recording(options.file)) {
+    if (options.consistency)
+      err << "occgeo replay: --consistency is for laser logs and bags; a recording is replayed once\n";
+    ReplayOptions once = options;
+    once.consistency = false;
+    return finish_summary(once, RecordingPass(once, diagnostics, err).run(), err);
+  }
   std::optional<mapfile::CertaintyWindow> even_grid;
   if (options.consistency) {
     Diagnostics quiet;  // the full pass reports the log's quirks; do not count them twice
@@ -391,6 +645,17 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
                     .label = "scans -> " + options.world,
                     .consistency_grid = even_grid ? &*even_grid : nullptr};
   PassResult full = Pass(options, config, diagnostics, err).run();
+  const std::uint64_t even_errors = summary.errors;
+  summary = finish_summary(options, std::move(full), err);
+  summary.errors += even_errors;
+  return summary;
+}
+
+namespace {
+
+// The summary of the full pass, and the map files --out asks for.
+ReplaySummary finish_summary(const ReplayOptions& options, PassResult full, std::ostream& err) {
+  ReplaySummary summary;
   summary.scans = full.scans;
   summary.scans_acked = full.acked;
   summary.clouds = full.clouds;
@@ -398,6 +663,7 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
   summary.errors += full.errors;
   summary.duration_s = full.duration_s;
   summary.scans_per_s = full.duration_s > 0.0 ? static_cast<double>(full.scans) / full.duration_s : 0.0;
+  summary.scans_per_s_by_tenth = full.scans_per_s_by_tenth;
   if (options.consistency) {
     summary.consistency = full.consistency.fraction();
     summary.consistency_endpoints = full.consistency.endpoints();
@@ -422,6 +688,8 @@ ReplaySummary run_replay(const ReplayOptions& options, Diagnostics& diagnostics,
   return summary;
 }
 
+}  // namespace
+
 std::string summary_json(const ReplayOptions& options, const ReplaySummary& summary, const Diagnostics& diagnostics) {
   std::ostringstream out;
   out << "{\"format\":" << json_string(format_name(options.format))
@@ -432,8 +700,11 @@ std::string summary_json(const ReplayOptions& options, const ReplaySummary& summ
       << ",\"ignored_lines\":" << json_counts(diagnostics.ignored_lines())
       << ",\"no_return_beams\":" << diagnostics.no_return_beams()
       << ",\"invalid_beams\":" << diagnostics.invalid_beams() << ",\"duration_s\":" << fmt(summary.duration_s)
-      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"clouds\":" << summary.clouds
-      << ",\"clouds_acked\":" << summary.clouds_acked
+      << ",\"scans_per_s\":" << fmt(summary.scans_per_s) << ",\"scans_per_s_by_tenth\":[";
+  for (std::size_t i = 0; i < summary.scans_per_s_by_tenth.size(); ++i) {
+    out << (i ? "," : "") << fmt(summary.scans_per_s_by_tenth[i]);
+  }
+  out << "],\"clouds\":" << summary.clouds << ",\"clouds_acked\":" << summary.clouds_acked
       << ",\"stamps_synthesized\":" << (options.format == LogFormat::dpslam ? "true" : "false");
   if (summary.consistency) {
     out << ",\"consistency\":" << fmt(*summary.consistency)

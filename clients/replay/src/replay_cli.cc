@@ -2,23 +2,18 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "occgeo/client/option_values.h"
 #include "occgeo/replay/replay.h"
 
 namespace occgeo::replay {
 namespace {
 
 double positive_number(const std::string& option, const std::string& value) {
-  std::size_t used = 0;
-  double number = 0.0;
-  try {
-    number = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != value.size() || !std::isfinite(number) || number <= 0.0) {
+  const std::optional<double> number = client::finite_number(value);
+  if (!number || *number <= 0.0) {
     throw std::invalid_argument("option '" + option + "' needs a positive number, got '" + value + "'");
   }
-  return number;
+  return *number;
 }
 
 // "x,y,z,roll,pitch,yaw": six finite numbers.
@@ -31,15 +26,12 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
       throw std::invalid_argument("option '" + option + "' needs x,y,z,roll,pitch,yaw, got '" + value + "'");
     }
     const std::string part = value.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
-    std::size_t used = 0;
-    try {
-      out[i] = std::stod(part, &used);
-    } catch (const std::exception&) {
-      used = 0;
+    const std::optional<double> number = client::finite_number(part);
+    if (!number) {
+      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value +
+                                  "'");
     }
-    if (part.empty() || used != part.size() || !std::isfinite(out[i])) {
-      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value + "'");
-    }
+    out[i] = *number;
     at = comma + 1;
   }
   return out;
@@ -49,8 +41,8 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
 
 const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg|mcap FILE [options]
 Streams a recorded laser log (gzip or plain text, or a ROS 2 bag in MCAP) to occgeod as a driver: a RobotSpec
-matching the log's laser,
-then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck). Motion commands are ignored.
+matching the log's laser, then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck).
+The robot asks for the "stop" behaviour: a log cannot be steered.
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --world W            world to map into (default "default")
   --id ROBOT           robot id (default "replay")
@@ -73,7 +65,10 @@ then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanA
 Formats: carmen (FLASER / ROBOTLASER1 with their poses), dpslam (Odometry + Laser pairs, no timestamps: stamps are
 synthesized every 0.2 s), urg (CoreSLAM exp1.dat: us stamps, encoder ticks integrated into odometry, 682 beams),
 mcap (ROS 2 bag, chunks uncompressed, zstd or lz4; CDR LaserScan, Odometry, TFMessage, PointCloud2; the scan's own
-range_min/range_max apply unless --max-range is given). A damaged file stops the replay with an error naming the
+range_min/range_max apply unless --max-range is given), or an `occgeo record` recording (protobuf topics): each
+recorded robot drives under its own id into its recorded world (or --world W), with its recorded spec, and each
+accepted sensor message is sent unchanged after an Odometry at the pose the live server placed it at, so the map
+rebuilt equals the live one (--id, --max-range, --topic-* and --consistency do not apply). A damaged file stops the replay with an error naming the
 topic and file offset; nothing of the damaged part is sent.
 Exit code: 0 done, 1 failure or any server error, 2 usage.
 )";
@@ -91,7 +86,8 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
     if (arg == "--format") {
       const std::string& name = value();
       const auto format = parse_format(name);
-      if (!format) throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
+      if (!format)
+        throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
       options.format = *format;
       have_format = true;
     } else if (arg == "--server") {
@@ -166,6 +162,11 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
         << " warning(s)";
     for (const auto& [kind, count] : diagnostics.warnings_by_kind()) out << " " << kind << "=" << count;
     out << "\n";
+    if (!summary.scans_per_s_by_tenth.empty()) {
+      out << "scans/s per tenth of the log:";
+      for (const double rate : summary.scans_per_s_by_tenth) out << " " << std::llround(rate);
+      out << "\n";
+    }
     if (summary.consistency) {
       out << "consistency: " << *summary.consistency << " of " << summary.consistency_endpoints
           << " odd-scan endpoints lie within one cell of an occupied cell of the even-scan map\n";

@@ -1,4 +1,5 @@
 #include "occgeo/sim/args.h"
+#include "occgeo/client/option_values.h"
 
 #include <charconv>
 #include <cmath>
@@ -19,9 +20,9 @@ const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", 
 
 // Flags that take one value.
 const std::set<std::string_view> kValueFlags = {
-    "--world",       "--robot",     "--id",          "--world-name", "--server",
-    "--duration",    "--start",     "--laser-range", "--noise",      "--seed",
-    "--visible-out", "--trace-out", "--drive",       "--png-out",    "--command-latency"};
+    "--world",           "--robot", "--id",   "--world-name",  "--server",    "--duration", "--start",
+    "--laser-range",     "--noise", "--seed", "--visible-out", "--trace-out", "--drive",    "--png-out",
+    "--command-latency", "--hold"};
 
 // Every tool words its command-line errors alike: "option '--flag' <problem>", "unknown option '--flag'".
 [[noreturn]] void fail(std::string_view flag, const std::string& problem) {
@@ -29,12 +30,9 @@ const std::set<std::string_view> kValueFlags = {
 }
 
 double parse_number(std::string_view flag, std::string_view text, const std::string& what) {
-  double value = 0.0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (error != std::errc() || end != text.data() + text.size() || !std::isfinite(value)) {
-    fail(flag, "needs " + what + ", got '" + std::string(text) + "'");
-  }
-  return value;
+  const std::optional<double> value = client::finite_number(text);
+  if (!value) fail(flag, "needs " + what + ", got '" + std::string(text) + "'");
+  return *value;
 }
 
 double parse_positive(std::string_view flag, std::string_view text, const std::string& what) {
@@ -108,6 +106,8 @@ void apply(SimOptions& options, std::string_view flag, std::string_view value) {
     if (std::abs(steps - std::round(steps)) > 1e-9) {
       fail(flag, "must be a whole number of 0.01 s physics steps, got '" + std::string(value) + "'");
     }
+  } else if (flag == "--hold") {
+    options.hold_s = parse_positive(flag, value, "a wait in seconds");
   } else if (flag == "--seed") {
     options.seed = parse_seed(flag, value);
   } else if (flag == "--visible-out") {
@@ -214,6 +214,9 @@ std::string usage() {
          "                        0.01 s physics steps, at most 5): the loop latency of a real robot, which lockstep\n"
          "                        otherwise leaves at zero; the wheels' watchdog counts from when it takes effect\n"
          "                        (default 0)\n"
+         "  --hold S              stand at sim time 0, sending nothing after the RobotSpec, until a client sets\n"
+         "                        the robot a behaviour other than stop (polled on a query session), at most S wall\n"
+         "                        seconds: a lockstep run then starts with its behaviour, whenever that was set\n"
          "  --seed N              noise seed (default 1)\n"
          "  --json                print the summary as one JSON object on stdout\n"
          "  --visible-out FILE    write the obstacle pixels the sensors hit, one \"col row\" line each\n"

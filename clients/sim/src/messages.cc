@@ -121,6 +121,7 @@ v1::RobotSpec make_robot_spec(const RobotPreset& preset, const geometry::Pose2& 
   }
   spec.set_command_timeout_s(preset.command_timeout_s);
   spec.set_default_behaviour(preset.default_behaviour);
+  if (preset.activitybot_units) spec.set_command_units(v1::COMMAND_UNITS_ACTIVITYBOT_TICKS);
   if (preset.encoders) {
     v1::WheelEncoderSpec& encoders = *spec.mutable_encoders();
     encoders.set_ticks_per_revolution(preset.encoders->ticks_per_revolution);

@@ -135,6 +135,10 @@ RobotPreset activitybot() {
                                      .noise_far_from_m = 5.0}};
   preset.encoders = encoders;
   preset.drive_goto_speed_mps = max_speed_mps;
+  // Seed 003's system: the server runs PointBug on its sweeps once a controller gives it a goal; until then it
+  // stands, answered reading by reading.
+  preset.default_behaviour = "stop";
+  preset.activitybot_units = true;
   preset.command_timeout_s = 0.5;
   return preset;
 }

@@ -30,6 +30,8 @@ RunSummary summarize(const Simulation& simulation, const std::string& robot_id, 
                     .world_file = world_file,
                     .distance_m = robot.distance_m(),
                     .collisions = robot.collisions(),
+                    .collisions_moving = robot.collisions_moving(),
+                    .collisions_at_rest = robot.collisions_at_rest(),
                     .sim_time_s = robot.time_s(),
                     .scans_sent = simulation.scan_count(),
                     .commands_received = simulation.command_count(),
@@ -59,6 +61,8 @@ std::string to_json(const RunSummary& summary) {
   return "{\"robot\": " + json_string(summary.robot_id) + ", \"world\": " + json_string(summary.world_file) +
          ", \"distance_m\": " + number_text(summary.distance_m) +
          ", \"collisions\": " + std::to_string(summary.collisions) +
+         ", \"collisions_moving\": " + std::to_string(summary.collisions_moving) +
+         ", \"collisions_at_rest\": " + std::to_string(summary.collisions_at_rest) +
          ", \"sim_time_s\": " + number_text(summary.sim_time_s) +
          ", \"scans_sent\": " + std::to_string(summary.scans_sent) +
          ", \"commands_received\": " + std::to_string(summary.commands_received) +
@@ -75,7 +79,8 @@ std::string to_text(const RunSummary& summary) {
   text << std::fixed << "robot " << summary.robot_id << " in " << summary.world_file << '\n'
        << std::setprecision(2) << "  sim time    " << summary.sim_time_s << " s\n"
        << std::setprecision(3) << "  distance    " << summary.distance_m << " m\n"
-       << "  collisions  " << summary.collisions << '\n'
+       << "  collisions  " << summary.collisions << " (" << summary.collisions_moving << " moving, "
+       << summary.collisions_at_rest << " hit at rest)\n"
        << "  scans sent  " << summary.scans_sent << " sensor messages\n"
        << "  commands    " << summary.commands_received
        << " (last state: " << (summary.last_state.empty() ? "-" : summary.last_state)

@@ -90,11 +90,12 @@ void SimulatedRobot::command(const WheelCommand& command) {
   drive_until_step_ = step_count_ + drive_steps;
 }
 
-void SimulatedRobot::drive_goto(std::int64_t left_ticks, std::int64_t right_ticks) {
+void SimulatedRobot::drive_goto(std::int64_t left_ticks, std::int64_t right_ticks, double speed_mps) {
   if (!encoders_ || !(drive_goto_speed_mps_ > 0.0)) {
     throw std::logic_error("drive_goto: the robot has no wheel encoders or no drive_goto speed");
   }
   const EncoderTicks now = encoder_ticks();
+  goto_speed_mps_ = speed_mps > 0.0 ? std::min(speed_mps, drive_goto_speed_mps_) : drive_goto_speed_mps_;
   drive_until_step_ = step_count_;
   goto_target_ = EncoderTicks{.left = now.left + left_ticks, .right = now.right + right_ticks};
 }
@@ -116,7 +117,7 @@ geometry::WheelSpeeds SimulatedRobot::next_rim_speeds() {
     const auto speed_towards = [&](std::int64_t target_ticks, double travel_m) {
       const double remaining_m = static_cast<double>(target_ticks) * metres_per_tick - travel_m;
       if (std::abs(remaining_m) <= kGotoTolerance_m) return 0.0;
-      return std::copysign(std::min(drive_goto_speed_mps_, std::abs(remaining_m) / kPhysicsStep_s), remaining_m);
+      return std::copysign(std::min(goto_speed_mps_, std::abs(remaining_m) / kPhysicsStep_s), remaining_m);
     };
     return {speed_towards(goto_target_->left, left_travel_m_), speed_towards(goto_target_->right, right_travel_m_)};
   }
@@ -147,7 +148,7 @@ void SimulatedRobot::step() {
     // Standing still: only a moving obstacle can run into the robot.
     if (world_->has_moving_obstacles()) {
       const bool contact = world_->find_collision(footprint_, X_WB_, time_s()).has_value();
-      if (contact && !in_contact_) ++collisions_;
+      if (contact && !in_contact_) ++collisions_at_rest_;
       in_contact_ = contact;
     }
     return;
@@ -155,7 +156,7 @@ void SimulatedRobot::step() {
   const geometry::BodyVelocity body = body_velocity(wheels);
   const geometry::Pose2 X_WB_next = geometry::integrate(X_WB_, body, kPhysicsStep_s);
   if (world_->find_collision(footprint_, X_WB_next, time_s())) {
-    if (!in_contact_) ++collisions_;
+    if (!in_contact_) ++collisions_moving_;
     in_contact_ = true;
     return;
   }

@@ -134,7 +134,8 @@ Shape Shape::translated(const Eigen::Vector2d& offset) const {
   return shape;
 }
 
-Eigen::Vector2d MovingObstacle::center_at(double time_s) const {
+Eigen::Vector2d MovingObstacle::center_at(double sim_time_s) const {
+  const double time_s = sim_time_s - start_s;
   if (waypoints.size() < 2 || !(time_s > 0.0) || !(speed_mps > 0.0)) return waypoints.front();
   const std::size_t segments = loop ? waypoints.size() : waypoints.size() - 1;
   double total_m = 0.0;
@@ -470,7 +471,7 @@ class Parser {
       for (std::size_t i = 0; i < list.size(); ++i) {
         const std::string at = "moving[" + std::to_string(i) + "]";
         const YAML::Node entry = list[i];
-        check_keys(entry, at, {"shape", "waypoints", "speed", "loop"});
+        check_keys(entry, at, {"shape", "waypoints", "speed", "loop", "start"});
         MovingObstacle obstacle;
         obstacle.shape = shape(required(entry, "shape", at), at + ".shape", true);
         obstacle.shape.name = at + " (" + entry["shape"].begin()->first.as<std::string>() + ")";
@@ -479,6 +480,10 @@ class Parser {
         if (!(obstacle.speed_mps >= 0.0)) fail(at + ".speed", "must be >= 0");
         if (entry["loop"]) {
           if (!YAML::convert<bool>::decode(entry["loop"], obstacle.loop)) fail(at + ".loop", "expected true or false");
+        }
+        if (entry["start"]) {
+          obstacle.start_s = number(entry["start"], at + ".start");
+          if (!(obstacle.start_s >= 0.0)) fail(at + ".start", "must be >= 0 (sim seconds)");
         }
         moving.push_back(std::move(obstacle));
       }

@@ -30,11 +30,15 @@ std::uint64_t sensor_seed(std::uint64_t seed, std::size_t index) {
 }
 
 // The sensor whose messages the server answers with motion commands: the first laser, else the first range array
-// (a sonar robot steers by its ring); none otherwise.
+// (a sonar robot steers by its ring), else the first servo-swept beam (seed 003's ActivityBot, one command per
+// reading); none otherwise.
 std::string steering_sensor_of(const RobotPreset& preset) {
   if (preset.laser() != nullptr) return preset.laser()->name;
   for (const SensorPreset& sensor : preset.sensors) {
     if (const auto* array = std::get_if<RangeArrayPreset>(&sensor)) return array->name;
+  }
+  for (const SensorPreset& sensor : preset.sensors) {
+    if (const auto* servo = std::get_if<ServoRangePreset>(&sensor)) return servo->name;
   }
   return {};
 }
@@ -59,6 +63,7 @@ Simulation::Simulation(std::unique_ptr<SimWorld> world, const RobotPreset& prese
       kinematics_(preset.kinematics),
       steering_sensor_(steering_sensor_of(preset)),
       has_encoders_(preset.encoders.has_value()),
+      encoders_(preset.encoders),
       robot_(*world_, preset, X_WB_start) {
   for (std::size_t i = 0; i < preset.sensors.size(); ++i) {
     const std::uint64_t noise_seed = sensor_seed(seed, i);
@@ -168,6 +173,7 @@ SensorBatch Simulation::take_batch() {
       visible_pixels_.insert(reading.hit_pixels.begin(), reading.hit_pixels.end());
       batch.messages.push_back(
           make_servo_range_message(sensor.name, seq, stamp_s, reading.servo_angle_rad, reading.range_m));
+      if (sensor.name == steering_sensor_) batch.steering_scan_seq = seq;
       ++message_counts_["servo_range"];
     }
   }
@@ -198,7 +204,23 @@ void Simulation::apply_command(const v1::MotionCommand& command) {
 }
 
 void Simulation::take_effect(const v1::MotionCommand& command) {
-  robot_.command(to_wheel_command(command));
+  // The ActivityBot's own units (seed 003 §3.3.3, §3.4): drive_goto turns each wheel by its ticks, started once per
+  // manoeuvre id and not interrupted by its repeats; drive_speed runs the wheels at ticks per second.
+  if (encoders_ && !command.stop() && command.has_drive_goto()) {
+    const v1::DriveGoto& drive_goto = command.drive_goto();
+    if (drive_goto.id() != drive_goto_id_) {
+      drive_goto_id_ = drive_goto.id();
+      robot_.drive_goto(drive_goto.left_ticks(), drive_goto.right_ticks(),
+                        drive_goto.max_ticks_per_s() * geometry::metres_per_tick(*encoders_));
+    }
+  } else if (encoders_ && !command.stop() && command.has_drive_speed()) {
+    const double metres_per_tick = geometry::metres_per_tick(*encoders_);
+    robot_.command(WheelCommand{.left_mps = command.drive_speed().left_ticks_per_s() * metres_per_tick,
+                                .right_mps = command.drive_speed().right_ticks_per_s() * metres_per_tick,
+                                .expires_after_s = command.expires_after_s()});
+  } else {
+    robot_.command(to_wheel_command(command));
+  }
   ++command_count_;
   ++state_counts_[command.state()];
   last_state_ = command.state();

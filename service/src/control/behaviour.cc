@@ -19,6 +19,15 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+// What an escape reports as its plan: from the robot at position_W along what is left of path_W after `segment`.
+std::vector<Eigen::Vector2d> remaining_path(const Eigen::Vector2d& position_W,
+                                            const std::vector<Eigen::Vector2d>& path_W, std::size_t segment) {
+  std::vector<Eigen::Vector2d> path{position_W};
+  path.insert(path.end(), path_W.begin() + static_cast<std::ptrdiff_t>(std::min(segment + 1, path_W.size())),
+              path_W.end());
+  return path;
+}
+
 double footprint_width(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) return box->width;
   if (const auto* polygon = std::get_if<geometry::ConvexPolygonFootprint>(&footprint)) {
@@ -136,6 +145,25 @@ class WanderAdapter final : public Behaviour {
   std::optional<geometry::Pose2> last_pose_;
 };
 
+// PointBug's decision as a velocity held for one control cycle of period_s.
+BehaviourCommand pointbug_command(const PointBugDecision& decision, double period_s) {
+  BehaviourCommand command;
+  command.state = std::string(decision.state);
+  command.stop = decision.stop;
+  // The seed's drive_goto ends each turn and leg exactly; a velocity held for one control cycle must not
+  // overshoot them, or the heading tolerance would make the robot oscillate.
+  command.angular_radps =
+      std::copysign(std::min(std::abs(decision.angular_radps), std::abs(decision.target.turn_rad) / period_s),
+                    decision.angular_radps);
+  command.linear_mps = decision.linear_mps;
+  if (decision.linear_mps > 0.0) {
+    command.linear_mps = std::min(decision.linear_mps, decision.target.distance_m / period_s);
+    // Small heading errors while driving are corrected on the way rather than by stopping to re-aim.
+    command.angular_radps = std::clamp(decision.target.turn_rad / period_s / 4.0, -0.3, 0.3);
+  }
+  return command;
+}
+
 class GotoAdapter final : public Behaviour {
  public:
   GotoAdapter(const PointBugParams& params, double goal_x_m, double goal_y_m, double period_s,
@@ -169,20 +197,8 @@ class GotoAdapter final : public Behaviour {
     const Sweep sweep{readings, input.scan.range_max_m};
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
     const PointBugDecision decision = behaviour_.decide(pose, sweep);
-    command.state = std::string(decision.state);
+    command = pointbug_command(decision, period_s_);
     done_ = command.state == "reached" || command.state == "no_path";
-    command.stop = decision.stop;
-    // The seed's drive_goto ends each turn and leg exactly; a velocity held for one control cycle must not
-    // overshoot them, or the heading tolerance would make the robot oscillate.
-    command.angular_radps =
-        std::copysign(std::min(std::abs(decision.angular_radps), std::abs(decision.target.turn_rad) / period_s_),
-                      decision.angular_radps);
-    command.linear_mps = decision.linear_mps;
-    if (decision.linear_mps > 0.0) {
-      command.linear_mps = std::min(decision.linear_mps, decision.target.distance_m / period_s_);
-      // Small heading errors while driving are corrected on the way rather than by stopping to re-aim.
-      command.angular_radps = std::clamp(decision.target.turn_rad / period_s_ / 4.0, -0.3, 0.3);
-    }
     return command;
   }
 
@@ -208,6 +224,124 @@ class GotoAdapter final : public Behaviour {
   bool done_ = false;                          // reached, or no path: nothing planned any more
   double period_s_;
   double corridor_half_width_m_;
+};
+
+// PointBug on a servo-swept beam (make_servo_goto).
+class ServoGotoAdapter final : public Behaviour {
+ public:
+  ServoGotoAdapter(const PointBugParams& params, const ServoSweepLimits& limits, double servo_yaw_rad, double goal_x_m,
+                   double goal_y_m, double period_s)
+      : behaviour_(params, goal_x_m, goal_y_m),
+        assembler_(limits),
+        servo_yaw_rad_(servo_yaw_rad),
+        goal_W_(goal_x_m, goal_y_m),
+        period_s_(period_s) {}
+  [[nodiscard]] std::string_view name() const override { return "goto"; }
+  [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return goal_W_; }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
+    if (!position_W_ || done_) return {};
+    return {*position_W_, goal_W_};
+  }
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    BehaviourCommand command;
+    command.stop = true;
+    if (!input.servo) {
+      command.state = "no_sweep_reading";
+      return command;
+    }
+    const bool swept = assembler_.add(input.servo->servo_angle_rad, input.servo->range_m, input.servo->stamp_s);
+    if (!input.X_WB) {
+      command.state = "no_pose";
+      return command;
+    }
+    const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
+    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
+    const ServoSweepLimits& limits = assembler_.limits();
+    if (std::abs(input.servo->servo_angle_rad + servo_yaw_rad_) <= 0.5 * limits.servo_step_rad) {
+      const double range =
+          input.servo->range_m >= limits.range_max_m ? std::numeric_limits<double>::infinity() : input.servo->range_m;
+      ahead_ = Ahead{range, pose};
+    }
+    if (awaiting_sweep_) {
+      if (!swept) {
+        command.state = "sweep";
+        return command;
+      }
+      awaiting_sweep_ = false;
+      std::vector<SweepReading> readings = assembler_.last_sweep();
+      for (SweepReading& reading : readings) reading.angle_rad += servo_yaw_rad_;
+      ahead_.reset();  // PointBug turns toward its sudden point now
+      return finish(behaviour_.decide(pose, Sweep{readings, limits.range_max_m}));
+    }
+    // The reading straight ahead, if it was taken facing this way, less what has been driven toward it since. A
+    // missing one reads as blocked, which PointBug can only answer with no_path on a sweep of one reading.
+    double ahead_m = 0.0;
+    const bool ahead_known =
+        ahead_ &&
+        std::abs(geometry::wrap_angle(ahead_->pose.yaw_rad - pose.yaw_rad)) <=
+            std::max(kAheadHeadingTolerance_rad, kReaimHeadingTolerances * behaviour_.params().heading_tolerance_rad);
+    if (ahead_known) {
+      const double driven_m = (pose.x_m - ahead_->pose.x_m) * std::cos(pose.yaw_rad) +
+                              (pose.y_m - ahead_->pose.y_m) * std::sin(pose.yaw_rad);
+      ahead_m = std::max(0.0, ahead_->range_m - std::max(0.0, driven_m));
+    }
+    const std::array<SweepReading, 1> forward{SweepReading{0.0, ahead_m}};
+    PointBugBehaviour trial = behaviour_;
+    const PointBugDecision decision = trial.decide(pose, Sweep{forward, limits.range_max_m});
+    if (trial.state() == PointBugBehaviour::State::kNoPath && behaviour_.state() != PointBugBehaviour::State::kNoPath) {
+      if (!ahead_known) {
+        command.state = "look_ahead";
+        return command;
+      }
+      // Something within obstacle_range_m ahead: stand and take a whole sweep from here.
+      awaiting_sweep_ = true;
+      assembler_.restart();
+      command.state = "sweep";
+      return command;
+    }
+    behaviour_ = trial;
+    return finish(decision);
+  }
+
+ private:
+  // A reading ahead counts while the heading stays this close to the one it was taken at (assumption: the beam is
+  // about as wide as the ActivityBot at the obstacle range), and at least while PointBug keeps stepping without
+  // re-aiming: wheel speeds in whole ticks correct the heading in steps of a tick-quantised heading.
+  static constexpr double kAheadHeadingTolerance_rad = 3.0 * kDeg;
+  static constexpr double kReaimHeadingTolerances = 4.0;  // PointBug's step_to_goal re-aims beyond this many
+
+  struct Ahead {
+    double range_m = 0.0;
+    Pose2 pose;  // where the robot was when the servo pointed ahead
+  };
+
+  BehaviourCommand finish(const PointBugDecision& decision) {
+    BehaviourCommand command = pointbug_command(decision, period_s_);
+    done_ = command.state == "reached" || command.state == "no_path";
+    if (command.state == "drive_to_sudden_point") {
+      if (last_state_ != command.state) {
+        ++leg_id_;
+        leg_m_ = decision.target.distance_m;
+      }
+      command.leg_m = leg_m_;
+      command.leg_id = leg_id_;
+    }
+    last_state_ = command.state;
+    return command;
+  }
+
+  PointBugBehaviour behaviour_;
+  ServoSweepAssembler assembler_;
+  double servo_yaw_rad_;
+  Eigen::Vector2d goal_W_;
+  double period_s_;
+  std::optional<Ahead> ahead_;
+  bool awaiting_sweep_ = false;
+  std::string last_state_;    // of the last decision that moved or stopped by PointBug
+  std::uint64_t leg_id_ = 0;  // counts the legs to sudden points
+  double leg_m_ = 0.0;        // the current leg's length where it began
+  std::optional<Eigen::Vector2d> position_W_;
+  bool done_ = false;
 };
 
 // No threat anywhere: the guidance then just tracks its target (a world whose PTEM has not been published yet).
@@ -280,11 +414,7 @@ class EscapeWrapper final : public Behaviour {
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
   [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
     if (path_.empty() || !position_W_) return inner_->planned_path();
-    // From the robot along what is left of the escape path.
-    std::vector<Eigen::Vector2d> path{*position_W_};
-    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
-                path_.end());
-    return path;
+    return remaining_path(*position_W_, path_, segment_);
   }
 
   BehaviourCommand decide(const BehaviourInput& input) override {
@@ -416,10 +546,7 @@ class MapEscapeWrapper final : public Behaviour {
   [[nodiscard]] std::string_view name() const override { return inner_->name(); }
   [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override {
     if (path_.empty() || !position_W_) return inner_->planned_path();
-    std::vector<Eigen::Vector2d> path{*position_W_};
-    path.insert(path.end(), path_.begin() + static_cast<std::ptrdiff_t>(std::min(segment_ + 1, path_.size())),
-                path_.end());
-    return path;
+    return remaining_path(*position_W_, path_, segment_);
   }
 
   BehaviourCommand decide(const BehaviourInput& input) override {
@@ -639,6 +766,12 @@ std::unique_ptr<Behaviour> make_goto(const PointBugParams& params, double goal_x
                                      double corridor_half_width_m) {
   return std::make_unique<GotoAdapter>(params, goal_x_m, goal_y_m, std::max(period_s, 1e-3),
                                        std::max(corridor_half_width_m, 0.0));
+}
+
+std::unique_ptr<Behaviour> make_servo_goto(const PointBugParams& params, const ServoSweepLimits& limits,
+                                           double servo_yaw_rad, double goal_x_m, double goal_y_m, double period_s) {
+  return std::make_unique<ServoGotoAdapter>(params, limits, servo_yaw_rad, goal_x_m, goal_y_m,
+                                            std::max(period_s, 1e-3));
 }
 
 std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<Eigen::Vector2d> waypoints_W) {

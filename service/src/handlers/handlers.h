@@ -61,6 +61,11 @@ class SessionContext {
   virtual HelloThrottle* hello_throttle() { return nullptr; }
   // Subscribes this session to WatchEvents (role already checked). Network strand only.
   virtual void watch(const v1::WatchRequest& request);
+  // Observers that asked for data (WatchRequest.with_data): whether there are any (lock-free, any thread; the ingest
+  // path builds an event only then), and handing one event of this driver's robot to those whose filter matches (world
+  // and robot_id are filled in). Any thread; never waits for an observer.
+  [[nodiscard]] virtual bool data_watched() const { return false; }
+  virtual void publish_data(std::shared_ptr<v1::WatchEvent> /*event*/) {}
 };
 
 using SessionPtr = std::shared_ptr<SessionContext>;

@@ -1,3 +1,4 @@
+#include "../secret_compare.h"
 #include "../validation.h"
 #include "handlers.h"
 #include "occgeo/service/log.h"

@@ -30,6 +30,12 @@ void apply_on_strand(const SessionPtr& session, Robot& robot, const v1::Odometry
     encoder_odometry->reset(
         geometry::Pose2{odometry.pose().x(), odometry.pose().y(), geometry::wrap_angle(odometry.pose().theta())});
   }
+  if (session->data_watched()) {
+    auto event = std::make_shared<v1::WatchEvent>();
+    event->set_seq(odometry.seq());
+    *event->mutable_odometry() = odometry;
+    session->publish_data(std::move(event));
+  }
 }
 
 }  // namespace

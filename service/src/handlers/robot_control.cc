@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <boost/asio/post.hpp>
+#include <cmath>
 #include <variant>
 
 #include "../metrics.h"
@@ -173,6 +174,23 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
     for (const auto& w : request.waypoints()) waypoints_W.emplace_back(w.x_m(), w.y_m());
     return control::make_waypoints(shape, std::move(waypoints_W));
   }
+  if (name == "goto" && model.lasers.empty() && !model.servo_ranges.empty()) {
+    // Seed 003's robot: PointBug on the swept beam, one decision per servo step.
+    const ServoRangeModel& servo = model.servo_ranges.front();
+    const control::ServoSweepLimits limits{servo.servo_min_rad, servo.servo_max_rad, servo.servo_step_rad,
+                                           servo.range_max_m};
+    const Eigen::Vector3d beam_B = servo.X_BS.transform.linear() * Eigen::Vector3d::UnitX();
+    control::PointBugParams params = control::pointbug_params_for(shape);
+    if (model.encoders) {
+      // A pose dead-reckoned from whole ticks knows the heading only to one tick of one wheel over the wheel
+      // separation (1.76 degrees on the ActivityBot), as coarse as the seed's own drive_goto turns; a finer tolerance
+      // would dither between the two ticks either side of the goal's bearing for ever.
+      const double heading_step_rad = geometry::metres_per_tick(*model.encoders) / model.encoders->wheel_separation_m;
+      params.heading_tolerance_rad = std::max(params.heading_tolerance_rad, heading_step_rad);
+    }
+    return control::make_servo_goto(params, limits, std::atan2(beam_B.y(), beam_B.x()), request.goal().x_m(),
+                                    request.goal().y_m(), servo.step_period_s);
+  }
   if (name == "goto") {
     double half_width_m = 0.0;
     std::visit(
@@ -195,7 +213,8 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
 
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
                                              double expiry_s, const ServerConfig& config,
-                                             const std::optional<control::RangeSet>& ring) {
+                                             const std::optional<control::RangeSet>& ring,
+                                             const std::optional<control::ServoSample>& servo) {
   const RobotModel& model = robot.model();
   const ControlState control = robot.control().state();
   v1::MotionCommand command;
@@ -227,8 +246,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         robot.active_generation_on_strand() = control.drive_generation;
       }
       if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
-      wanted =
-          active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring});
+      wanted = active->decide(
+          {view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring, servo});
       path_W = active->planned_path();
     } catch (const std::invalid_argument& e) {
       log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
@@ -256,6 +275,30 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);
       metrics::counter("occgeo_guard_interventions_total", {{"robot", model.id}}).inc();
+    }
+  }
+  if (model.encoders && model.spec.command_units() == v1::COMMAND_UNITS_ACTIVITYBOT_TICKS) {
+    // Seed 003's robot takes whole encoder ticks (abdrive): its wheel speeds become ticks per second, and a straight
+    // leg the behaviour drives to its end, unchanged by the guard, becomes a drive_goto of the leg's ticks.
+    const double metres_per_tick = geometry::metres_per_tick(*model.encoders);
+    const auto ticks = [&](double metres) { return static_cast<std::int32_t>(std::lround(metres / metres_per_tick)); };
+    const bool guard_passed = !guard.checked() || guard.action() == "pass";
+    if (wanted.leg_m && guard_passed && velocity.wheels.left_mps > 0.0) {
+      const auto leg_ticks = static_cast<std::int64_t>(std::lround(*wanted.leg_m / metres_per_tick));
+      v1::DriveGoto& drive_goto = *command.mutable_drive_goto();
+      drive_goto.set_left_ticks(leg_ticks);
+      drive_goto.set_right_ticks(leg_ticks);
+      drive_goto.set_id(wanted.leg_id);
+      drive_goto.set_max_ticks_per_s(std::max(1, ticks(velocity.wheels.left_mps)));
+    } else {
+      v1::DriveSpeed& drive_speed = *command.mutable_drive_speed();
+      drive_speed.set_left_ticks_per_s(ticks(velocity.wheels.left_mps));
+      drive_speed.set_right_ticks_per_s(ticks(velocity.wheels.right_mps));
+      // What the wheels will do: the speeds the whole ticks give.
+      const auto* drive = std::get_if<geometry::DifferentialDriveParams>(&model.drive);
+      velocity.wheels = {drive_speed.left_ticks_per_s() * metres_per_tick,
+                         drive_speed.right_ticks_per_s() * metres_per_tick};
+      if (drive != nullptr) velocity.body = geometry::to_body(velocity.wheels, *drive);
     }
   }
   command.set_left_wheel_mps(velocity.wheels.left_mps);
@@ -389,18 +432,6 @@ std::shared_ptr<Robot> find_named_robot(const SessionPtr& session, const std::st
                         request_id);
   }
   return robot;
-}
-
-bool constant_time_equal(const std::string& a, const std::string& b) {
-  // Every byte of the longer string is visited whatever the contents; only the lengths leak.
-  const std::size_t n = std::max(a.size(), b.size());
-  unsigned difference = a.size() == b.size() ? 0U : 1U;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto x = static_cast<unsigned char>(i < a.size() ? a[i] : 0);
-    const auto y = static_cast<unsigned char>(i < b.size() ? b[i] : 0);
-    difference |= static_cast<unsigned>(x ^ y);
-  }
-  return difference == 0U;
 }
 
 ClampedVelocity clamp_velocity(const RobotModel& model, double linear_mps, double angular_radps) {

@@ -52,10 +52,11 @@ struct ClampedVelocity {
 // (config.guard) against the world's latest snapshot, and the guard's verdict is recorded in the robot's state.
 // answers_scan_seq and seq are left to the caller. Call only from the world's strand.
 // A robot without a laser passes its first range array's readings as `ring` (base_link bearings and distances) and an
-// empty view.
+// empty view; a robot whose only range sensor is a servo-swept beam passes each reading of its first one as `servo`.
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
                                              double expiry_s, const ServerConfig& config,
-                                             const std::optional<control::RangeSet>& ring = std::nullopt);
+                                             const std::optional<control::RangeSet>& ring = std::nullopt,
+                                             const std::optional<control::ServoSample>& servo = std::nullopt);
 
 // Numbers the command as answering sensor message `answers_seq`, records it in the robot's state (logging a change of
 // behaviour state) and sends it on the driver's session. Call only from the world's strand.
@@ -75,8 +76,5 @@ void release_session_control(ServerCore& core, const SessionInfo& info);
 // ERROR_INVALID_ARGUMENT or ERROR_UNKNOWN_ROBOT naming the field.
 std::shared_ptr<Robot> find_named_robot(const SessionPtr& session, const std::string& robot_id,
                                         const std::string& message, std::uint64_t request_id);
-
-// Compares two strings in time independent of where they differ (operator token).
-[[nodiscard]] bool constant_time_equal(const std::string& a, const std::string& b);
 
 }  // namespace occgeo::service

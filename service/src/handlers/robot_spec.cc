@@ -1,3 +1,5 @@
+#include <boost/asio/post.hpp>
+
 #include "../validation.h"
 #include "handlers.h"
 #include "occgeo/service/log.h"
@@ -30,6 +32,13 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
     c.sensor_stale = false;
   });
   info.robot = std::move(robot);
+  if (session->data_watched()) {
+    // Published from the world's strand like every later data event of the robot, so it reaches watchers first.
+    auto event = std::make_shared<v1::WatchEvent>();
+    *event->mutable_robot_spec() = spec;
+    asio::post(info.robot->world().strand(),
+               [session, event = std::move(event)]() mutable { session->publish_data(std::move(event)); });
+  }
   log::info(
       "robot_registered",
       {{"robot", info.robot_id}, {"world", info.world}, {"model", spec.model()}, {"sensors", spec.sensors_size()}});

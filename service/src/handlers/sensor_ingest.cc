@@ -17,6 +17,42 @@ void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldE
   session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message + "; the message was discarded", 0, seq);
 }
 
+namespace {
+
+// Hands an accepted sensor message to the observers recording the session: a copy, with where it was placed and which
+// cells it may have changed. Posting it is all that happens here; a slow observer's queue drops, never this strand.
+void publish_accepted(const SessionPtr& session, World& world, const SensorMessageHeader& header,
+                      const geometry::Pose2& X_WB, const std::optional<mapping::CellBox>& touched) {
+  auto event = std::make_shared<v1::WatchEvent>();
+  event->set_seq(header.seq);
+  event->set_world_version(world.grid_on_strand().version());
+  event->set_cell_size_m(world.grid_on_strand().params().cell_size_m);
+  event->mutable_pose()->set_x(X_WB.x);
+  event->mutable_pose()->set_y(X_WB.y);
+  event->mutable_pose()->set_theta(X_WB.theta);
+  if (touched) {
+    event->mutable_changed_cells()->mutable_min()->set_ix(touched->min.ix);
+    event->mutable_changed_cells()->mutable_min()->set_iy(touched->min.iy);
+    event->mutable_changed_cells()->mutable_max()->set_ix(touched->max.ix);
+    event->mutable_changed_cells()->mutable_max()->set_iy(touched->max.iy);
+  }
+  const google::protobuf::MessageLite& message = *header.message;
+  if (header.kind == "laser_scan") {
+    event->mutable_laser_scan()->CheckTypeAndMergeFrom(message);
+  } else if (header.kind == "range_array") {
+    event->mutable_range_array()->CheckTypeAndMergeFrom(message);
+  } else if (header.kind == "servo_range") {
+    event->mutable_servo_range()->CheckTypeAndMergeFrom(message);
+  } else if (header.kind == "point_cloud") {
+    event->mutable_point_cloud()->CheckTypeAndMergeFrom(message);
+  } else {
+    return;
+  }
+  session->publish_data(std::move(event));
+}
+
+}  // namespace
+
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
     const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert) {
@@ -101,7 +137,8 @@ bool ingest_sensor_message_on_strand(
   }
   IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   insert(*before.X_WB, target);
-  world.publish_on_strand(target.touched, before.X_WB->position());
+  world.publish_on_strand(target.touched);
+  if (header.message && session->data_watched()) publish_accepted(session, world, header, *before.X_WB, target.touched);
 
   // The robot's state first: a client that saw the ack and then asks for the status must find the message counted.
   robot.update_state([&](RobotState& state) {

@@ -15,6 +15,7 @@
 
 #include "../core.h"
 #include "../metrics.h"
+#include "../secret_compare.h"
 #include "foxglove.h"
 #include "live_view.h"
 #include "occgeo/service/log.h"
@@ -83,84 +84,87 @@ Response route(const Request& request) {
                        "no such page; the live view is at /, metrics at /metrics\n");
 }
 
-// One browser's live view over a WebSocket. At most one frame is being written and at most one more waits; a frame
-// is built only when it is about to be written, so a slow browser gets fewer, newer frames (the older waiting one is
-// dropped and counted) and never misses a map change (tile differences are computed against what it was sent).
-class LiveViewSocket : public std::enable_shared_from_this<LiveViewSocket> {
- public:
-  LiveViewSocket(ServerCore& core, tcp::socket socket)
-      : ws_(std::move(socket)), timer_(ws_.get_executor()), state_(core) {}
+// A message to write on a WebSocket.
+struct Outgoing {
+  std::string bytes;
+  bool binary = false;
+  std::optional<std::uint32_t> subscription;  // a subscription's data: replaced by a newer one while waiting
+};
 
-  ~LiveViewSocket() {
+// What every WebSocket session here does alike: accept (counted in occgeo_web_clients), read messages one at a time,
+// tick every kFramePeriod, and write one message at a time, asking the session for the next only when the previous is
+// written (so a slow client gets fewer, newer messages rather than a queue). Derived provides on_accepted(),
+// on_message(text), on_tick() and next_outgoing(); it calls pump() when it has something new to send.
+template <typename Derived>
+class WebSocketSession : public std::enable_shared_from_this<Derived> {
+ public:
+  explicit WebSocketSession(tcp::socket socket) : ws_(std::move(socket)), timer_(ws_.get_executor()) {}
+  ~WebSocketSession() {
     if (accepted_) metrics::gauge("occgeo_web_clients").dec();
   }
 
-  void run(Request request) {
+  // subprotocol: answered in Sec-WebSocket-Protocol when not empty.
+  void run(Request request, std::string_view subprotocol = {}) {
     request_ = std::move(request);
     beast::get_lowest_layer(ws_).expires_never();
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    if (!subprotocol.empty()) {
+      ws_.set_option(websocket::stream_base::decorator([subprotocol](websocket::response_type& response) {
+        response.set(bhttp::field::sec_websocket_protocol, beast::string_view(subprotocol.data(), subprotocol.size()));
+      }));
+    }
     ws_.read_message_max(64 * 1024);
-    ws_.async_accept(request_, [self = shared_from_this()](const beast::error_code& error) {
+    ws_.async_accept(request_, [self = this->shared_from_this()](const beast::error_code& error) {
       if (error) return;
       self->accepted_ = true;
       metrics::gauge("occgeo_web_clients").inc();
       self->read();
-      self->frame_waiting_ = true;
-      self->pump();
+      self->on_accepted();
       self->tick();
     });
   }
 
+ protected:
+  void pump() {
+    if (writing_ || closed_) return;
+    std::optional<Outgoing> next = derived().next_outgoing();
+    if (!next) return;
+    current_ = std::move(*next);
+    writing_ = true;
+    ws_.binary(current_.binary);
+    ws_.async_write(asio::buffer(current_.bytes),
+                    [self = this->shared_from_this()](const beast::error_code& error, std::size_t) {
+                      self->writing_ = false;
+                      if (error) {
+                        self->close();
+                        return;
+                      }
+                      self->pump();
+                    });
+  }
+
  private:
+  Derived& derived() { return static_cast<Derived&>(*this); }
+
   void read() {
-    ws_.async_read(read_buffer_, [self = shared_from_this()](const beast::error_code& error, std::size_t) {
+    ws_.async_read(read_buffer_, [self = this->shared_from_this()](const beast::error_code& error, std::size_t) {
       if (error) {
         self->close();
         return;
       }
       const std::string text = beast::buffers_to_string(self->read_buffer_.data());
       self->read_buffer_.consume(self->read_buffer_.size());
-      if (self->replies_.size() < kMaxQueuedReplies) {
-        self->replies_.push_back(self->state_.handle_message(text));
-      } else {
-        metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
-      }
-      self->pump();
+      self->on_message(text);
       self->read();
     });
   }
 
   void tick() {
     timer_.expires_after(kFramePeriod);
-    timer_.async_wait([self = shared_from_this()](const beast::error_code& error) {
+    timer_.async_wait([self = this->shared_from_this()](const beast::error_code& error) {
       if (error || self->closed_) return;
-      if (self->frame_waiting_) metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
-      self->frame_waiting_ = true;
-      self->pump();
+      self->on_tick();
       self->tick();
-    });
-  }
-
-  void pump() {
-    if (writing_ || closed_) return;
-    if (!replies_.empty()) {
-      outgoing_ = std::move(replies_.front());
-      replies_.pop_front();
-    } else if (frame_waiting_) {
-      frame_waiting_ = false;
-      outgoing_ = state_.next_frame();
-    } else {
-      return;
-    }
-    writing_ = true;
-    ws_.text(true);
-    ws_.async_write(asio::buffer(outgoing_), [self = shared_from_this()](const beast::error_code& error, std::size_t) {
-      self->writing_ = false;
-      if (error) {
-        self->close();
-        return;
-      }
-      self->pump();
     });
   }
 
@@ -171,55 +175,99 @@ class LiveViewSocket : public std::enable_shared_from_this<LiveViewSocket> {
 
   websocket::stream<beast::tcp_stream> ws_;
   asio::steady_timer timer_;
-  LiveViewState state_;
   Request request_;
   beast::flat_buffer read_buffer_;
-  std::string outgoing_;
-  std::deque<std::string> replies_;
+  Outgoing current_;
   bool accepted_ = false;
   bool writing_ = false;
-  bool frame_waiting_ = false;
   bool closed_ = false;
+};
+
+// One browser's live view over a WebSocket. At most one frame is being written and at most one more waits; a frame
+// is built only when it is about to be written, so a slow browser gets fewer, newer frames (the older waiting one is
+// dropped and counted) and never misses a map change (tile differences are computed against what it was sent).
+class LiveViewSocket final : public WebSocketSession<LiveViewSocket> {
+ public:
+  LiveViewSocket(ServerCore& core, tcp::socket socket) : WebSocketSession(std::move(socket)), state_(core) {}
+
+ private:
+  friend class WebSocketSession<LiveViewSocket>;
+
+  void on_accepted() {
+    frame_waiting_ = true;
+    pump();
+  }
+
+  void on_message(const std::string& text) {
+    if (replies_.size() < kMaxQueuedReplies) {
+      replies_.push_back(state_.handle_message(text));
+    } else {
+      metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+    }
+    pump();
+  }
+
+  void on_tick() {
+    if (frame_waiting_) metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+    frame_waiting_ = true;
+    pump();
+  }
+
+  std::optional<Outgoing> next_outgoing() {
+    if (!replies_.empty()) {
+      Outgoing reply{std::move(replies_.front()), false, std::nullopt};
+      replies_.pop_front();
+      return reply;
+    }
+    if (!frame_waiting_) return std::nullopt;
+    frame_waiting_ = false;
+    return Outgoing{state_.next_frame(), false, std::nullopt};
+  }
+
+  LiveViewState state_;
+  std::deque<std::string> replies_;
+  bool frame_waiting_ = false;
 };
 
 // One Foxglove WebSocket client (foxglove.websocket.v1, see foxglove.h): serverInfo and advertise on connecting, then
 // the subscribed channels, checked ten times a second. One message is written at a time and at most one per channel
 // waits, replaced by a newer one (counted as dropped), so a slow client costs no queue.
-class FoxgloveSocket : public std::enable_shared_from_this<FoxgloveSocket> {
+class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
  public:
-  FoxgloveSocket(ServerCore& core, tcp::socket socket)
-      : core_(core), ws_(std::move(socket)), timer_(ws_.get_executor()) {}
-
-  ~FoxgloveSocket() {
-    if (accepted_) metrics::gauge("occgeo_web_clients").dec();
-  }
-
-  void run(Request request) {
-    request_ = std::move(request);
-    beast::get_lowest_layer(ws_).expires_never();
-    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
-    ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& response) {
-      response.set(bhttp::field::sec_websocket_protocol, foxglove::kSubprotocol);
-    }));
-    ws_.read_message_max(64 * 1024);
-    ws_.async_accept(request_, [self = shared_from_this()](const beast::error_code& error) {
-      if (error) return;
-      self->accepted_ = true;
-      metrics::gauge("occgeo_web_clients").inc();
-      static std::atomic<std::uint64_t> sessions{0};
-      self->queue(foxglove::server_info(++sessions), false);
-      self->queue(foxglove::advertise(), false);
-      self->read();
-      self->tick();
-    });
-  }
+  FoxgloveSocket(ServerCore& core, tcp::socket socket) : WebSocketSession(std::move(socket)), core_(core) {}
 
  private:
-  struct Outgoing {
-    std::string bytes;
-    bool binary = false;
-    std::optional<std::uint32_t> subscription;  // a subscription's data: replaced by a newer one while waiting
-  };
+  friend class WebSocketSession<FoxgloveSocket>;
+
+  void on_accepted() {
+    static std::atomic<std::uint64_t> sessions{0};
+    queue(foxglove::server_info(++sessions), false);
+    queue(foxglove::advertise(), false);
+  }
+
+  void on_message(const std::string& text) {
+    if (text.find("\"unsubscribe\"") != std::string::npos) {
+      for (const std::uint32_t id : foxglove::parse_unsubscribe(text)) {
+        std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == id; });
+      }
+    } else if (text.find("\"subscribe\"") != std::string::npos) {
+      for (const auto& subscription : foxglove::parse_subscribe(text)) {
+        if (subscription.channel != foxglove::kMapChannel && subscription.channel != foxglove::kScansChannel) continue;
+        std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == subscription.id; });
+        subscriptions_.push_back({subscription.id, subscription.channel, {}, {}});
+      }
+      publish();
+    }
+  }
+
+  void on_tick() { publish(); }
+
+  std::optional<Outgoing> next_outgoing() {
+    if (outgoing_.empty()) return std::nullopt;
+    Outgoing next = std::move(outgoing_.front());
+    outgoing_.pop_front();
+    return next;
+  }
 
   void queue(std::string bytes, bool binary, std::optional<std::uint32_t> subscription = std::nullopt) {
     if (subscription) {
@@ -233,40 +281,6 @@ class FoxgloveSocket : public std::enable_shared_from_this<FoxgloveSocket> {
     }
     outgoing_.push_back({std::move(bytes), binary, subscription});
     pump();
-  }
-
-  void read() {
-    ws_.async_read(read_buffer_, [self = shared_from_this()](const beast::error_code& error, std::size_t) {
-      if (error) {
-        self->close();
-        return;
-      }
-      const std::string text = beast::buffers_to_string(self->read_buffer_.data());
-      self->read_buffer_.consume(self->read_buffer_.size());
-      if (text.find("\"unsubscribe\"") != std::string::npos) {
-        for (const std::uint32_t id : foxglove::parse_unsubscribe(text)) {
-          std::erase_if(self->subscriptions_, [&](const Subscribed& s) { return s.id == id; });
-        }
-      } else if (text.find("\"subscribe\"") != std::string::npos) {
-        for (const auto& subscription : foxglove::parse_subscribe(text)) {
-          if (subscription.channel != foxglove::kMapChannel && subscription.channel != foxglove::kScansChannel)
-            continue;
-          std::erase_if(self->subscriptions_, [&](const Subscribed& s) { return s.id == subscription.id; });
-          self->subscriptions_.push_back({subscription.id, subscription.channel, {}, {}});
-        }
-        self->publish();
-      }
-      self->read();
-    });
-  }
-
-  void tick() {
-    timer_.expires_after(kFramePeriod);
-    timer_.async_wait([self = shared_from_this()](const beast::error_code& error) {
-      if (error || self->closed_) return;
-      self->publish();
-      self->tick();
-    });
   }
 
   // Sends each subscription what changed since it was last sent.
@@ -309,28 +323,6 @@ class FoxgloveSocket : public std::enable_shared_from_this<FoxgloveSocket> {
     }
   }
 
-  void pump() {
-    if (writing_ || closed_ || outgoing_.empty()) return;
-    current_ = std::move(outgoing_.front());
-    outgoing_.pop_front();
-    writing_ = true;
-    ws_.binary(current_.binary);
-    ws_.async_write(asio::buffer(current_.bytes),
-                    [self = shared_from_this()](const beast::error_code& error, std::size_t) {
-                      self->writing_ = false;
-                      if (error) {
-                        self->close();
-                        return;
-                      }
-                      self->pump();
-                    });
-  }
-
-  void close() {
-    closed_ = true;
-    timer_.cancel();
-  }
-
   struct Subscribed {
     std::uint32_t id = 0;
     std::uint32_t channel = 0;
@@ -339,16 +331,8 @@ class FoxgloveSocket : public std::enable_shared_from_this<FoxgloveSocket> {
   };
 
   ServerCore& core_;
-  websocket::stream<beast::tcp_stream> ws_;
-  asio::steady_timer timer_;
-  Request request_;
-  beast::flat_buffer read_buffer_;
   std::deque<Outgoing> outgoing_;
-  Outgoing current_;
   std::vector<Subscribed> subscriptions_;
-  bool accepted_ = false;
-  bool writing_ = false;
-  bool closed_ = false;
 };
 
 // Whether a WebSocket upgrade asks for the Foxglove protocol.
@@ -376,14 +360,6 @@ std::optional<std::string_view> query_token(std::string_view target) {
     rest = rest.substr(amp + 1);
   }
   return std::nullopt;
-}
-
-// Compares in time independent of where the two differ.
-bool same_secret(std::string_view a, std::string_view b) {
-  unsigned char difference = a.size() == b.size() ? 0 : 1;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    difference |= static_cast<unsigned char>(a[i] ^ b[i % std::max<std::size_t>(b.size(), 1)]);
-  return difference == 0;
 }
 
 // One HTTP/1.1 connection: requests in order, keep-alive; an upgrade on /ws hands the socket to a LiveViewSocket, and
@@ -425,7 +401,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     }
     if (websocket::is_upgrade(request) && wants_foxglove(request)) {
       metrics::counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
-      std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())->run(std::move(request));
+      std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())
+          ->run(std::move(request), foxglove::kSubprotocol);
       return;
     }
     if (websocket::is_upgrade(request) && path_of(target) == "/ws") {
@@ -485,7 +462,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
         if (value.starts_with("Bearer ")) given = value.substr(7);
       }
     }
-    if (given && same_secret(*given, token)) return std::nullopt;
+    if (given && constant_time_equal(*given, token)) return std::nullopt;
     auto response = make_response(request, bhttp::status::unauthorized, "text/plain; charset=utf-8",
                                   "this server needs the observer token: add ?token=... to the address, or send "
                                   "Authorization: Bearer ...\n");

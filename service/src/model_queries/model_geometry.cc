@@ -243,31 +243,10 @@ PtemContact collide_ptem(const mapping::PtemSnapshot& ptem, const geometry::Foot
   return {};
 }
 
-PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                             const geometry::Pose2& X_WB, double max_distance_m) {
-  PtemClearance out;
-  out.clearance_m = max_distance_m;
-  if (!ptem.restricted_threshold()) return out;
-  if (const PtemContact contact = collide_ptem(ptem, footprint, X_WB); contact.hit) {
-    return {true, 0.0, contact.point_W};
-  }
-  return ptem_extent_clearance(ptem, footprint, X_WB, max_distance_m);
-}
+namespace {
 
-PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                const geometry::Pose2& X_WB, double bounding_radius_m) {
-  std::optional<PlanarFrame> frame;
-  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-    // The bounding circle first: most clusters are far and need no body-frame arithmetic.
-    if ((cluster.centre_W - X_WB.position()).norm() > bounding_radius_m + cluster.radius_m) continue;
-    if (!frame) frame.emplace(X_WB);
-    const Eigen::Vector2d q_W = nearest_footprint_point(footprint, *frame, cluster.centre_W);
-    if ((q_W - cluster.centre_W).norm() <= cluster.radius_m) return {true, q_W};
-  }
-  return {};
-}
-
-PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+// Distance from the footprint at X_WB to the nearest cluster circle, no farther than max_distance_m; 0 inside one.
+PtemClearance ptem_circle_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                                     const geometry::Pose2& X_WB, double max_distance_m) {
   PtemClearance out;
   out.clearance_m = max_distance_m;
@@ -280,6 +259,59 @@ PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geo
       out.found = true;
       out.clearance_m = d;
       out.nearest_point_W = cluster.centre_W + away.normalized() * cluster.radius_m;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                             const geometry::Pose2& X_WB, double max_distance_m) {
+  PtemClearance out;
+  out.clearance_m = max_distance_m;
+  if (!ptem.restricted_threshold()) return out;
+  if (const PtemContact contact = collide_ptem(ptem, footprint, X_WB); contact.hit) {
+    return {true, 0.0, contact.point_W};
+  }
+  return ptem_circle_clearance(ptem, footprint, X_WB, max_distance_m);
+}
+
+PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                                const geometry::Pose2& X_WB, double bounding_radius_m) {
+  std::optional<PlanarFrame> frame;
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    // The circle holds every return of the cluster: most clusters are far and need no body-frame arithmetic.
+    if ((cluster.centre_W - X_WB.position()).norm() > bounding_radius_m + cluster.radius_m) continue;
+    if (!frame) frame.emplace(X_WB);
+    if ((nearest_footprint_point(footprint, *frame, cluster.centre_W) - cluster.centre_W).norm() > cluster.radius_m) {
+      continue;
+    }
+    for (const Eigen::Vector2d& p_W : cluster.extent_W) {
+      // Inside the closed footprint its nearest point is the point itself (up to the frame's rounding).
+      if ((nearest_footprint_point(footprint, *frame, p_W) - p_W).squaredNorm() <= 1e-18) return {true, p_W};
+    }
+  }
+  return {};
+}
+
+PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
+                                    const geometry::Pose2& X_WB, double max_distance_m) {
+  PtemClearance out;
+  out.clearance_m = max_distance_m;
+  const PlanarFrame frame(X_WB);
+  for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    // The distance to the circle bounds the distance to any return inside it: skip clusters that cannot be nearer.
+    const double circle_gap_m =
+        (nearest_footprint_point(footprint, frame, cluster.centre_W) - cluster.centre_W).norm() - cluster.radius_m;
+    if (circle_gap_m > out.clearance_m || (out.found && circle_gap_m >= out.clearance_m)) continue;
+    for (const Eigen::Vector2d& p_W : cluster.extent_W) {
+      const double d = (nearest_footprint_point(footprint, frame, p_W) - p_W).norm();
+      if (d <= out.clearance_m && (!out.found || d < out.clearance_m)) {
+        out.found = true;
+        out.clearance_m = d <= 1e-9 ? 0.0 : d;
+        out.nearest_point_W = p_W;
+      }
     }
   }
   return out;

@@ -115,11 +115,13 @@ struct PtemClearance {
 PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                              const geometry::Pose2& X_WB, double max_distance_m);
 
-// Matter, not threat: does the footprint at X_WB reach into a cluster's own circle (the smallest circle around the
-// returns it gathered)? The summed PDFs' region beyond the circles is collide_ptem's keep-out, not a contact.
+// Matter, not threat: does the footprint at X_WB (closed) hold one of the returns a cluster gathered
+// (PtemCluster::extent_W)? A cluster's circle reaches into free floor beside and behind its returns, and the summed
+// PDFs' region beyond the circles even more: both are collide_ptem's keep-out, not a contact.
 PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                                 const geometry::Pose2& X_WB, double bounding_radius_m);
-// Distance from the footprint at X_WB to the nearest cluster circle, no farther than max_distance_m; 0 inside one.
+// Distance from the footprint at X_WB to the nearest return of any cluster's extent, no farther than max_distance_m;
+// 0 when the footprint holds one.
 PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
                                     const geometry::Pose2& X_WB, double max_distance_m);
 

@@ -1,10 +1,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "occgeo/geometry/cell.h"
@@ -20,26 +22,21 @@ struct DistanceFieldParams {
   // the grid. It bounds the work per changed cell (the wavefront stops there), so keep it near the largest clearance
   // queries ask for.
   double max_distance_m = 3.0;
-  // Largest side of the square of space the field covers, metres; finite, > 2 * growth_margin_m, and at most 32000
-  // cells of the grid. Memory is 12 bytes per covered cell in the field plus 4 per cell in each live snapshot.
-  double max_extent_m = 200.0;
-  // Room left around the grid's tiles when the field is (re)built, so that a growing grid does not rebuild it at every
-  // scan, metres; finite, >= 0.
-  double growth_margin_m = 8.0;
 
   // Throws std::invalid_argument naming the first field that breaks its documented range.
   void validate() const;
 };
 
-// The distance field of one grid version: for each cell of bounds(), the nearest occupied cell and the distance from
-// the cell's centre to that cell's square. Immutable; any number of threads may read it without locks.
+// The distance field of one grid version: for each cell, the nearest occupied cell within max_distance() and the
+// distance from the cell's centre to that cell's square. Immutable; any number of threads may read it without locks.
 class DistanceFieldSnapshot {
  public:
   // The grid snapshot this field matches (same version).
   [[nodiscard]] const GridSnapshot& grid() const { return *grid_; }
   // The grid version the field matches.
   [[nodiscard]] std::uint64_t version() const { return grid_->version(); }
-  // The cells the field covers; nullopt while the grid is empty.
+  // The cells near enough to the grid's tiles to have an occupied cell within max_distance() (the tiles grown by it);
+  // every cell beyond is at max_distance(). nullopt while the grid is empty.
   [[nodiscard]] std::optional<CellBox> bounds() const { return bounds_; }
   // Side of a cell, metres.
   [[nodiscard]] double cell_size() const { return grid_->cell_size(); }
@@ -47,9 +44,9 @@ class DistanceFieldSnapshot {
   [[nodiscard]] double max_distance() const { return max_distance_m_; }
 
   // Distance from the centre of cell c to the nearest occupied cell's square, metres (0 for an occupied cell);
-  // max_distance() when there is none within max_distance() or c lies outside bounds(). One array read.
+  // max_distance() when there is none within max_distance(). A directory look-up and an array read.
   [[nodiscard]] double distance(const geometry::CellIndex& c) const;
-  // The occupied cell nearest to the centre of cell c, when one lies within max_distance() and c is inside bounds().
+  // The occupied cell nearest to the centre of cell c, when one lies within max_distance().
   [[nodiscard]] std::optional<geometry::CellIndex> nearest_occupied(const geometry::CellIndex& c) const;
 
   // The clearance of request.footprint at request.pose, from the field: never below the exact clearance
@@ -74,31 +71,45 @@ class DistanceFieldSnapshot {
 
  private:
   friend class DistanceField;
-  // A reference to the nearest occupied cell, as offsets inside bounds(); kNone when there is none in range.
+  // A reference to the nearest occupied cell, as its offset from the cell; x == kNone when there is none in range.
   struct Ref {
     std::int16_t x;
     std::int16_t y;
   };
-  static constexpr std::int16_t kNone = -1;
+  static constexpr std::int16_t kNone = -32768;
+  // The references come in square blocks shared between successive snapshots: a snapshot costs one pointer per block
+  // plus a copy of the blocks the update changed, not a copy of the whole field.
+  static constexpr std::int32_t kBlockShift = 6;
+  static constexpr std::int32_t kBlockCells = 1 << kBlockShift;
+  struct RefBlock {
+    std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
+  };
+  using RefBlocks = std::vector<std::shared_ptr<const RefBlock>>;
+  // The blocks over a box of blocks (row-major from block (block_x0, block_y0), blocks_x wide); nullptr where no
+  // reference was ever written (all kNone).
+  struct RefDirectory {
+    std::int32_t block_x0 = 0;
+    std::int32_t block_y0 = 0;
+    std::int32_t blocks_x = 0;
+    RefBlocks blocks;
+  };
 
-  DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, std::vector<Ref> refs,
+  DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, RefDirectory refs,
                         double max_distance_m);
 
   struct Answer;
   [[nodiscard]] Answer answer(const geometry::ClearanceRequest& request) const;
-  [[nodiscard]] const Ref* ref_of(const geometry::CellIndex& c) const;
 
   std::shared_ptr<const GridSnapshot> grid_;
   std::optional<CellBox> bounds_;
-  std::int32_t width_ = 0;
-  std::vector<Ref> refs_;
+  RefDirectory refs_;
   double max_distance_m_;
   mutable std::atomic<std::uint64_t> fallbacks_{0};
 };
 
 // What one DistanceField::update did.
 struct DistanceFieldUpdate {
-  bool rebuilt = false;             // The field was built from scratch (first update, growth, or focus moved).
+  bool rebuilt = false;             // The field was built from scratch (the first update of a non-empty grid).
   std::size_t changed_cells = 0;    // Cells whose occupancy flipped and were fed to the field (0 when rebuilt).
   std::size_t processed_cells = 0;  // Cells taken off the wavefront's queue.
 };
@@ -106,9 +117,9 @@ struct DistanceFieldUpdate {
 // A 2D Euclidean distance field over a HIMM grid's occupied cells, kept in step with it by an incremental brushfire
 // (Lau, Sprunk & Burgard 2013, "Efficient grid-based spatial representations for robot navigation in dynamic
 // environments", the algorithm of dynamicEDT): each cell refers to its nearest occupied cell, and only the cells
-// whose occupancy flipped start a wavefront, which stops at max_distance_m. It is dense over a box of cells around
-// the grid's tiles, rebuilt from scratch when the tiles outgrow the box (cost: one full build, see
-// tests/bench/bench_distance_field.cc). Not thread-safe: one thread updates it and publishes snapshots.
+// whose occupancy flipped start a wavefront, which stops at max_distance_m. Its cells live in 64x64 blocks allocated
+// where a wavefront reaches, so it has no extent of its own, is never rebuilt as the grid grows, and a snapshot shares
+// the blocks that did not change. Not thread-safe: one thread updates it and publishes snapshots.
 class DistanceField {
  public:
   // An empty field; throws std::invalid_argument naming the bad field of params.
@@ -120,11 +131,12 @@ class DistanceField {
   // Brings the field in step with grid, which must come from the same HimmGrid as the previous update's, and publishes
   // a snapshot for it. Only cells inside `touched` are compared with the previous version, so it must hold every cell
   // whose occupancy may have flipped since (for a scan: the sensor's position +- range_max, plus one cell for the
-  // growth-rate operator); nullopt compares the whole field (O(cells in the field)). focus_W (world, metres; e.g. the
-  // robot) centres the field when the grid is larger than max_extent_m; the centre of the grid's tiles otherwise.
-  // Throws std::invalid_argument when grid is null or its cell size differs from the previous one's.
-  DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched = std::nullopt,
-                             std::optional<Eigen::Vector2d> focus_W = std::nullopt);
+  // growth-rate operator); nullopt compares the whole grid (O(cells of its tiles)). Throws std::invalid_argument when
+  // grid is null or its cell size differs from the previous one's.
+  DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched = std::nullopt);
+  // As above, but only the cells listed in `changed` are compared with the previous version (for a HimmGrid:
+  // take_occupancy_changes()), so the work follows what changed, not the area a scan covers.
+  DistanceFieldUpdate update(std::shared_ptr<const GridSnapshot> grid, std::span<const geometry::CellIndex> changed);
 
   // The field of the last update; nullptr before the first. Costs one shared pointer copy.
   [[nodiscard]] std::shared_ptr<const DistanceFieldSnapshot> snapshot() const { return snapshot_; }
@@ -133,6 +145,11 @@ class DistanceField {
 
  private:
   class Brushfire;
+
+  // Checks grid against the field's parameters and builds the field on the first non-empty grid; true when the caller
+  // still has to bring the field in step (false: empty grid, or just built; the snapshot is taken).
+  bool prepare(std::shared_ptr<const GridSnapshot>& grid, DistanceFieldUpdate& result);
+  void take_snapshot(std::shared_ptr<const GridSnapshot> grid);
 
   DistanceFieldParams params_;
   std::unique_ptr<Brushfire> brushfire_;

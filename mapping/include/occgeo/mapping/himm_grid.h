@@ -6,6 +6,7 @@
 #include <optional>
 #include <span>
 #include <unordered_map>
+#include <vector>
 
 #include "occgeo/geometry/cell.h"
 #include "occgeo/geometry/pose.h"
@@ -61,6 +62,13 @@ class HimmGrid {
   // Cell <-> metric conversion of this grid.
   [[nodiscard]] const geometry::GridGeometry& grid_geometry() const { return geometry_; }
 
+  // The cells whose occupied() changed since the previous call (or since the grid was made), each listed at least once
+  // (one that flipped back is listed too), and the log emptied: what a distance field kept in step with the grid must
+  // look at, in proportion to what changed rather than to the area a scan covers. nullopt when more than
+  // kMaxOccupancyChanges changes were logged since (e.g. after from_image): then compare everything.
+  [[nodiscard]] std::optional<std::vector<geometry::CellIndex>> take_occupancy_changes();
+  static constexpr std::size_t kMaxOccupancyChanges = std::size_t{1} << 20;
+
   // An immutable view of the grid as it is now, safe to read from any thread; costs one shared pointer copy per tile.
   [[nodiscard]] std::shared_ptr<const GridSnapshot> snapshot() const;
 
@@ -85,6 +93,16 @@ class HimmGrid {
   [[nodiscard]] std::uint8_t cell_value(const geometry::CellIndex& c) const;
   // Tile t, allocated if missing and copied first if a snapshot shares it, ready to be written.
   [[nodiscard]] Tile& writable_tile(TileIndex t);
+  // Logs that cell c's occupied() changed (see take_occupancy_changes).
+  void note_occupancy_change(const geometry::CellIndex& c) {
+    if (occupancy_changes_overflowed_) return;
+    if (occupancy_changes_.size() < kMaxOccupancyChanges) {
+      occupancy_changes_.push_back(c);
+      return;
+    }
+    occupancy_changes_overflowed_ = true;
+    occupancy_changes_ = {};
+  }
 
   HimmParams params_;
   geometry::GridGeometry geometry_;
@@ -94,6 +112,8 @@ class HimmGrid {
   std::size_t occupied_cells_ = 0;
   std::uint64_t copied_tiles_ = 0;
   std::uint64_t version_ = 0;
+  std::vector<geometry::CellIndex> occupancy_changes_;
+  bool occupancy_changes_overflowed_ = false;
 };
 
 }  // namespace occgeo::mapping

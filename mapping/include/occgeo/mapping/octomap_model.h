@@ -38,6 +38,12 @@ struct OctoMapParams {
   double occupancy_threshold = 0.5;
   // Longest beam inserted, metres; a reading beyond it only clears its beam up to this length. Finite, > 0.
   double max_range_m = 10.0;
+  // A laser scan (insert_scan) that sees through an occupied voxel, a beam passing it with none ending within 0.2 m
+  // of it, caps the voxel's log-odds at the occupancy threshold's plus half a miss after the miss: the
+  // next such scan leaves it free, so a person who walked on is gone after two scans instead of after up to
+  // log-odds(clamping_max) / |log-odds(prob_miss)| (9 by default). Voxels near a hit are spared so that a wall that
+  // beams graze keeps its voxels. Off: plain OctoMap.
+  bool laser_see_through_clears = true;
   // Snap cloud end points to voxel centres before ray casting (OctoMap's computeDiscreteUpdate). Faster on dense
   // clouds but NOT the same map: the free rays end at voxel centres, so they cross other voxels
   // (octomap_insert_test measures how many differ). Off by default.
@@ -54,7 +60,8 @@ struct OctoMapParams {
   // Threshold of the outlier filter, standard deviations; finite, > 0.
   double outlier_stddev_mul = 1.0;
   // Shortest time between two snapshots taken by OctoMapModel::maybe_publish, seconds; finite, >= 0. A snapshot
-  // deep-copies the tree (see OctoMapModel::publish), so this bounds the copying cost per second of ingest.
+  // copies the tiles that changed since the previous one (see OctoMapModel::publish), so this bounds that cost per
+  // second of ingest.
   double min_publish_interval_s = 0.2;
   // How the octree's readers tell the floor and drivable surfaces from obstacles (config section `terrain:`): every
   // snapshot carries it, so footprint queries, the guard and the planner of one world all apply the same rule.
@@ -203,10 +210,11 @@ class OctoMapModel {
   // updated). Throws std::runtime_error, changing nothing, when the file cannot be read.
   void load_bt(const std::filesystem::path& path);
 
-  // Brings the inner nodes up to date, prunes, deep-copies the tree into a new snapshot (with the occupied-column
-  // summary collide uses, ~5-10 % more) and makes it the one snapshot() returns. Costs O(nodes): ~50-100 ns per node on
-  // the 2-core reference machine (bench_octomap BM_PublishSnapshot: ~1 ms for a room of 23k nodes, ~50 ms for geb079's
-  // 532k), which is why ingest should call maybe_publish.
+  // Brings the inner nodes of the changed tiles (12.8 m cubes of 256 voxels a side) and of their ancestors up to date,
+  // prunes them, copies each changed tile into a tree of its own (with its FCL view and the occupied-column summary
+  // collide uses), and makes a snapshot of those and the unchanged tiles of the previous one, the one snapshot()
+  // returns. Costs O(nodes of the changed tiles), ~50-100 ns per node: after a load, or on the first publish, the
+  // whole tree; after a scan, the tiles its rays changed (clamped voxels do not change).
   std::shared_ptr<const OctoMapSnapshot> publish();
   // Publishes when the latest snapshot is older than params.min_publish_interval_s (by now) and the tree changed
   // since; returns whether it did.

@@ -47,6 +47,13 @@ struct PtemParams {
   // across) are then restricted (100 % and >= 96 % of their discs) from a single viewpoint, and a lone return costs
   // a 0.5 m disc. At 0.02 m (the URG-04LX's accuracy) only 52-87 % of the obstacles' discs were restricted.
   double initial_cluster_radius_m = 0.25;
+  // Largest radius a cluster's circle grows to, metres; finite, and either 0 (unbounded: the seed's clusters, which
+  // grow as far as their points reach, §4.2.2) or >= initial_cluster_radius_m. A point that would grow
+  // its nearest cluster past it starts a new cluster instead, so a wall becomes a chain of bounded clusters rather than
+  // one circle around its whole length (whose disc, and the restricted region around it, would cover the free floor in
+  // front of it). Default 0.5 m: a person, a cart's end or the seed's obstacles (at most 0.30 m across) fit one
+  // cluster, and a wall's restricted region reaches at most about this far out from the wall.
+  double max_cluster_radius_m = 0.5;
   // f_r, the threat density (1/m², a 2D PDF value) from which a point is restricted; finite, > 0. Default 0.04, the
   // seed's value (§4.3). Ignored when first_cluster_sigma_m is set.
   double restricted_threshold = 0.04;
@@ -83,6 +90,10 @@ struct PtemCluster {
   double radius_m = 0.0;
   // Standard deviation σ of the PDF on both axes (K_i = σ² I), metres.
   double sigma_m = 0.0;
+  // The returns the cluster gathered, world frame, metres, thinned so that no two lie within kPtemExtentSpacing_m:
+  // the matter the laser saw, which collision and clearance answer against (the circle, and the restricted region
+  // around it, reach into free floor behind and beside them). All lie inside the circle.
+  std::vector<Eigen::Vector2d> extent_W;
   // False when the radius exceeds max_cluster_radius(f_r), so that no σ puts f_r on the circle; σ is then
   // radius / √2 and restricted() counts the whole circle as restricted (see sigma_for_radius).
   bool threshold_reachable = true;
@@ -95,6 +106,10 @@ struct PtemCluster {
   // Seconds since the cluster was created, as of the latest scan of the snapshot that returned it.
   double age_s = 0.0;
 };
+
+// Spacing below which a cluster keeps only one of two returns in its extent, metres: the extent is then within this of
+// the returns themselves, and a wall of a dense scan costs a point per 2 cm rather than one per beam.
+inline constexpr double kPtemExtentSpacing_m = 0.02;
 
 // Eq 4.1 for one cluster's isotropic term at squared distance distance_sq (m²) from its mean:
 // exp(−d²/(2σ²)) / (2πσ²), 1/m².
@@ -174,7 +189,9 @@ class PtemModel {
 
   // Clusters the scan's points in order (§4.2.1): a point whose distance to the nearest cluster boundary,
   // |p − c| − radius, exceeds C_r starts a new cluster of the initial radius centred on it; otherwise that nearest
-  // cluster becomes enclose_circle_and_point(cluster, p). Cumulative: all existing clusters take part and persist.
+  // cluster becomes enclose_circle_and_point(cluster, p), unless that circle's radius would exceed
+  // max_cluster_radius_m, when the point starts a new cluster too. Every point joins the extent of the cluster it
+  // went to (thinned, see PtemCluster::extent_W). Cumulative: all existing clusters take part and persist.
   // Single-scan: the scan's points are clustered from scratch, and an older cluster is kept, unchanged, unless its
   // circle lies wholly inside the scanned sector (apex p_WS, half-angle field_of_view_rad / 2 about yaw_WS, radius
   // max_range_m; the circle's centre lies at least its radius inside the sector's boundary), or the circle of one of
@@ -189,11 +206,12 @@ class PtemModel {
 
   // The model's whole state (parameters, clusters, f_r, scan count, latest stamp) as bytes, doubles bit for bit, for a
   // server's snapshot: restore() of them followed by the same later scans gives exactly the clusters this model would
-  // have had. Layout: "OCCGEOP1", then the fields in the host's byte order, then a 64-bit FNV-1a checksum of them.
+  // have had. Layout: "OCCGEOP2", then the fields in the host's byte order, then a 64-bit FNV-1a checksum of them.
   [[nodiscard]] std::string serialize() const;
 
   // Replaces the state by one serialize() wrote. Returns false, changing nothing, when the bytes were written under
-  // other parameters (their clusters would not be the ones these parameters build). Throws std::invalid_argument,
+  // other parameters (their clusters would not be the ones these parameters build) or in the earlier layout
+  // "OCCGEOP1", which kept no extents. Throws std::invalid_argument,
   // changing nothing, when the bytes are damaged (truncated, failing the checksum, or holding impossible values).
   bool restore(std::string_view bytes);
 

@@ -119,6 +119,7 @@ struct HttpConfig {
 struct PtemWorldOverride {
   std::optional<mapping::PtemConstruction> construction;
   std::optional<double> cluster_distance_m;
+  std::optional<double> max_cluster_radius_m;
 };
 
 // The PTEM (seed 004 §4, mapping/include/occgeo/mapping/ptem.h) every world builds from its laser scans. YAML:
@@ -128,10 +129,12 @@ struct PtemWorldOverride {
 //                                    # robot of a world, so C_r is per world, not per robot: set it to the width of
 //                                    # the widest robot that must not pass between two obstacles
 //     initial_cluster_radius_m: 0.25 # radius of a new cluster, metres (how far behind its first return it reaches)
+//     max_cluster_radius_m: 0.5      # largest cluster circle, metres; a wall becomes a chain of clusters.
+//                                    # 0: unbounded, the seed's clusters (§4.2.2), e.g. for a seed-faithful world
 //     restricted_threshold: 0.04     # f_r, 1/m² (seed §4.3)
 //     first_cluster_sigma_m: 0.1     # optional: fix f_r from the first cluster instead (seed eq 4.2)
 //     worlds:                        # optional per-world overrides
-//       lab: {construction: cumulative, cluster_distance_m: 0.8}
+//       lab: {construction: cumulative, cluster_distance_m: 0.8, max_cluster_radius_m: 0}
 struct PtemConfig {
   mapping::PtemParams params;
   std::map<std::string, PtemWorldOverride> worlds;
@@ -179,8 +182,7 @@ struct ServerConfig {
   // The terrain rule (section `terrain:`): surfaces the octree shows a robot can drive on (a ramp) are not obstacles
   // to its behaviour, planner and guard; ground_band_m is the floor's height band for every model.
   mapping::TerrainParams terrain;
-  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m, max_extent_m,
-  // growth_margin_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
+  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
   // clearance queries are answered from the field.
   mapping::DistanceFieldParams distance_field = default_distance_field_params();
 

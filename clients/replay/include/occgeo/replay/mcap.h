@@ -114,9 +114,6 @@ class McapFields {
   std::size_t position_ = 0;
 };
 
-// MCAP's opening and closing magic.
-inline constexpr std::string_view kMcapMagic{"\x89MCAP0\r\n", 8};
-
 // True when `path` starts with the MCAP magic.
 bool is_mcap_file(const std::filesystem::path& path);
 

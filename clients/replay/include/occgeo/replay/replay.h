@@ -56,13 +56,14 @@ class ConsistencyCounter {
 
 // What a replay did.
 struct ReplaySummary {
-  std::uint64_t scans = 0;         // scans of the log sent into world W (the full pass)
-  std::uint64_t scans_acked = 0;   // of those, accepted by the server
-  std::uint64_t clouds = 0;        // point clouds sent (bags only)
-  std::uint64_t clouds_acked = 0;  // of those, accepted by the server
-  std::uint64_t errors = 0;        // server Errors over all passes
-  double duration_s = 0.0;         // wall time of the full pass
-  double scans_per_s = 0.0;        // scans / duration_s
+  std::uint64_t scans = 0;                   // scans of the log sent into world W (the full pass)
+  std::uint64_t scans_acked = 0;             // of those, accepted by the server
+  std::uint64_t clouds = 0;                  // point clouds sent (bags only)
+  std::uint64_t clouds_acked = 0;            // of those, accepted by the server
+  std::uint64_t errors = 0;                  // server Errors over all passes
+  double duration_s = 0.0;                   // wall time of the full pass
+  double scans_per_s = 0.0;                  // scans / duration_s
+  std::vector<double> scans_per_s_by_tenth;  // the rate within each tenth of the log: does it slow as the map grows?
   std::optional<double> consistency;
   std::uint64_t consistency_endpoints = 0;
   std::vector<std::string> files_written;

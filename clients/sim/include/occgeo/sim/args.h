@@ -30,6 +30,7 @@ struct SimOptions {
   std::optional<DriveScript> drive;     // --drive V,W,T;...: a looped body-velocity script the robot follows itself
   std::uint64_t seed = 1;               // --seed N: seeds the range noise
   double command_latency_s = 0.0;       // --command-latency S: sim seconds from a command's receipt to its effect
+  std::optional<double> hold_s;         // --hold S: wait up to S wall seconds at sim time 0 for a behaviour
   bool json = false;                    // --json: print the summary as one JSON object
   std::optional<std::filesystem::path> visible_out;  // --visible-out FILE: obstacle pixels the beams hit
   std::optional<std::filesystem::path> trace_out;    // --trace-out FILE: CSV of t,x,y,theta at each scan

@@ -110,6 +110,8 @@ struct RobotPreset {
   double drive_goto_speed_mps = 0.0;
   // RobotSpec.default_behaviour: what the server runs for it while nobody set a behaviour (empty: the server's own).
   std::string default_behaviour;
+  // RobotSpec.command_units: the robot takes drive_goto / drive_speed encoder ticks (seed 003's ActivityBot).
+  bool activitybot_units = false;
   double command_timeout_s = 0.0;  // watchdog: the wheels stop when no command arrived within this, seconds
 
   // The first laser (the one the server steers by), or nullptr when the robot has none.

@@ -17,7 +17,9 @@ struct RunSummary {
   std::string robot_id;
   std::string world_file;
   double distance_m = 0.0;                             // path length driven, metres
-  std::uint64_t collisions = 0;                        // times the robot ran into an obstacle
+  std::uint64_t collisions = 0;                        // contacts with obstacles, both kinds below
+  std::uint64_t collisions_moving = 0;                 // the robot, moving, ran into an obstacle
+  std::uint64_t collisions_at_rest = 0;                // a moving obstacle ran into the robot standing still
   double sim_time_s = 0.0;                             // sim time simulated, seconds
   std::uint64_t scans_sent = 0;                        // sensor messages of every kind
   std::uint64_t commands_received = 0;                 // motion commands applied

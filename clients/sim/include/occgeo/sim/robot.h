@@ -52,7 +52,8 @@ class SimulatedRobot {
   // current count, at the preset's drive_goto speed, and stops when it gets there (the last step is shortened so it
   // stops exactly on the tick). Ignores the watchdog; a later command() cancels it. Throws std::logic_error when the
   // preset has no encoders or no drive_goto speed.
-  void drive_goto(std::int64_t left_ticks, std::int64_t right_ticks);
+  // speed_mps > 0 is drive_setMaxSpeed's cruising speed for this manoeuvre (at most the preset's).
+  void drive_goto(std::int64_t left_ticks, std::int64_t right_ticks, double speed_mps = 0.0);
   // True while a drive_goto has not reached both targets.
   [[nodiscard]] bool drive_goto_active() const { return goto_target_.has_value(); }
 
@@ -77,7 +78,11 @@ class SimulatedRobot {
   // Sum of the position changes of all steps, metres.
   [[nodiscard]] double distance_m() const { return distance_m_; }
   // Number of times the robot ran into an obstacle (transitions into contact, not blocked steps).
-  [[nodiscard]] std::uint64_t collisions() const { return collisions_; }
+  [[nodiscard]] std::uint64_t collisions() const { return collisions_moving_ + collisions_at_rest_; }
+  // Contacts begun while the wheels turned (the robot ran into something) ...
+  [[nodiscard]] std::uint64_t collisions_moving() const { return collisions_moving_; }
+  // ... and while it stood still (a moving obstacle ran into it).
+  [[nodiscard]] std::uint64_t collisions_at_rest() const { return collisions_at_rest_; }
   // Each wheel's (track's rim) true signed travel since the start, metres, positive forwards.
   [[nodiscard]] double left_travel_m() const { return left_travel_m_; }
   [[nodiscard]] double right_travel_m() const { return right_travel_m_; }
@@ -100,6 +105,7 @@ class SimulatedRobot {
   std::optional<geometry::TrackDynamics> tracks_;  // set for a skid-steered robot
   std::optional<geometry::EncoderParams> encoders_;
   double drive_goto_speed_mps_;
+  double goto_speed_mps_ = 0.0;  // the running drive_goto's speed
   geometry::BoxFootprint footprint_;
   std::int64_t watchdog_steps_;
   geometry::Pose2 X_WB_;
@@ -112,7 +118,8 @@ class SimulatedRobot {
   double distance_m_ = 0.0;
   double left_travel_m_ = 0.0;
   double right_travel_m_ = 0.0;
-  std::uint64_t collisions_ = 0;
+  std::uint64_t collisions_moving_ = 0;
+  std::uint64_t collisions_at_rest_ = 0;
   bool in_contact_ = false;
 };
 

@@ -70,6 +70,7 @@ struct MovingObstacle {
   std::vector<Eigen::Vector2d> waypoints;
   double speed_mps = 0.0;
   bool loop = false;
+  double start_s = 0.0;  // sim time it sets off from its first waypoint; it stands there until then
 
   // Where the centre is at sim time time_s (times before 0 give the first waypoint).
   [[nodiscard]] Eigen::Vector2d center_at(double time_s) const;

@@ -128,7 +128,9 @@ class Simulation {
   KinematicsPreset kinematics_;
   std::string steering_sensor_;  // the first laser's name, else the first range array's; empty when neither
   bool has_encoders_;
-  std::int64_t encoder_period_steps_ = 0;  // 0 when the robot has no encoders
+  std::optional<geometry::EncoderParams> encoders_;  // for commands in encoder ticks
+  std::uint64_t drive_goto_id_ = 0;                  // the last drive_goto started
+  std::int64_t encoder_period_steps_ = 0;            // 0 when the robot has no encoders
   std::vector<ScheduledSensor> sensors_;
   SimulatedRobot robot_;
   DriveScript script_;

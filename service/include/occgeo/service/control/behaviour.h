@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -16,6 +17,7 @@
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
 #include "occgeo/service/control/pointbug.h"
+#include "occgeo/service/control/servo_sweep.h"
 #include "occgeo/service/control/wander.h"
 
 // The one interface every behaviour the server can run implements, so that the scan handler drives any of them the
@@ -23,6 +25,13 @@
 // behaviours that compute them, differential wheel speeds). Behaviours are deterministic given their inputs.
 
 namespace occgeo::service::control {
+
+// One reading of a servo-swept single-beam rangefinder (seed 003's LIDAR-Lite), as its robot reported it.
+struct ServoSample {
+  double servo_angle_rad = 0.0;  // the servo's angle, radians
+  double range_m = 0.0;          // metres; at or beyond the sensor's range_max_m means no return
+  double stamp_s = 0.0;          // seconds
+};
 
 // What a behaviour sees in one control cycle.
 struct BehaviourInput {
@@ -35,6 +44,8 @@ struct BehaviourInput {
   // A robot without a laser steers by its range array (seed 001's sonar ring): each element's bearing in base_link and
   // its reading as a distance from base_link's origin along that bearing; scan is then empty.
   std::optional<RangeSet> ring = std::nullopt;
+  // A robot whose only range sensor is a servo-swept beam steers by it, one reading per cycle; scan is then empty.
+  std::optional<ServoSample> servo = std::nullopt;
 };
 
 // What a behaviour commands.
@@ -44,6 +55,10 @@ struct BehaviourCommand {
   std::optional<geometry::WheelSpeeds> wheels;  // differential wheel speeds, when the behaviour computes them
   bool stop = false;                            // stand still
   std::string state;                            // e.g. "steer_gap", "step_to_goal", "reached"
+  // A straight leg the behaviour drives to its end (PointBug's drive to a sudden point, as the seed's drive_goto):
+  // its whole length from where it began, metres, and a number that changes with each new leg (from 1).
+  std::optional<double> leg_m;
+  std::uint64_t leg_id = 0;
 };
 
 class Behaviour {
@@ -83,6 +98,16 @@ PointBugParams pointbug_params_for(const RobotShape& robot);
 // that wide either side of the heading, so an obstacle off the centre beam but in the body's way stops the approach.
 std::unique_ptr<Behaviour> make_goto(const PointBugParams& params, double goal_x_m, double goal_y_m, double period_s,
                                      double corridor_half_width_m = 0.0);
+
+// Seed 003's PointBug on its own sensor, a single beam on a servo that turns back and forth (one reading per control
+// cycle of period_s, servo_yaw_rad being the servo's zero in base_link). The readings are assembled into sweeps
+// (ServoSweepAssembler); while stepping to the goal the robot goes on the latest reading straight ahead, taken at its
+// current heading and shortened by the distance driven since; without one it stands until the servo passes ahead
+// again ("look_ahead"). When that reading is within obstacle_range_m the robot stops and waits for a whole sweep taken
+// standing ("sweep"), as the seed's robot stops and sweeps both sides, and PointBug picks its sudden point from it.
+// Throws std::invalid_argument naming the bad field of params or limits.
+std::unique_ptr<Behaviour> make_servo_goto(const PointBugParams& params, const ServoSweepLimits& limits,
+                                           double servo_yaw_rad, double goal_x_m, double goal_y_m, double period_s);
 
 // PTEM waypoint guidance (seed 004 §4.4–4.5) along waypoints_W (world frame) against the input's PTEM snapshot, with
 // the body radius and speeds of this robot.

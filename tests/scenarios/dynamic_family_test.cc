@@ -1,0 +1,119 @@
+// People and carts the robot has never seen, over a family of worlds generated from seed numbers (dynamic_family.h):
+// each world is driven twice per robot preset, to the far end with goto, in lockstep: once without its moving
+// obstacles (the reference: the layout alone must be passable) and once with them. Judged on the simulator's truth:
+// collisions split into the robot moving into something and something running into the robot at rest, and the goal
+// reached within twice the reference run's time.
+//
+// CI drives the first OCCGEO_DYNAMIC_WORLDS worlds (default 6, a few minutes); the family of 50 runs with
+//   OCCGEO_DYNAMIC_WORLDS=50 dynamic_family_test
+// and the run's rates are printed either way.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dynamic_family.h"
+#include "scenario_runner.h"
+#include "temp_dir.h"
+
+namespace occgeo::testing {
+namespace {
+
+int family_size() {
+  const char* text = std::getenv("OCCGEO_DYNAMIC_WORLDS");
+  if (text == nullptr) return 6;
+  const int n = std::atoi(text);
+  return n > 0 && n <= 1000 ? n : 6;
+}
+
+struct Row {
+  std::string world;
+  std::string preset;
+  ScenarioResult reference;
+  ScenarioResult dynamic;
+  [[nodiscard]] bool reached_in_time() const {
+    return dynamic.reached.value_or(false) && reference.reached.value_or(false) &&
+           dynamic.sim_s <= 2.0 * reference.sim_s;
+  }
+};
+
+Scenario family_scenario(const std::string& name, const std::string& world_file, const std::string& preset,
+                         const Eigen::Vector2d& goal) {
+  Scenario s;
+  s.name = name;
+  s.world = world_file;
+  s.preset = preset;
+  s.start = "0,0,0";
+  s.behaviour = "goto";
+  s.goal = goal;
+  s.duration_s = 120.0;
+  s.max_wall_s = 120.0;
+  return s;
+}
+
+TEST(DynamicFamily, PeopleAndCartsInGeneratedWorlds) {
+  const int worlds = family_size();
+  TempDir dir;
+  std::vector<Row> rows;
+  for (int seed = 1; seed <= worlds; ++seed) {
+    const DynamicWorld world = make_dynamic_world(static_cast<std::uint32_t>(seed));
+    const auto dynamic_file = dir.path() / (world.name + ".yaml");
+    const auto static_file = dir.path() / (world.name + "-static.yaml");
+    std::ofstream(dynamic_file) << world.yaml;
+    std::ofstream(static_file) << world.yaml_static;
+    std::cout << world.name << ": " << world.description << '\n';
+    for (const std::string preset : {"ugv", "bearcat"}) {
+      Row row{world.name, preset, {}, {}};
+      row.reference = run_scenario(
+          family_scenario(world.name + "/" + preset + "/static", static_file.string(), preset, world.goal_W),
+          std::nullopt);
+      // Trajectory pictures of the runs with people and carts, for a person to look at.
+      row.dynamic =
+          run_scenario(family_scenario(world.name + "-" + preset, dynamic_file.string(), preset, world.goal_W),
+                       std::string("scenario-runs/dynamic"));
+      rows.push_back(row);
+    }
+  }
+
+  int runs = 0;
+  int moving_into = 0;
+  int runs_hit_at_rest = 0;
+  int reached_in_time = 0;
+  std::ostringstream table;
+  table << std::fixed << std::setprecision(1) << std::left << std::setw(16) << "world" << std::setw(9) << "robot"
+        << std::setw(10) << "ref_s" << std::setw(10) << "sim_s" << std::setw(9) << "reached" << std::setw(8) << "moving"
+        << std::setw(8) << "at_rest"
+        << "last state\n";
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.world + " " + row.preset);
+    ASSERT_TRUE(row.reference.ran) << row.reference.failure;
+    ASSERT_TRUE(row.dynamic.ran) << row.dynamic.failure;
+    // The layout alone is passable: otherwise the generator made a world that proves nothing.
+    EXPECT_TRUE(row.reference.reached.value_or(false)) << "reference run did not reach the goal";
+    EXPECT_EQ(row.reference.collisions, 0) << "reference run collided";
+    ++runs;
+    moving_into += row.dynamic.collisions_moving;
+    runs_hit_at_rest += row.dynamic.collisions_at_rest > 0 ? 1 : 0;
+    reached_in_time += row.reached_in_time() ? 1 : 0;
+    table << std::setw(16) << row.world << std::setw(9) << row.preset << std::setw(10) << row.reference.sim_s
+          << std::setw(10) << row.dynamic.sim_s << std::setw(9)
+          << (row.dynamic.reached.value_or(false) ? (row.reached_in_time() ? "yes" : "late") : "no") << std::setw(8)
+          << row.dynamic.collisions_moving << std::setw(8) << row.dynamic.collisions_at_rest << row.dynamic.last_state
+          << '\n';
+  }
+  std::cout << table.str();
+  std::cout << "dynamic family: " << runs << " runs over " << worlds
+            << " worlds; robot moving into an obstacle: " << moving_into
+            << " contacts; runs with an obstacle running into the robot at rest: " << runs_hit_at_rest << " ("
+            << 100.0 * runs_hit_at_rest / std::max(runs, 1)
+            << " %); goals reached within 2x the reference time: " << reached_in_time << " ("
+            << 100.0 * reached_in_time / std::max(runs, 1) << " %)\n";
+}
+
+}  // namespace
+}  // namespace occgeo::testing
