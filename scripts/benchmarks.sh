@@ -4,7 +4,8 @@
 #  - over loopback: occgeo-load (one sequential client; 1, 16 and 64 clients; 16 clients pipelined 16 deep) next to
 #    redis-benchmark (PING and GET, the same client counts, -P 16 for the pipelined one) against a redis-server this
 #    script starts on 127.0.0.1 and stops;
-#  - ingest: time from sending a scan to its ScanAck, idle and while 64 query clients are busy.
+#  - ingest: time from sending a scan to its ScanAck, idle and while 64 query clients are busy;
+#  - real logs: occgeo replay --max of the shared logs (DATASETS, default ../shared/datasets), scans/s per tenth.
 # Environment: BUILD_DIR (default build), OUT (default docs/BENCHMARKS.md), DURATION (seconds per occgeo-load run,
 # default 5), BENCH_MIN_TIME (Google Benchmark --benchmark_min_time, default 0.5), BENCH_DIR (the benchmark binaries,
 # default BUILD_DIR/tests/bench), SKIP_BUILD=1 to use the build as is.
@@ -103,6 +104,30 @@ occgeo_load ingest_loaded --robots 1 --robot-pace lockstep --clients 64 --depth 
 
 kill "$redis_pid" && wait "$redis_pid" 2>/dev/null || true
 redis_pid=
+
+# Real logs at speed: each shared log replayed with --max into a fresh server of its own (default settings: every
+# model on, every scan journalled), its summary with scans/s per tenth of the log.
+replay_log() {  # NAME, then the replay's arguments
+  local name=$1
+  shift
+  local dir="$work/replay_$name"
+  mkdir -p "$dir"
+  "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" --http off \
+    --log-level warn >"$dir/server.log" 2>&1 &
+  local pid=$!
+  for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
+  "$BUILD_DIR/clients/occgeo" replay --server "127.0.0.1:$(cat "$dir/port")" --max --json "$@" \
+    >"$work/replay_$name.json" 2>/dev/null || true
+  kill "$pid" 2>/dev/null || true
+  wait "$pid" 2>/dev/null || true
+}
+DATASETS=${DATASETS:-../shared/datasets}
+if [ -d "$DATASETS" ]; then
+  echo "benchmarks.sh: replaying the shared logs" >&2
+  replay_log intel --format carmen "$DATASETS/carmen-intel/intel-corrected.log.gz"
+  replay_log intel_80m --format carmen "$DATASETS/carmen-intel/intel-corrected.log.gz" --max-range 80
+  replay_log exp1 --format urg "$DATASETS/urg04lx-mines/exp1.dat"
+fi
 
 python3 - "$work" "$OUT" "$DURATION" <<'PY'
 import csv, glob, json, os, sys
@@ -271,6 +296,32 @@ for label, run in (("idle", idle), ("64 query clients busy", loaded)):
             f"{fmt(run['ingest_p99_us'])} | {fmt(run['queries_per_s'])} |")
     else:
         add(f"| {label} | n/a | n/a | n/a | n/a | n/a |")
+add("")
+
+# ---- real logs
+def replay(name):
+    try:
+        return json.loads(open(os.path.join(work, f"replay_{name}.json")).read().strip().splitlines()[-1])
+    except (OSError, ValueError, IndexError):
+        return None
+
+add("## Real logs at speed")
+add("")
+add("`occgeo replay --max` of the shared logs (`../shared/datasets`), each into a fresh `occgeod` with the default")
+add("settings: every model on, every scan journalled (`durability.policy: every`) before its `ScanAck`, one scan in")
+add("flight. The rate per tenth of the log shows whether ingest slows as the map grows.")
+add("")
+add("| log | scans | scans/s | first tenth | last tenth | last / first | every tenth |")
+add("|---|---|---|---|---|---|---|")
+for name, label in (("intel", "Intel (CARMEN, 180 beams)"), ("intel_80m", "Intel, `--max-range 80`"),
+                    ("exp1", "exp1 (URG-04LX, 682 beams)")):
+    run = replay(name)
+    tenths = run.get("scans_per_s_by_tenth", []) if run else []
+    if run and tenths:
+        add(f"| {label} | {run['scans']} | {fmt(run['scans_per_s'])} | {fmt(tenths[0])} | {fmt(tenths[-1])} | "
+            f"{tenths[-1] / tenths[0]:.2f} | {' '.join(fmt(t) for t in tenths)} |")
+    else:
+        add(f"| {label} | n/a | n/a | n/a | n/a | n/a | n/a |")
 add("")
 
 # ---- goals

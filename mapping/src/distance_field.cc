@@ -242,6 +242,17 @@ class DistanceField::Brushfire {
     return c != nullptr && c->dx == 0 && c->dy == 0;
   }
 
+  // Makes (x, y) an obstacle or free as the grid says; true when that changed it.
+  bool set_occupied(std::int32_t x, std::int32_t y, bool occupied) {
+    if (occupied == is_obstacle(x, y)) return false;
+    if (occupied) {
+      set_obstacle(x, y);
+    } else {
+      remove_obstacle(x, y);
+    }
+    return true;
+  }
+
   void set_obstacle(std::int32_t x, std::int32_t y) {
     Cell& c = at(x, y);
     if (c.dx == 0 && c.dy == 0) return;
@@ -316,7 +327,8 @@ class DistanceField::Brushfire {
   };
 
   static std::size_t local_index(std::int32_t x, std::int32_t y) {
-    return static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells + static_cast<std::size_t>(x & (kBlockCells - 1));
+    return static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells +
+           static_cast<std::size_t>(x & (kBlockCells - 1));
   }
 
   // The slot of block (bx, by) in the directory, or -1 outside it.
@@ -443,9 +455,9 @@ class DistanceField::Brushfire {
   }
 
   std::int32_t block_x0_ = 0, block_y0_ = 0, blocks_x_ = 0, blocks_y_ = 0;
-  std::vector<std::unique_ptr<Block>> blocks_;   // The directory, row-major; nullptr: no cell written there.
-  std::vector<std::uint8_t> dirty_;              // Per block: a reference changed since the last references().
-  DistanceFieldSnapshot::RefBlocks published_;   // The blocks the last references() returned.
+  std::vector<std::unique_ptr<Block>> blocks_;  // The directory, row-major; nullptr: no cell written there.
+  std::vector<std::uint8_t> dirty_;             // Per block: a reference changed since the last references().
+  DistanceFieldSnapshot::RefBlocks published_;  // The blocks the last references() returned.
   // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32.
   std::vector<std::vector<std::uint64_t>> buckets_;
   std::size_t next_bucket_ = 0;
@@ -514,14 +526,7 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
       for (std::int32_t col = 0; col < width; ++col) {
         const std::uint8_t value = values[static_cast<std::size_t>(row) * width + col];
         const bool occupied = value != kUnobserved && value >= threshold;
-        const std::int32_t x = region->min.ix + col;
-        if (occupied == brushfire.is_obstacle(x, y)) continue;
-        ++result.changed_cells;
-        if (occupied) {
-          brushfire.set_obstacle(x, y);
-        } else {
-          brushfire.remove_obstacle(x, y);
-        }
+        if (brushfire.set_occupied(region->min.ix + col, y, occupied)) ++result.changed_cells;
       }
     }
     result.processed_cells = brushfire.propagate();
@@ -536,16 +541,7 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
   if (!prepare(grid, result)) return result;
   Brushfire& brushfire = *brushfire_;
   for (const CellIndex& c : changed) {
-    const bool occupied = grid->occupied(c);
-    const std::int32_t x = c.ix;
-    const std::int32_t y = c.iy;
-    if (occupied == brushfire.is_obstacle(x, y)) continue;
-    ++result.changed_cells;
-    if (occupied) {
-      brushfire.set_obstacle(x, y);
-    } else {
-      brushfire.remove_obstacle(x, y);
-    }
+    if (brushfire.set_occupied(c.ix, c.iy, grid->occupied(c))) ++result.changed_cells;
   }
   result.processed_cells = brushfire.propagate();
   take_snapshot(std::move(grid));

@@ -73,8 +73,11 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   Eigen::Vector2d direction(std::cos(first_angle), std::sin(first_angle));
   const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(static_cast<double>(angle_increment)).toRotationMatrix();
   const bool see_through = params_.seen_through_decrement > 0;
-  std::vector<geometry::CellIndex> lowered_cells;
-  std::unordered_set<geometry::CellIndex, geometry::CellIndexHash> hit_cells;
+  // Scratch kept between scans: the cells the scan's returning beams lowered, and the cells its hits fell in.
+  std::vector<geometry::CellIndex>& lowered_cells = see_through_lowered_;
+  std::unordered_set<geometry::CellIndex, geometry::CellIndexHash>& hit_cells = see_through_hits_;
+  lowered_cells.clear();
+  hit_cells.clear();
   for (const float reading : ranges) {
     const bool is_hit = reading < range_max;
     const double range = is_hit ? static_cast<double>(reading) : max_range;
@@ -85,7 +88,7 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
     direction = rotation * direction;
   }
   if (!see_through) return;
-  // The cells the scan saw through: a beam lowered them and none ended in them or next to them.
+  // The cells the scan saw through: a returning beam lowered them and none ended within kSeenThroughSpareCells.
   std::sort(lowered_cells.begin(), lowered_cells.end(), [](const geometry::CellIndex& a, const geometry::CellIndex& b) {
     return a.ix != b.ix ? a.ix < b.ix : a.iy < b.iy;
   });

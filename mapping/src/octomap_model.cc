@@ -133,6 +133,8 @@ void OctoMapSnapshot::for_each_occupied(const Eigen::Vector3d& min_W, const Eige
   const auto [lo, hi] = clamped_box(*impl_->empty->tree, min_W, max_W);
   const auto [key_lo, key_hi] = key_box(*impl_->empty->tree, min_W, max_W);
   for_tiles_in_keys(impl_->tiles, key_lo, key_hi, [&](const OctoTile& tile) {
+    // The tile's column summary skips its tree walk when no occupied leaf can overlap the box.
+    if (tile.columns.provably_free(min_W, max_W)) return true;
     const octomap::OcTree& tree = *tile.tree;
     for (auto it = tree.begin_leafs_bbx(lo, hi), end = tree.end_leafs_bbx(); it != end; ++it) {
       if (!tree.isNodeOccupied(*it)) continue;

@@ -170,7 +170,6 @@ DynamicWorld make_dynamic_world(std::uint32_t seed) {
     }
     const double offset = (draw.chance(0.5) ? 1.0 : -1.0) * draw.uniform(0.55, half - 0.4);
     movers.push_back(lengthwise(draw, draw.uniform(2.5, 4.0), length - draw.uniform(1.5, 3.0), offset));
-    world.yaml_static = "";
     const Eigen::Vector2d lo(x0 - 1.0, -half - 3.0);
     const Eigen::Vector2d hi(x1 + 1.0, half + 3.0);
     world.goal_W = {length, 0.0};

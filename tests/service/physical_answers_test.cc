@@ -99,8 +99,8 @@ class PhysicalAnswers : public ::testing::Test {
           v1::Odometry odometry = testing::odometry(X_WB.x, X_WB.y, X_WB.theta, stamp);
           handle_odometry(driver_, odometry);
           const sim::SimulatedScan scan = laser.scan(world, X_WB, stamp);
-          handle_laser_scan(driver_, sim::make_laser_scan_message(ugv().laser()->name, ++seq, stamp, scan.ranges_m)
-                                         .laser_scan());
+          handle_laser_scan(
+              driver_, sim::make_laser_scan_message(ugv().laser()->name, ++seq, stamp, scan.ranges_m).laser_scan());
           ASSERT_TRUE(driver_->next_of(v1::ServerMessage::kScanAck)) << "no ack of scan " << seq;
         }
       }
@@ -137,14 +137,20 @@ class PhysicalAnswers : public ::testing::Test {
                                         });
   }
 
-  v1::CollisionReply collide(const geometry::Pose2& X_WB, const std::vector<v1::Model>& models = {}) {
-    v1::CollisionQuery query;
+  // A collision or clearance query for the test's robot at X_WB against models (empty: the defaults).
+  template <typename Query>
+  void fill(Query& query, const geometry::Pose2& X_WB, const std::vector<v1::Model>& models) {
     query.set_request_id(++request_id_);
     query.set_robot_id("ugv-1");
     query.mutable_pose()->set_x(X_WB.x);
     query.mutable_pose()->set_y(X_WB.y);
     query.mutable_pose()->set_theta(X_WB.theta);
     for (const auto m : models) query.add_models(m);
+  }
+
+  v1::CollisionReply collide(const geometry::Pose2& X_WB, const std::vector<v1::Model>& models = {}) {
+    v1::CollisionQuery query;
+    fill(query, X_WB, models);
     handle_collision_query(querier_, query);
     const auto reply = querier_->next();
     EXPECT_TRUE(reply && reply->has_collision()) << (reply ? reply->DebugString() : "no reply");
@@ -153,12 +159,7 @@ class PhysicalAnswers : public ::testing::Test {
 
   v1::ClearanceReply clearance(const geometry::Pose2& X_WB, const std::vector<v1::Model>& models = {}) {
     v1::ClearanceQuery query;
-    query.set_request_id(++request_id_);
-    query.set_robot_id("ugv-1");
-    query.mutable_pose()->set_x(X_WB.x);
-    query.mutable_pose()->set_y(X_WB.y);
-    query.mutable_pose()->set_theta(X_WB.theta);
-    for (const auto m : models) query.add_models(m);
+    fill(query, X_WB, models);
     handle_clearance_query(querier_, query);
     const auto reply = querier_->next();
     EXPECT_TRUE(reply && reply->has_clearance()) << (reply ? reply->DebugString() : "no reply");
@@ -174,8 +175,8 @@ class PhysicalAnswers : public ::testing::Test {
   // Random poses in the box until 200 of them lie at least the footprint's bounding radius from matter: none may be a
   // hit or at clearance 0, and each clearance is at least its pose's matter distance less that radius. Some of them
   // lie in the PTEM's keep-out near walls: it is reported beside the answer, never as a contact.
-  void expect_free_poses_are_free(const std::string& name, std::uint32_t seed, double x_min, double x_max,
-                                  double y_min, double y_max) {
+  void expect_free_poses_are_free(const std::string& name, std::uint32_t seed, double x_min, double x_max, double y_min,
+                                  double y_max) {
     const WorldSnapshot snapshot = core_.world("default")->snapshots();
     ASSERT_GT(snapshot.grid->occupied_cell_count(), 0U);
     ASSERT_FALSE(snapshot.ptem->clusters().empty());
@@ -191,8 +192,8 @@ class PhysicalAnswers : public ::testing::Test {
       if (matter_m < radius) continue;
       ++tested;
       const v1::CollisionReply hit = collide(X_WB);
-      EXPECT_FALSE(hit.hit()) << name << " at (" << X_WB.x << ", " << X_WB.y << ", " << X_WB.theta << "), "
-                              << matter_m << " m from matter: " << hit.DebugString();
+      EXPECT_FALSE(hit.hit()) << name << " at (" << X_WB.x << ", " << X_WB.y << ", " << X_WB.theta << "), " << matter_m
+                              << " m from matter: " << hit.DebugString();
       const v1::ClearanceReply room = clearance(X_WB);
       EXPECT_GT(room.clearance_m(), 0.0) << name << " at (" << X_WB.x << ", " << X_WB.y << "): " << room.DebugString();
       EXPECT_GE(room.clearance_m(), matter_m - radius - 1e-6)

@@ -11,8 +11,8 @@
 #include <random>
 #include <vector>
 
-#include "model_geometry.h"
 #include "handlers/query_kernels.h"
+#include "model_geometry.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
@@ -690,6 +690,146 @@ TEST(QueriesBruteForce, PolygonOctomapCollisionAgreesWithExactGeometry) {
   EXPECT_GE(compared, 1000);
   EXPECT_GT(hits, cases / 10);
   EXPECT_LT(hits, cases * 9 / 10);
+}
+
+// ---- Octree clearance: the voxels' columns within the footprint's height band, against the voxels set ----
+
+// A voxel of the octree world by its integer index (the octree's resolution is kCell).
+struct VoxelIndex {
+  int x, y, z;
+};
+
+Eigen::Vector3d voxel_center(const VoxelIndex& v) {
+  return {(v.x + 0.5) * kCell, (v.y + 0.5) * kCell, (v.z + 0.5) * kCell};
+}
+
+// A return 1 mm long inside the voxel: marks it occupied and crosses no other voxel.
+void mark_voxel(mapping::OctoMapModel& model, const VoxelIndex& v) {
+  geometry::Pose3 X_WS;
+  X_WS.transform.translation() = voxel_center(v) - Eigen::Vector3d(0.0005, 0.0, 0.0);
+  model.insert_ray(X_WS, 0.001, 5.0);
+}
+
+// Beams without a return starting in the voxel and ending in the next one: each lowers the voxel's occupancy (the end
+// voxel is not updated), four take a once-hit voxel below the threshold.
+void clear_voxel(mapping::OctoMapModel& model, const VoxelIndex& v) {
+  geometry::Pose3 X_WS;
+  X_WS.transform.translation() = voxel_center(v);
+  for (int i = 0; i < 4; ++i) model.insert_ray(X_WS, kCell, kCell);
+}
+
+// The columns a footprint of height_m meets: a voxel counts when its closed z range overlaps [band, height_m].
+std::vector<CellIndex> occupied_columns(const mapping::OctoMapSnapshot& octomap, const std::vector<VoxelIndex>& voxels,
+                                        double height_m) {
+  const double band = octomap_ground_band_m(octomap);
+  std::vector<CellIndex> cells;
+  for (const VoxelIndex& v : voxels) {
+    if (!octomap.occupied(voxel_center(v))) continue;
+    if ((v.z + 1) * kCell < band || v.z * kCell > height_m) continue;
+    cells.push_back({v.x, v.y});
+  }
+  return cells;
+}
+
+geometry::Footprint random_tall_footprint(std::mt19937& rng) {
+  static constexpr std::array<double, 4> kHeights = {0.35, 0.65, 1.05, 1.45};
+  const double height = kHeights[std::uniform_int_distribution<std::size_t>(0, kHeights.size() - 1)(rng)];
+  geometry::Footprint footprint = random_footprint(rng);
+  std::visit([&](auto& shape) { shape.height = height; }, footprint);
+  return footprint;
+}
+
+TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpdates) {
+  std::mt19937 rng(21);
+  const std::vector<v1::Model> octomap_only = {v1::MODEL_OCTOMAP};
+  constexpr int kWidth = 50, kHeight = 40;
+  constexpr double kMaxDistance = 1.5;
+  mapping::OctoMapParams params;
+  params.resolution_m = kCell;
+  mapping::OctoMapModel model(params);
+  std::vector<VoxelIndex> voxels;
+  std::uniform_int_distribution<int> x_of(0, kWidth - 1), y_of(0, kHeight - 1), z_of(0, 15), side(1, 5);
+  const auto add_boxes = [&](int boxes) {
+    for (int b = 0; b < boxes; ++b) {
+      const int x0 = x_of(rng), y0 = y_of(rng), w = side(rng), h = side(rng), z0 = z_of(rng), z1 = z0 + side(rng);
+      for (int x = x0; x < std::min(x0 + w, kWidth); ++x) {
+        for (int y = y0; y < std::min(y0 + h, kHeight); ++y) {
+          for (int z = z0; z < z1; ++z) {
+            voxels.push_back({x, y, z});
+            mark_voxel(model, voxels.back());
+          }
+        }
+      }
+    }
+  };
+  struct Case {
+    geometry::Footprint footprint;
+    geometry::Pose2 pose;
+    bool found;
+    double clearance_m;
+  };
+  int cases = 0, found = 0;
+  // Answers the poses on snapshot against its occupied columns; returns what it answered.
+  const auto check = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap, int poses) {
+    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap};
+    std::vector<Case> answered;
+    for (int i = 0; i < poses; ++i, ++cases) {
+      Case c{random_tall_footprint(rng), {}, false, 0.0};
+      c.pose = {std::uniform_real_distribution<double>(-0.5, kWidth * kCell + 0.5)(rng),
+                std::uniform_real_distribution<double>(-0.5, kHeight * kCell + 0.5)(rng),
+                std::uniform_real_distribution<double>(-M_PI, M_PI)(rng)};
+      v1::ClearanceReply reply;
+      answer_clearance(world, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
+      const double height = std::visit([](const auto& shape) { return shape.height; }, c.footprint);
+      const double exact = brute_clearance(occupied_columns(*octomap, voxels, height), outline_of(c.footprint, c.pose));
+      c.found = reply.found();
+      c.clearance_m = reply.clearance_m();
+      answered.push_back(c);
+      if (exact > kMaxDistance + kCell) {
+        EXPECT_FALSE(reply.found()) << "case " << cases;
+        continue;
+      }
+      if (exact < kMaxDistance - kCell) {
+        EXPECT_TRUE(reply.found()) << "case " << cases << " exact " << exact;
+      }
+      if (!reply.found()) continue;
+      ++found;
+      EXPECT_EQ(reply.model(), v1::MODEL_OCTOMAP);
+      EXPECT_GE(reply.clearance_m(), exact - 1e-9) << "case " << cases;
+      EXPECT_LE(reply.clearance_m(), exact + kCell + 1e-9) << "case " << cases;
+    }
+    return answered;
+  };
+  const auto answer_again = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap,
+                                const std::vector<Case>& before) {
+    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap};
+    for (const Case& c : before) {
+      v1::ClearanceReply reply;
+      answer_clearance(world, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
+      ASSERT_EQ(reply.found(), c.found);
+      if (c.found) {
+        EXPECT_EQ(reply.clearance_m(), c.clearance_m);
+      }
+    }
+  };
+
+  add_boxes(12);
+  const auto first = model.publish();
+  const std::vector<Case> first_answers = check(first, 500);
+  // Add voxels, and clear some of the first ones.
+  add_boxes(8);
+  std::size_t cleared = 0;
+  for (std::size_t i = 0; i < voxels.size(); i += 7, ++cleared) clear_voxel(model, voxels[i]);
+  const auto second = model.publish();
+  std::size_t still_occupied = 0;
+  for (std::size_t i = 0; i < voxels.size(); i += 7)
+    still_occupied += second->occupied(voxel_center(voxels[i])) ? 1 : 0;
+  EXPECT_LT(still_occupied, cleared / 2) << "clearing beams removed few voxels";
+  check(second, 500);
+  // The first snapshot still answers as it did.
+  answer_again(first, first_answers);
+  EXPECT_GE(cases, 1000);
+  EXPECT_GT(found, cases / 3);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <optional>
 #include <span>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "occgeo/geometry/cell.h"
@@ -113,6 +114,9 @@ class HimmGrid {
   std::uint64_t copied_tiles_ = 0;
   std::uint64_t version_ = 0;
   std::vector<geometry::CellIndex> occupancy_changes_;
+  // insert_scan's see-through scratch, reused so that a scan allocates nothing once the buffers have grown.
+  std::vector<geometry::CellIndex> see_through_lowered_;
+  std::unordered_set<geometry::CellIndex, geometry::CellIndexHash> see_through_hits_;
   bool occupancy_changes_overflowed_ = false;
 };
 
