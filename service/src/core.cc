@@ -199,22 +199,23 @@ ServerCore::ServerCore(ServerConfig config)
     : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
   // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
   // strand, which maps the scans and computes the robots' commands, gets the CPU first. Each pool thread takes one
-  // of these tasks (they wait for each other), so every thread is lowered.
+  // of these tasks (they wait for each other), so every thread is lowered. The latch is shared: a pool thread may
+  // still be inside arrive_and_wait after the constructor's wait has returned.
   const int nice = config_.queries.network_nice;
   if (nice > 0) {
-    std::latch lowered(static_cast<std::ptrdiff_t>(kQueryThreads));
+    auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(kQueryThreads));
     for (std::size_t i = 0; i < kQueryThreads; ++i) {
-      asio::post(query_pool_, [&lowered, nice] {
+      asio::post(query_pool_, [lowered, nice] {
         const auto thread = static_cast<id_t>(gettid());
         errno = 0;
         const int current = getpriority(PRIO_PROCESS, thread);
         if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
           log::warn("query_pool_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
         }
-        lowered.arrive_and_wait();
+        lowered->arrive_and_wait();
       });
     }
-    lowered.wait();
+    lowered->wait();
   }
 }
 

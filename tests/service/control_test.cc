@@ -289,6 +289,18 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   ASSERT_EQ(path.size(), 2U) << "from the robot straight to the goal";
   EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(0.0, 0.0)));
   EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0)));
+  // A plain status stays cheap: no path and no scan; the detailed one carries both, world frame.
+  v1::ClientMessage status;
+  status.mutable_status()->set_request_id(9);
+  const v1::RobotStatus plain = send(holder, status).status().robots(0);
+  EXPECT_EQ(plain.path_size(), 0);
+  EXPECT_EQ(plain.scan_size(), 0);
+  status.mutable_status()->set_detailed(true);
+  const v1::RobotStatus detailed = send(holder, status).status().robots(0);
+  ASSERT_EQ(detailed.path_size(), 2);
+  EXPECT_NEAR(detailed.path(1).x(), 3.0, 1e-9);
+  EXPECT_NEAR(detailed.path(1).y(), 1.0, 1e-9);
+  EXPECT_GT(detailed.scan_size(), 0) << "the driver's latest laser returns";
   // Teleop plans nothing; stopping clears the path.
   ASSERT_TRUE(drive(holder, "teleop", 0.2).has_drive());
   static_cast<void>(scan(d));
