@@ -451,7 +451,9 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("limit_angular_radps", g.limit_angular_radps)
                        .field("check_grid", g.check_grid)
                        .field("check_octomap", g.check_octomap)
-                       .field("check_ptem", g.check_ptem);
+                       .field("check_ptem", g.check_ptem)
+                       .field("predict_horizon_s", g.predict_horizon_s)
+                       .field("predict_margin_m", g.predict_margin_m);
                  })
         .section("distance_field", [&](Section& s) {
           auto& d = config.distance_field;

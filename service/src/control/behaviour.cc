@@ -724,6 +724,128 @@ class MapEscapeWrapper final : public Behaviour {
   double height_m_;
 };
 
+
+// Yields to moving obstacles around whatever the inner behaviour commands (make_yield).
+class YieldWrapper final : public Behaviour {
+ public:
+  YieldWrapper(std::unique_ptr<Behaviour> inner, const RobotShape& robot, const GuardParams& guard)
+      : inner_(std::move(inner)), robot_(robot), guard_(guard) {
+    aside_linear_mps_ = std::min(0.4, robot.max_linear_mps);
+  }
+  [[nodiscard]] std::string_view name() const override { return inner_->name(); }
+  [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
+  [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override { return inner_->planned_path(); }
+  [[nodiscard]] std::vector<TrackedObstacle> moving_obstacles() const override { return tracker_.moving(); }
+
+  BehaviourCommand decide(const BehaviourInput& input) override {
+    BehaviourCommand command = inner_->decide(input);
+    if (!input.X_WB || !(guard_.predict_horizon_s > 0.0)) return command;
+    const geometry::Pose2& X_WB = *input.X_WB;
+    if (input.ptem != nullptr) {
+      const Eigen::Vector2d p_WS =
+          X_WB.position() + robot_.laser_x_m * Eigen::Vector2d(std::cos(X_WB.theta), std::sin(X_WB.theta));
+      const double range_m =
+          input.scan.range_max_m > 0.0 ? input.scan.range_max_m : std::numeric_limits<double>::infinity();
+      tracker_.update(*input.ptem, p_WS, range_m);
+    }
+    const std::vector<TrackedObstacle> moving = tracker_.moving();
+    if (moving.empty() || command.state == "reached") {
+      aside_ = std::nullopt;
+      return command;
+    }
+    const double horizon_s = guard_.predict_horizon_s;
+    const double margin_m = guard_.predict_margin_m;
+
+    // Standing here, the robot would be run into: get out of the way rather than wait in it.
+    const double rest_gap_m = predicted_gap(moving, robot_.footprint, X_WB, 0.0, 0.0, 0.0, horizon_s);
+    if (rest_gap_m < margin_m) return step_aside(input, moving, command);
+    aside_ = std::nullopt;
+    if (command.stop || (command.linear_mps == 0.0 && command.angular_radps == 0.0)) return command;
+
+    const std::optional<double> contact_s = predicted_contact_s(
+        moving, robot_.footprint, X_WB, command.linear_mps, command.angular_radps, horizon_s, margin_m);
+    if (!contact_s) return command;
+    if (*contact_s > horizon_s / 2.0) {
+      // Far yet: arrive later, when the obstacle may have passed.
+      command.linear_mps *= kYieldSlowRatio;
+      command.angular_radps *= kYieldSlowRatio;
+      if (command.wheels) command.wheels = {command.wheels->left_mps * kYieldSlowRatio, command.wheels->right_mps * kYieldSlowRatio};
+      command.leg_m.reset();
+      command.state = "yield_slow";
+      return command;
+    }
+    return standing(command, "yield_wait");
+  }
+
+ private:
+  static constexpr double kYieldSlowRatio = 0.5;
+  static constexpr double kAsideTurn_radps = 0.7;
+  static constexpr double kAsideHysteresis_m = 0.05;  // keep the previous arc unless another is clearly better
+
+  static BehaviourCommand standing(BehaviourCommand command, std::string state) {
+    command.linear_mps = 0.0;
+    command.angular_radps = 0.0;
+    command.wheels.reset();
+    command.leg_m.reset();
+    command.stop = true;
+    command.state = std::move(state);
+    return command;
+  }
+
+  BehaviourCommand step_aside(const BehaviourInput& input, const std::vector<TrackedObstacle>& moving,
+                              BehaviourCommand command) {
+    const geometry::Pose2& X_WB = *input.X_WB;
+    const GuardModels models{input.grid, input.octomap, nullptr};
+    struct Arc {
+      double linear_mps;
+      double angular_radps;
+    };
+    const double v = aside_linear_mps_;
+    const std::array<Arc, 10> arcs{{{v, 0.0},
+                                    {v, kAsideTurn_radps},
+                                    {v, -kAsideTurn_radps},
+                                    {v, 2.0 * kAsideTurn_radps},
+                                    {v, -2.0 * kAsideTurn_radps},
+                                    {-v, 0.0},
+                                    {-v, kAsideTurn_radps},
+                                    {-v, -kAsideTurn_radps},
+                                    {-v, 2.0 * kAsideTurn_radps},
+                                    {-v, -2.0 * kAsideTurn_radps}}};
+    std::optional<std::size_t> best;
+    double best_gap_m = predicted_gap(moving, robot_.footprint, X_WB, 0.0, 0.0, 0.0, 2.0 * guard_.predict_horizon_s);
+    for (std::size_t i = 0; i < arcs.size(); ++i) {
+      // Judged by where the arc leaves the robot, standing, as the obstacles go on for as long again: backing away
+      // along an obstacle's path only puts the contact off, stepping out of its path avoids it.
+      double gap_m = predicted_gap(moving, robot_.footprint, X_WB, arcs[i].linear_mps, arcs[i].angular_radps,
+                                   guard_.predict_horizon_s, 2.0 * guard_.predict_horizon_s);
+      if (aside_ && *aside_ == i) gap_m += kAsideHysteresis_m;
+      if (gap_m <= best_gap_m) continue;
+      // An arc the guard would stop at a wall or shelf is no way out.
+      const GuardDecision static_check =
+          guard_command(models, robot_.footprint, X_WB, arcs[i].linear_mps, arcs[i].angular_radps, guard_);
+      if (static_check.action == GuardAction::kStop) continue;
+      best = i;
+      best_gap_m = gap_m;
+    }
+    aside_ = best;
+    if (!best) return standing(command, "yield_wait");
+    command.linear_mps = arcs[*best].linear_mps;
+    command.angular_radps = arcs[*best].angular_radps;
+    command.wheels.reset();
+    command.leg_m.reset();
+    command.stop = false;
+    command.state = "yield_aside";
+    return command;
+  }
+
+  std::unique_ptr<Behaviour> inner_;
+  RobotShape robot_;
+  GuardParams guard_;
+  ClusterTracker tracker_;
+  double aside_linear_mps_ = 0.4;
+  std::optional<std::size_t> aside_;  // the arc stepped aside along in the previous cycle
+};
+
 }  // namespace
 
 std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
@@ -784,6 +906,11 @@ std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<E
 
 std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot) {
   return std::make_unique<EscapeWrapper>(std::move(rebuild), robot);
+}
+
+std::unique_ptr<Behaviour> make_yield(std::unique_ptr<Behaviour> inner, const RobotShape& robot,
+                                      const GuardParams& guard) {
+  return std::make_unique<YieldWrapper>(std::move(inner), robot, guard);
 }
 
 std::vector<SweepReading> sweep_from_scan(const ScanView& scan) {

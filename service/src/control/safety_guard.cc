@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <type_traits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -17,18 +19,6 @@ constexpr double kTerrainMargin_m = 0.3;
 
 void require(bool ok, const char* field, const char* what) {
   if (!ok) throw std::invalid_argument(std::string(field) + " " + what);
-}
-
-// base_link after driving the body velocity for t seconds from X_WB (exact unicycle arc).
-geometry::Pose2 advance(const geometry::Pose2& X_WB, double linear_mps, double angular_radps, double t) {
-  const double turned = angular_radps * t;
-  if (std::abs(turned) < 1e-9) {
-    return {X_WB.x + linear_mps * t * std::cos(X_WB.theta), X_WB.y + linear_mps * t * std::sin(X_WB.theta), X_WB.theta};
-  }
-  const double radius = linear_mps / angular_radps;
-  const double theta = X_WB.theta + turned;
-  return {X_WB.x + radius * (std::sin(theta) - std::sin(X_WB.theta)),
-          X_WB.y - radius * (std::cos(theta) - std::cos(X_WB.theta)), geometry::wrap_angle(theta)};
 }
 
 double footprint_height(const geometry::Footprint& footprint) {
@@ -126,7 +116,96 @@ GuardDecision limited(GuardDecision decision, const GuardParams& params) {
   return decision;
 }
 
+// Time step of the moving-obstacle prediction, seconds: a person at 0.7 m/s moves 7 cm per step.
+constexpr double kPredictStep_s = 0.1;
+
+// Distance from q (in the polygon's frame) to the convex, counter-clockwise polygon; 0 inside.
+double distance_to_polygon(const std::vector<Eigen::Vector2d>& vertices, const Eigen::Vector2d& q) {
+  bool inside = vertices.size() >= 3;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const Eigen::Vector2d& a = vertices[i];
+    const Eigen::Vector2d& b = vertices[(i + 1) % vertices.size()];
+    const Eigen::Vector2d ab = b - a;
+    const Eigen::Vector2d aq = q - a;
+    if (ab.x() * aq.y() - ab.y() * aq.x() < 0.0) inside = false;
+    const double length_sq = ab.squaredNorm();
+    const double s = length_sq > 0.0 ? std::clamp(aq.dot(ab) / length_sq, 0.0, 1.0) : 0.0;
+    best = std::min(best, (aq - s * ab).norm());
+  }
+  return inside ? 0.0 : best;
+}
+
 }  // namespace
+
+geometry::Pose2 advance_pose(const geometry::Pose2& X_WB, double linear_mps, double angular_radps, double t) {
+  const double turned = angular_radps * t;
+  if (std::abs(turned) < 1e-9) {
+    return {X_WB.x + linear_mps * t * std::cos(X_WB.theta), X_WB.y + linear_mps * t * std::sin(X_WB.theta), X_WB.theta};
+  }
+  const double radius = linear_mps / angular_radps;
+  const double theta = X_WB.theta + turned;
+  return {X_WB.x + radius * (std::sin(theta) - std::sin(X_WB.theta)),
+          X_WB.y - radius * (std::cos(theta) - std::cos(X_WB.theta)), geometry::wrap_angle(theta)};
+}
+
+double distance_to_footprint(const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                             const Eigen::Vector2d& p_W) {
+  const double c = std::cos(X_WB.theta);
+  const double s = std::sin(X_WB.theta);
+  const Eigen::Vector2d d = p_W - X_WB.position();
+  const Eigen::Vector2d q(c * d.x() + s * d.y(), -s * d.x() + c * d.y());  // p in base_link
+  return std::visit(
+      [&](const auto& shape) -> double {
+        using Shape = std::decay_t<decltype(shape)>;
+        if constexpr (std::is_same_v<Shape, geometry::BoxFootprint>) {
+          const double dx = std::max(std::abs(q.x() - shape.center_x) - shape.length / 2.0, 0.0);
+          const double dy = std::max(std::abs(q.y()) - shape.width / 2.0, 0.0);
+          return std::hypot(dx, dy);
+        } else if constexpr (std::is_same_v<Shape, geometry::CylinderFootprint>) {
+          return std::max(q.norm() - shape.radius, 0.0);
+        } else {
+          return distance_to_polygon(shape.vertices_B, q);
+        }
+      },
+      footprint);
+}
+
+double predicted_gap(std::span<const TrackedObstacle> moving, const geometry::Footprint& footprint,
+                     const geometry::Pose2& X_WB, double linear_mps, double angular_radps, double drive_s,
+                     double horizon_s, double* at_s) {
+  double best = std::numeric_limits<double>::infinity();
+  if (at_s != nullptr) *at_s = 0.0;
+  if (moving.empty()) return best;
+  const int steps = std::max(1, static_cast<int>(std::ceil(horizon_s / kPredictStep_s)));
+  for (int k = 0; k <= steps; ++k) {
+    const double t = horizon_s * k / steps;
+    const geometry::Pose2 pose = advance_pose(X_WB, linear_mps, angular_radps, std::min(t, drive_s));
+    for (const TrackedObstacle& obstacle : moving) {
+      const double gap = distance_to_footprint(footprint, pose, obstacle.predicted_W(t)) - obstacle.radius_m;
+      if (gap < best) {
+        best = gap;
+        if (at_s != nullptr) *at_s = t;
+      }
+    }
+  }
+  return best;
+}
+
+std::optional<double> predicted_contact_s(std::span<const TrackedObstacle> moving, const geometry::Footprint& footprint,
+                                          const geometry::Pose2& X_WB, double linear_mps, double angular_radps,
+                                          double horizon_s, double margin_m) {
+  if (moving.empty() || !(horizon_s > 0.0)) return std::nullopt;
+  const int steps = std::max(1, static_cast<int>(std::ceil(horizon_s / kPredictStep_s)));
+  for (int k = 0; k <= steps; ++k) {
+    const double t = horizon_s * k / steps;
+    const geometry::Pose2 pose = advance_pose(X_WB, linear_mps, angular_radps, t);
+    for (const TrackedObstacle& obstacle : moving) {
+      if (distance_to_footprint(footprint, pose, obstacle.predicted_W(t)) - obstacle.radius_m < margin_m) return t;
+    }
+  }
+  return std::nullopt;
+}
 
 void GuardParams::validate() const {
   require(std::isfinite(horizon_s) && horizon_s > 0.0 && horizon_s <= 10.0, "horizon_s", "must be in (0, 10] seconds");
@@ -140,6 +219,10 @@ void GuardParams::validate() const {
           "must be in (0, 1]");
   require(std::isfinite(limit_distance_m) && limit_distance_m >= 0.0 && limit_distance_m <= 10.0, "limit_distance_m",
           "must be in [0, 10] metres");
+  require(std::isfinite(predict_horizon_s) && predict_horizon_s >= 0.0 && predict_horizon_s <= 10.0,
+          "predict_horizon_s", "must be in [0, 10] seconds");
+  require(std::isfinite(predict_margin_m) && predict_margin_m >= 0.0 && predict_margin_m <= 2.0, "predict_margin_m",
+          "must be in [0, 2] metres");
   require(std::isfinite(limit_linear_mps) && limit_linear_mps > 0.0, "limit_linear_mps", "must be positive");
   require(std::isfinite(limit_angular_radps) && limit_angular_radps > 0.0, "limit_angular_radps", "must be positive");
 }
@@ -167,7 +250,7 @@ std::string_view model_in_contact(const GuardModels& models, const geometry::Foo
 
 GuardDecision guard_command(const GuardModels& models, const geometry::Footprint& footprint,
                             const geometry::Pose2& X_WB, double linear_mps, double angular_radps,
-                            const GuardParams& params) {
+                            const GuardParams& params, std::span<const TrackedObstacle> moving) {
   GuardDecision decision;
   decision.linear_mps = linear_mps;
   decision.angular_radps = angular_radps;
@@ -208,7 +291,7 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
   for (int k = 1; k <= steps; ++k) {
     const double t = params.horizon_s * k / steps;
     const std::string_view hit =
-        contact_on_terrain(models, on_terrain, footprint, advance(X_WB, linear_mps, angular_radps, t), params);
+        contact_on_terrain(models, on_terrain, footprint, advance_pose(X_WB, linear_mps, angular_radps, t), params);
     if (hit.empty()) continue;
     decision.model = hit;
     decision.time_to_contact_s = t;
@@ -225,6 +308,35 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
     decision.linear_mps *= params.slowdown_ratio;
     decision.angular_radps *= params.slowdown_ratio;
     break;
+  }
+  if (params.predict_horizon_s > 0.0 && !moving.empty()) {
+    // Only a motion that runs into a moving obstacle's predicted position where standing still would not: stopping
+    // a robot that is stepping out of the way would leave it in the obstacle's path.
+    const std::optional<double> moving_s = predicted_contact_s(moving, footprint, X_WB, linear_mps,
+                                                               angular_radps, params.predict_horizon_s,
+                                                               params.predict_margin_m);
+    if (moving_s && !predicted_contact_s(moving, footprint, X_WB, 0.0, 0.0, *moving_s, params.predict_margin_m)) {
+      const double distance_m = sweep_rate_mps * *moving_s;
+      if (*moving_s <= params.stop_time_s + params.predict_horizon_s / 3.0 || distance_m <= params.stop_distance_m) {
+        decision.action = GuardAction::kStop;
+        decision.zone = "predict_stop";
+        decision.model = "moving";
+        decision.time_to_contact_s = *moving_s;
+        decision.distance_to_contact_m = distance_m;
+        decision.linear_mps = 0.0;
+        decision.angular_radps = 0.0;
+        return decision;
+      }
+      if (decision.action == GuardAction::kPass) {
+        decision.action = GuardAction::kSlow;
+        decision.zone = "predict_slow";
+        decision.model = "moving";
+        decision.time_to_contact_s = *moving_s;
+        decision.distance_to_contact_m = distance_m;
+        decision.linear_mps *= params.slowdown_ratio;
+        decision.angular_radps *= params.slowdown_ratio;
+      }
+    }
   }
   if (params.limit_distance_m > 0.0) {
     const std::string_view model =

@@ -148,10 +148,9 @@ void fill_guard(const control::GuardDecision& decision, double requested_linear_
   out.set_requested_angular_radps(requested_angular_radps);
 }
 
-}  // namespace
-
-std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
-                                                   const RobotModel& model, const ServerConfig& config) {
+// make_behaviour without the yielding to moving obstacles around goto and waypoints (which wraps the escape too).
+std::unique_ptr<control::Behaviour> make_plain_behaviour(const std::string& name, const v1::DriveRequest& request,
+                                                         const RobotModel& model, const ServerConfig& config) {
   const control::RobotShape shape = robot_shape(model);
   // The Bearcat and wander get out of deadlocks over the map they built (seed 000 §5.2); bearcat_seed is the thesis's
   // behaviour alone, which stops in a deadlock for good. Each robot's Bearcat uses its own wheel separation.
@@ -166,7 +165,8 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
   if ((name == "goto" || name == "waypoints") && request.escape()) {
     v1::DriveRequest plain = request;
     plain.set_escape(false);
-    return control::make_escape([plain, name, &model, &config] { return make_behaviour(name, plain, model, config); },
+    return control::make_escape(
+        [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); },
                                 shape);
   }
   if (name == "waypoints") {
@@ -209,6 +209,18 @@ std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, cons
                               half_width_m + 0.1);
   }
   return nullptr;
+}
+
+}  // namespace
+
+std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
+                                                   const RobotModel& model, const ServerConfig& config) {
+  auto behaviour = make_plain_behaviour(name, request, model, config);
+  // A robot with a laser going somewhere yields to the people and carts its PTEM tracks.
+  if (behaviour && (name == "goto" || name == "waypoints") && !model.lasers.empty()) {
+    return control::make_yield(std::move(behaviour), robot_shape(model), config.guard);
+  }
+  return behaviour;
 }
 
 v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanView& view, double stamp_s,
@@ -268,9 +280,14 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   ClampedVelocity velocity = executable(model, wanted);
   v1::GuardDecision guard;
   if (config.guard.enabled && X_WB) {
+    const std::vector<control::TrackedObstacle> moving =
+        control.behaviour == "teleop" || !robot.active_behaviour_on_strand()
+            ? std::vector<control::TrackedObstacle>{}
+            : robot.active_behaviour_on_strand()->moving_obstacles();
     const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
     const control::GuardDecision decision = control::guard_command(
-        models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard);
+        models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard,
+                                                                    moving);
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);

@@ -16,7 +16,9 @@
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/cluster_tracker.h"
 #include "occgeo/service/control/pointbug.h"
+#include "occgeo/service/control/safety_guard.h"
 #include "occgeo/service/control/servo_sweep.h"
 #include "occgeo/service/control/wander.h"
 
@@ -72,6 +74,8 @@ class Behaviour {
   [[nodiscard]] virtual std::optional<Eigen::Vector2d> current_goal() const { return std::nullopt; }
   // The path it follows from here, world frame (waypoints still ahead, a global escape path); empty when it has none.
   [[nodiscard]] virtual std::vector<Eigen::Vector2d> planned_path() const { return {}; }
+  // The moving obstacles it tracks, as of its latest decision, for the guard's prediction; empty when it tracks none.
+  [[nodiscard]] virtual std::vector<TrackedObstacle> moving_obstacles() const { return {}; }
 };
 
 // What the robot is, as the behaviours need it.
@@ -129,6 +133,16 @@ std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>(
 // the spot ("escape_look_round") instead of stopping.
 std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
                                            const RobotShape& robot);
+
+// Beyond the seeds: yielding to moving obstacles. Tracks the PTEM's clusters (ClusterTracker) and runs the inner
+// behaviour; when a moving obstacle is predicted (guard.predict_horizon_s ahead) to come within
+// guard.predict_margin_m of the robot standing where it is, the robot steps aside: of a few short arcs forward and
+// backward, the one that keeps it farthest from the obstacles' predicted discs without touching the map
+// ("yield_aside"). Otherwise, when the inner behaviour's command runs into a moving obstacle's predicted position,
+// the robot slows down while the contact is far ("yield_slow") and stops short of it when it is near ("yield_wait"),
+// going on once the obstacle has passed. With predict_horizon_s 0 the inner behaviour runs unchanged.
+std::unique_ptr<Behaviour> make_yield(std::unique_ptr<Behaviour> inner, const RobotShape& robot,
+                                      const GuardParams& guard);
 
 // The ±90°, 1° sweep PointBug reads, taken from a laser scan: each whole degree reads the nearest beam within half a
 // beam step (or half a degree), else no return. laser_x_m shifts nothing: ranges stay the sensor's.

@@ -1,0 +1,265 @@
+// Moving obstacles in the control loop: the PTEM's clusters tracked across scans (velocities), the guard's prediction,
+// and goto/waypoints yielding (make_yield) to a person crossing ahead or walking head-on. Scans are ray-cast from the
+// robot's laser into a world of walls and discs and fed to the real PtemModel, ten a second.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numbers>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "occgeo/service/control/behaviour.h"
+#include "occgeo/service/control/cluster_tracker.h"
+#include "occgeo/service/control/safety_guard.h"
+
+namespace occgeo::service::control {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kScanPeriod_s = 0.1;
+constexpr double kMaxRange_m = 8.0;
+constexpr int kBeams = 361;  // 0.5° over ±90°
+
+struct Disc {
+  Eigen::Vector2d start_W;
+  Eigen::Vector2d velocity_W;
+  double radius_m;
+  [[nodiscard]] Eigen::Vector2d at(double t_s) const { return start_W + velocity_W * t_s; }
+};
+
+struct Segment {
+  Eigen::Vector2d a_W;
+  Eigen::Vector2d b_W;
+};
+
+struct World {
+  std::vector<Segment> walls;
+  std::vector<Disc> discs;
+
+  // Range along a unit direction from origin, or +inf.
+  [[nodiscard]] double cast(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, double t_s) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Segment& wall : walls) {
+      const Eigen::Vector2d e = wall.b_W - wall.a_W;
+      const double denom = dir.x() * e.y() - dir.y() * e.x();
+      if (std::abs(denom) < 1e-12) continue;
+      const Eigen::Vector2d w = wall.a_W - origin;
+      const double r = (w.x() * e.y() - w.y() * e.x()) / denom;
+      const double s = (w.x() * dir.y() - w.y() * dir.x()) / denom;
+      if (r > 0.0 && s >= 0.0 && s <= 1.0) best = std::min(best, r);
+    }
+    for (const Disc& disc : discs) {
+      const Eigen::Vector2d oc = disc.at(t_s) - origin;
+      const double along = oc.dot(dir);
+      const double miss_sq = oc.squaredNorm() - along * along;
+      const double r_sq = disc.radius_m * disc.radius_m;
+      if (miss_sq > r_sq || along <= 0.0) continue;
+      best = std::min(best, along - std::sqrt(r_sq - miss_sq));
+    }
+    return best;
+  }
+
+  // The laser's returns (world frame) and ranges from a sensor at p_WS, heading yaw.
+  void scan(const Eigen::Vector2d& p_WS, double yaw, double t_s, std::vector<Eigen::Vector2d>& points_W,
+            std::vector<float>& ranges) const {
+    points_W.clear();
+    ranges.assign(kBeams, static_cast<float>(kMaxRange_m));
+    for (int i = 0; i < kBeams; ++i) {
+      const double bearing = yaw - kPi / 2 + i * kPi / (kBeams - 1);
+      const Eigen::Vector2d dir(std::cos(bearing), std::sin(bearing));
+      const double r = cast(p_WS, dir, t_s);
+      if (r >= kMaxRange_m) continue;
+      ranges[static_cast<std::size_t>(i)] = static_cast<float>(r);
+      points_W.push_back(p_WS + r * dir);
+    }
+  }
+};
+
+void insert(mapping::PtemModel& model, const World& world, const Eigen::Vector2d& p_WS, double yaw, double t_s,
+            std::vector<Eigen::Vector2d>& points_W, std::vector<float>& ranges) {
+  world.scan(p_WS, yaw, t_s, points_W, ranges);
+  mapping::PtemScan scan;
+  scan.stamp_s = t_s;
+  scan.p_WS = p_WS;
+  scan.yaw_WS = yaw;
+  scan.field_of_view_rad = kPi;
+  scan.max_range_m = kMaxRange_m;
+  scan.points_W = points_W;
+  model.insert_scan(scan);
+}
+
+const TrackedObstacle* nearest_track(const std::vector<TrackedObstacle>& tracks, const Eigen::Vector2d& p_W) {
+  const TrackedObstacle* best = nullptr;
+  for (const TrackedObstacle& track : tracks) {
+    if (best == nullptr || (track.centre_W - p_W).norm() < (best->centre_W - p_W).norm()) best = &track;
+  }
+  return best;
+}
+
+TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
+  World world;
+  world.walls = {{{-1.0, 2.5}, {7.0, 2.5}}, {{-1.0, -2.5}, {7.0, -2.5}}};
+  const Disc person{{3.0, -1.8}, {0.15, 0.6}, 0.25};
+  world.discs = {person};
+  mapping::PtemModel model(mapping::PtemParams{});
+  ClusterTracker tracker;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  for (int k = 0; k <= 30; ++k) {
+    const double t = k * kScanPeriod_s;
+    insert(model, world, {0.0, 0.0}, 0.0, t, points, ranges);
+    tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+    if (k < 6) continue;
+    SCOPED_TRACE("scan " + std::to_string(k));
+    const TrackedObstacle* walker = nearest_track(tracker.tracks(), person.at(t));
+    ASSERT_NE(walker, nullptr);
+    EXPECT_LT((walker->centre_W - person.at(t)).norm(), 0.3);
+    EXPECT_NEAR(walker->velocity_W.x(), person.velocity_W.x(), 0.1);
+    EXPECT_NEAR(walker->velocity_W.y(), person.velocity_W.y(), 0.1);
+    EXPECT_TRUE(walker->moving);
+    // The walls' clusters never move; their velocities are ~0 but for a fragment at the edge of the person's shadow.
+    int walls = 0;
+    int still = 0;
+    for (const TrackedObstacle& track : tracker.tracks()) {
+      if (&track == walker) continue;
+      EXPECT_FALSE(track.moving) << "a wall cluster at " << track.centre_W.transpose() << " moves";
+      ++walls;
+      still += track.velocity_W.norm() < 0.05 ? 1 : 0;
+    }
+    EXPECT_GE(still, walls - 1);
+  }
+  // The same snapshot twice is one observation, not a second one at zero time apart.
+  const std::vector<TrackedObstacle> before = tracker.tracks();
+  tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+  EXPECT_EQ(tracker.tracks().size(), before.size());
+}
+
+TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
+  const geometry::Footprint bearcat = geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
+  // A person 1.2 m ahead of the front, 1.4 m to the right, walking left at 0.7 m/s: crosses 2 s from now.
+  TrackedObstacle person;
+  person.centre_W = {1.7, -1.4};
+  person.velocity_W = {0.0, 0.7};
+  person.radius_m = 0.25;
+  person.moving = true;
+  const std::vector<TrackedObstacle> moving{person};
+  const GuardParams params;
+  const GuardDecision ahead = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.6, 0.0, params, moving);
+  EXPECT_NE(ahead.action, GuardAction::kPass);
+  EXPECT_EQ(ahead.model, "moving");
+  const GuardDecision without = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.6, 0.0, params);
+  EXPECT_EQ(without.action, GuardAction::kPass);
+  // Walking straight at the robot: backing away is what gets it out, and is not stopped.
+  person.centre_W = {2.5, 0.0};
+  person.velocity_W = {-0.6, 0.0};
+  const std::vector<TrackedObstacle> head_on{person};
+  EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, -0.4, 0.0, params, head_on).action, GuardAction::kPass);
+}
+
+// The command source under the yielding: drives straight along its heading at a fixed speed.
+class Straight final : public Behaviour {
+ public:
+  explicit Straight(double speed_mps) : speed_mps_(speed_mps) {}
+  [[nodiscard]] std::string_view name() const override { return "goto"; }
+  BehaviourCommand decide(const BehaviourInput& /*input*/) override {
+    BehaviourCommand command;
+    command.linear_mps = speed_mps_;
+    command.state = "step_to_goal";
+    return command;
+  }
+
+ private:
+  double speed_mps_;
+};
+
+RobotShape bearcat_shape() {
+  RobotShape shape;
+  shape.footprint = geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
+  shape.laser_x_m = 0.45;
+  shape.max_linear_mps = 1.2;
+  return shape;
+}
+
+struct DriveRun {
+  std::set<std::string> states;
+  double closest_gap_m = std::numeric_limits<double>::infinity();  // footprint to the person's disc
+  std::vector<geometry::Pose2> poses;
+  std::vector<std::string> state_per_step;
+};
+
+DriveRun drive(const World& world, Behaviour& behaviour, const RobotShape& robot, geometry::Pose2 pose, double seconds) {
+  mapping::PtemModel model(mapping::PtemParams{});
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  DriveRun run;
+  const int steps = static_cast<int>(seconds / kScanPeriod_s);
+  for (int k = 0; k < steps; ++k) {
+    const double t = k * kScanPeriod_s;
+    const Eigen::Vector2d p_WS = pose.position() + robot.laser_x_m * Eigen::Vector2d(std::cos(pose.theta), std::sin(pose.theta));
+    insert(model, world, p_WS, pose.theta, t, points, ranges);
+    const auto snapshot = model.snapshot();
+    BehaviourInput input;
+    input.scan = {-kPi / 2, kPi / (kBeams - 1), ranges, kMaxRange_m};
+    input.X_WB = pose;
+    input.stamp_s = t;
+    input.ptem = snapshot.get();
+    const BehaviourCommand command = behaviour.decide(input);
+    run.states.insert(command.state);
+    run.state_per_step.push_back(command.state);
+    if (!command.stop) pose = advance_pose(pose, command.linear_mps, command.angular_radps, kScanPeriod_s);
+    run.poses.push_back(pose);
+    for (const Disc& disc : world.discs) {
+      run.closest_gap_m = std::min(
+          run.closest_gap_m, distance_to_footprint(robot.footprint, pose, disc.at(t + kScanPeriod_s)) - disc.radius_m);
+    }
+  }
+  return run;
+}
+
+TEST(Yield, WaitsShortOfAPersonCrossingAheadThenGoesOn) {
+  World world;
+  // A person crosses the robot's line at x = 3.2 from the right at 0.6 m/s, reaching it after about 4.8 s, as the
+  // robot's front (0.5 m/s) would.
+  world.discs = {{{3.2, -2.9}, {0.0, 0.6}, 0.25}};
+  const RobotShape robot = bearcat_shape();
+  auto behaviour = make_yield(std::make_unique<Straight>(0.5), robot, GuardParams{});
+  const DriveRun run = drive(world, *behaviour, robot, {0.0, 0.0, 0.0}, 14.0);
+  EXPECT_TRUE(run.states.contains("yield_wait") || run.states.contains("yield_slow"));
+  EXPECT_GT(run.closest_gap_m, 0.1) << "the robot reached the person";
+  // It stood short of the crossing while waiting (its front before the person's near side), not in it.
+  for (std::size_t k = 0; k < run.poses.size(); ++k) {
+    if (run.state_per_step[k] == "yield_wait") {
+      EXPECT_LT(run.poses[k].x + 0.5, 3.2 - 0.25);
+    }
+  }
+  EXPECT_GT(run.poses.back().x, 4.5) << "the robot went on after the person had passed";
+  EXPECT_EQ(run.state_per_step.back(), "step_to_goal");
+
+  // Without the yielding the same robot drives into the person.
+  Straight plain(0.5);
+  EXPECT_LT(drive(world, plain, robot, {0.0, 0.0, 0.0}, 14.0).closest_gap_m, 0.0);
+}
+
+TEST(Yield, StepsAsideFromAPersonWalkingHeadOn) {
+  World world;
+  world.discs = {{{6.0, 0.05}, {-0.5, 0.0}, 0.25}};
+  const RobotShape robot = bearcat_shape();
+  auto behaviour = make_yield(std::make_unique<Straight>(0.3), robot, GuardParams{});
+  const DriveRun run = drive(world, *behaviour, robot, {0.0, 0.0, 0.0}, 16.0);
+  EXPECT_TRUE(run.states.contains("yield_aside"));
+  EXPECT_GT(run.closest_gap_m, 0.0) << "the person walked into the robot";
+  double widest_m = 0.0;
+  for (const geometry::Pose2& pose : run.poses) widest_m = std::max(widest_m, std::abs(pose.y));
+  EXPECT_GT(widest_m, 0.3) << "the robot did not leave the person's line";
+
+  // Standing still in the person's way gets it hit: stepping aside is what avoided it.
+  Straight standing(0.0);
+  EXPECT_LT(drive(world, standing, robot, {0.0, 0.0, 0.0}, 16.0).closest_gap_m, 0.0);
+}
+
+}  // namespace
+}  // namespace occgeo::service::control
