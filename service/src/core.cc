@@ -1,10 +1,18 @@
 #include "core.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <boost/asio/post.hpp>
+#include <cerrno>
+#include <cstring>
+#include <future>
+#include <latch>
 
 #include "durability/world_store.h"
 #include "model_geometry.h"
+#include "occgeo/service/log.h"
 
 namespace occgeo::service {
 
@@ -17,15 +25,21 @@ std::uint64_t next_snapshot_generation() {
 }
 }  // namespace
 
-World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand)
+World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand,
+             std::optional<IngestStrand> octree_lane)
     : name_(std::move(name)),
       grid_(std::move(grid)),
       ptem_params_(params.ptem),
       ptem_(params.ptem),
+      octomap_params_(params.octomap),
       octomap_(params.octomap),
       distance_field_(params.distance_field),
       strand_(std::move(strand)),
-      octomap_timer_(strand_),
+      // Published every message or every N messages (lockstep runs), the octree stays on the ingest strand.
+      octree_lane_(params.octomap_publish_every_messages == 0 && params.octomap.min_publish_interval_s > 0.0
+                       ? std::move(octree_lane)
+                       : std::nullopt),
+      octomap_timer_(octree_lane_ ? *octree_lane_ : strand_),
       octomap_publish_every_messages_(params.octomap_publish_every_messages) {
   auto grid_snapshot = grid_.snapshot();
   static_cast<void>(grid_.take_occupancy_changes());  // the field starts from the whole grid
@@ -43,14 +57,46 @@ void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
   } else {
     distance_field_.update(grid, touched);
   }
+  auto ptem = ptem_.snapshot();
+  auto distance = distance_field_.snapshot();
+  // The octree's snapshot is its own (publish_octomap_here), possibly from the lane.
+  const std::lock_guard lock(snapshot_mutex_);
+  snapshot_.grid = std::move(grid);
+  snapshot_.ptem = std::move(ptem);
+  snapshot_.distance = std::move(distance);
+  snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
+}
+
+void World::apply_octree_work_on_strand(std::vector<OctreeWork> work) {
+  if (!octree_lane_) {
+    apply_octree_work_here(work);
+    return;
+  }
+  if (octree_backlog_.load(std::memory_order_acquire) >= kOctreeBacklogMessages) {
+    with_octree_on_strand([](mapping::OctoMapModel&) {});  // the lane is far behind: let it catch up first
+  }
+  octree_backlog_.fetch_add(1, std::memory_order_acq_rel);
+  asio::post(*octree_lane_, [self = shared_from_this(), work = std::move(work)] {
+    self->apply_octree_work_here(work);
+    self->octree_backlog_.fetch_sub(1, std::memory_order_acq_rel);
+  });
+}
+
+void World::apply_octree_work_here(const std::vector<OctreeWork>& work) {
+  for (const OctreeWork& step : work) step(octomap_);
   if (octomap_publish_every_messages_ > 0) {
     // Counted in messages, not wall time, so lockstep runs repeat exactly.
     if (++messages_since_octomap_ >= octomap_publish_every_messages_) {
       messages_since_octomap_ = 0;
-      if (octomap_.version() != octomap_.snapshot()->version()) static_cast<void>(octomap_.publish());
+      if (octomap_.version() != octomap_.snapshot()->version()) publish_octomap_here();
     }
-  } else if (!octomap_.maybe_publish() && octomap_.version() != octomap_.snapshot()->version() &&
-             !octomap_timer_armed_) {
+    return;
+  }
+  if (octomap_.maybe_publish()) {
+    const std::lock_guard lock(snapshot_mutex_);
+    snapshot_.octomap = octomap_.snapshot();
+    snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
+  } else if (octomap_.version() != octomap_.snapshot()->version() && !octomap_timer_armed_) {
     // The tree changed but its last snapshot is too recent: publish it once the interval has passed.
     octomap_timer_armed_ = true;
     octomap_timer_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -59,22 +105,43 @@ void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
       if (error) return;
       if (auto self = weak.lock()) {
         self->octomap_timer_armed_ = false;
-        if (self->octomap_.version() != self->octomap_.snapshot()->version()) self->publish_octomap_on_strand();
+        if (self->octomap_.version() != self->octomap_.snapshot()->version()) self->publish_octomap_here();
       }
     });
   }
-  WorldSnapshot snapshot{std::move(grid), ptem_.snapshot(), distance_field_.snapshot(), octomap_.snapshot()};
+}
+
+void World::publish_octomap_here() {
+  auto octomap = octomap_.publish();
   const std::lock_guard lock(snapshot_mutex_);
-  snapshot_ = std::move(snapshot);
+  snapshot_.octomap = std::move(octomap);
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
+void World::with_octree_on_strand(const std::function<void(mapping::OctoMapModel& octomap)>& fn) {
+  if (!octree_lane_) {
+    fn(octomap_);
+    return;
+  }
+  std::promise<void> done;
+  asio::post(*octree_lane_, [&] {
+    try {
+      fn(octomap_);
+      done.set_value();
+    } catch (...) {
+      done.set_exception(std::current_exception());
+    }
+  });
+  done.get_future().get();
+}
+
 std::shared_ptr<const mapping::OctoMapSnapshot> World::publish_octomap_on_strand() {
-  auto octomap = octomap_.publish();
-  const std::lock_guard lock(snapshot_mutex_);
-  snapshot_.octomap = octomap;
-  snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
-  return octomap;
+  std::shared_ptr<const mapping::OctoMapSnapshot> published;
+  with_octree_on_strand([&](mapping::OctoMapModel&) {
+    publish_octomap_here();
+    published = octomap_.snapshot();
+  });
+  return published;
 }
 
 void World::insert_ptem_on_strand(mapping::PtemScan scan) {
@@ -92,6 +159,19 @@ bool World::restore_ptem_on_strand(std::string_view state) {
 std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_.grid;
+}
+
+std::size_t World::octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const {
+  {
+    const std::lock_guard lock(leaf_count_mutex_);
+    if (leaf_count_of_ == &snapshot && leaf_count_version_ == snapshot.version()) return leaf_count_;
+  }
+  const std::size_t leaves = snapshot.leaf_count();  // outside the lock: other threads' statuses need not wait
+  const std::lock_guard lock(leaf_count_mutex_);
+  leaf_count_of_ = &snapshot;
+  leaf_count_version_ = snapshot.version();
+  leaf_count_ = leaves;
+  return leaves;
 }
 
 WorldSnapshot World::snapshots() const {
@@ -176,7 +256,28 @@ control::BearcatParams bearcat_params_for(const RobotModel& model, control::Bear
 }
 
 ServerCore::ServerCore(ServerConfig config)
-    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {}
+    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
+  // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
+  // strand, which maps the scans and computes the robots' commands, gets the CPU first. Each pool thread takes one
+  // of these tasks (they wait for each other), so every thread is lowered. The latch is shared: a pool thread may
+  // still be inside arrive_and_wait after the constructor's wait has returned.
+  const int nice = config_.queries.network_nice;
+  if (nice > 0) {
+    auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(kQueryThreads));
+    for (std::size_t i = 0; i < kQueryThreads; ++i) {
+      asio::post(query_pool_, [lowered, nice] {
+        const auto thread = static_cast<id_t>(gettid());
+        errno = 0;
+        const int current = getpriority(PRIO_PROCESS, thread);
+        if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+          log::warn("query_pool_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
+        }
+        lowered->arrive_and_wait();
+      });
+    }
+    lowered->wait();
+  }
+}
 
 ServerCore::~ServerCore() { drain(); }
 
@@ -185,6 +286,8 @@ void ServerCore::drain() {
     asio::post(robot->world().strand(), [robot] { robot->stop_watchdog_on_strand(); });
   }
   ingest_pool_.join();
+  octree_pool_.join();  // after the ingest strands, which hand it work
+  for (const auto& world : worlds()) world->retire_octree_lane();
   query_pool_.join();
 }
 
@@ -193,7 +296,8 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   auto& slot = worlds_[name];
   if (!slot) {
     slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), world_params(name),
-                                   asio::make_strand(ingest_pool_.get_executor()));
+                                   asio::make_strand(ingest_pool_.get_executor()),
+                                   asio::make_strand(octree_pool_.get_executor()));
     slot->attach_journal(durability::make_world_journal(config_, name));
   }
   return slot;
@@ -217,7 +321,8 @@ std::shared_ptr<World> ServerCore::add_world(const std::string& name, mapping::H
   auto& slot = worlds_[name];
   if (!slot) {
     slot = std::make_shared<World>(name, std::move(grid), world_params(name),
-                                   asio::make_strand(ingest_pool_.get_executor()));
+                                   asio::make_strand(ingest_pool_.get_executor()),
+                                   asio::make_strand(octree_pool_.get_executor()));
   }
   return slot;
 }

@@ -5,6 +5,7 @@
 #include <boost/asio/strand.hpp>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -35,6 +36,8 @@ namespace occgeo::service {
 
 namespace asio = boost::asio;
 using IngestStrand = asio::strand<asio::thread_pool::executor_type>;
+// One sensor message's change to a world's octree, applied where the octree lives (see World).
+using OctreeWork = std::function<void(mapping::OctoMapModel& octomap)>;
 
 // The models of a world as one publication made them: a reader holding it sees the grid, its
 // distance field and the PTEM after the same sensor message. The OctoMap snapshot is published at
@@ -59,9 +62,17 @@ struct WorldParams {
 // kept in step with the grid, and the PTEM (seed 004 §4) its robots' laser scans build. All are
 // only touched on the world's ingest strand; readers take the latest published immutable
 // snapshots.
+//
+// The octree costs far more per scan than the other models (milliseconds against tens of microseconds), so when it is
+// published on a timer (octomap.min_publish_interval_s > 0) it lives on its own lane, a strand on another thread:
+// the ingest strand hands each message's octree work over and goes on to compute the robot's command. Readers already
+// see the octree up to that interval stale, so the robots lose nothing they had. With the octree published every
+// message or every N messages (lockstep runs that must repeat exactly), the work runs inline on the ingest strand.
 class World : public std::enable_shared_from_this<World> {
  public:
-  World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand);
+  // octree_lane: where the octree's work runs when it is published on a timer; nullopt keeps it on `strand`.
+  World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand,
+        std::optional<IngestStrand> octree_lane = std::nullopt);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] IngestStrand& strand() { return strand_; }
@@ -80,17 +91,31 @@ class World : public std::enable_shared_from_this<World> {
   // parameters, throws when damaged); call only before any work reaches the strand.
   bool restore_ptem_on_strand(std::string_view state);
   [[nodiscard]] std::uint64_t ptem_scan_count_on_strand() const { return ptem_.scan_count(); }
-  // The mutable OctoMap; call only from the world's strand (or before any work reaches it).
-  mapping::OctoMapModel& octomap_on_strand() { return octomap_; }
+  // The octree's parameters (fixed when the world is made); safe from any thread.
+  [[nodiscard]] const mapping::OctoMapParams& octomap_params() const { return octomap_params_; }
+  // Applies one sensor message's octree work (possibly none) in order after every earlier message's, and publishes the
+  // octree under the octomap.* rules: on the octree lane when the world has one (returning at once, unless the lane
+  // is kOctreeBacklogMessages behind, when it waits, so that a lane that cannot keep up slows ingest rather than
+  // growing without bound), inline otherwise. Call only from the world's strand (or before any work reaches it).
+  void apply_octree_work_on_strand(std::vector<OctreeWork> work);
+  // Runs fn on the octree once all octree work handed over before has been applied, and returns when it has run.
+  // Call only from the world's strand (or before any work reaches it), never from the octree lane.
+  void with_octree_on_strand(const std::function<void(mapping::OctoMapModel& octomap)>& fn);
   // Makes the grid's and the PTEM's current state visible to readers, together, after bringing the
   // distance field in step with the grid: the grid's log of flipped cells says which cells to
   // compare; when it overflowed, those inside `touched` (it must hold every cell whose occupancy may
-  // have flipped since the last publication; nullopt compares the whole grid). The OctoMap is published too when its last snapshot is older than
-  // octomap.min_publish_interval_s; otherwise a timer on the strand publishes it when that
+  // have flipped since the last publication; nullopt compares the whole grid). The OctoMap is published too when its
+  // last snapshot is older than octomap.min_publish_interval_s; otherwise a timer on the strand publishes it when that
   // interval has passed, so readers never see it lag by more. Call only from the world's strand.
   void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt);
-  // Publishes the OctoMap now (e.g. before an export); call only from the world's strand.
+  // Publishes the OctoMap now, with all octree work handed over before (e.g. before an export); call only from the
+  // world's strand.
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
+  // Once the octree pool has been joined (ServerCore::drain), the octree's work runs on the caller, e.g. the final
+  // snapshot at shutdown. Call only when no thread uses the world's strands.
+  void retire_octree_lane() { octree_lane_.reset(); }
+  // How many messages' octree work the lane may hold before the ingest strand waits for it.
+  static constexpr int kOctreeBacklogMessages = 32;
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
   // The journal every accepted sensor message is written to before it is applied (see durability/journal.h); set
@@ -103,6 +128,9 @@ class World : public std::enable_shared_from_this<World> {
   // no lock is taken and no reference count touched (both are shared by every thread). The reference is valid until
   // this thread calls it again.
   [[nodiscard]] const WorldSnapshot& snapshots_for_this_thread() const;
+  // The leaf count of a published octree snapshot of this world. Counting walks the whole tree, so it is done once per
+  // snapshot (by the first status that asks) and kept; safe from any thread.
+  [[nodiscard]] std::size_t octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const;
 
  private:
   std::string name_;
@@ -110,18 +138,28 @@ class World : public std::enable_shared_from_this<World> {
   mapping::PtemParams ptem_params_;
   mapping::PtemModel ptem_;
   std::optional<double> ptem_latest_stamp_s_;
+  mapping::OctoMapParams octomap_params_;
   mapping::OctoMapModel octomap_;
   mapping::DistanceField distance_field_;
   IngestStrand strand_;
-  asio::steady_timer octomap_timer_;
+  std::optional<IngestStrand> octree_lane_;  // set when the octree's work runs off the ingest strand
+  std::atomic<int> octree_backlog_{0};       // messages handed to the lane and not yet applied
+  asio::steady_timer octomap_timer_;         // on the octree lane when there is one
   bool octomap_timer_armed_ = false;
   std::uint32_t octomap_publish_every_messages_ = 0;
   std::uint32_t messages_since_octomap_ = 0;
+  // Where the octree's work and publishing run: the lane or the ingest strand. Both only from there.
+  void apply_octree_work_here(const std::vector<OctreeWork>& work);
+  void publish_octomap_here();
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
   // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).
   std::atomic<std::uint64_t> snapshot_generation_{0};
   std::shared_ptr<durability::WorldJournal> journal_;
+  mutable std::mutex leaf_count_mutex_;  // guards the two below
+  mutable const mapping::OctoMapSnapshot* leaf_count_of_ = nullptr;
+  mutable std::uint64_t leaf_count_version_ = 0;
+  mutable std::size_t leaf_count_ = 0;
 };
 
 // A planar laser as declared in a RobotSpec, converted to SI geometry types.
@@ -261,10 +299,18 @@ struct RobotState {
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
   v1::GuardDecision guard;              // the safety guard's verdict on the latest command
-  std::vector<Eigen::Vector2d> path_W;  // the active behaviour's planned path, world frame; empty without one
+  // The active behaviour's planned path, world frame; null without one. Shared, as scan_W, so that copying the state
+  // (every sensor message, every status) never copies a path.
+  std::shared_ptr<const std::vector<Eigen::Vector2d>> path_W;
   // The first laser's latest accepted returns, world frame; shared so that copying the state stays cheap.
   std::shared_ptr<const std::vector<Eigen::Vector2f>> scan_W;
   std::optional<double> scan_stamp_s;  // stamp of the scan in scan_W
+
+  // The planned path (empty without one).
+  [[nodiscard]] const std::vector<Eigen::Vector2d>& path() const {
+    static const std::vector<Eigen::Vector2d> kNone;
+    return path_W ? *path_W : kNone;
+  }
 };
 
 class Robot : public std::enable_shared_from_this<Robot> {
@@ -364,6 +410,8 @@ class ServerCore {
                                         std::string& error);
 
   std::atomic<std::uint32_t> sessions{0};
+  // Queries admitted and not yet answered, over every session (limits.max_query_backlog); see Session.
+  std::atomic<std::size_t> queries_in_flight{0};
   std::atomic<std::uint64_t> next_session_id{1};
   [[nodiscard]] double uptime_s() const;
 
@@ -373,7 +421,10 @@ class ServerCore {
  private:
   ServerConfig config_;
   asio::thread_pool ingest_pool_{1};
-  asio::thread_pool query_pool_{2};
+  // The worlds' octree lanes (see World): one thread, so that a scan's octree insertion never delays a robot's command.
+  asio::thread_pool octree_pool_{1};
+  static constexpr std::size_t kQueryThreads = 2;
+  asio::thread_pool query_pool_{kQueryThreads};
   mutable std::mutex registry_mutex_;
   std::map<std::string, std::shared_ptr<World>> worlds_;
   std::map<std::string, std::shared_ptr<Robot>> robots_;

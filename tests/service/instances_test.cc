@@ -32,11 +32,11 @@ ServerConfig config_with_ground_band(double ground_band_m) {
 // The world's octree after the slab was seen from 2 m above the origin, as its readers get it.
 std::shared_ptr<const mapping::OctoMapSnapshot> octree_with_slab(ServerCore& core) {
   auto world = core.add_world("yard", mapping::HimmGrid(core.config().himm));
-  world->octomap_on_strand().insert_cloud(geometry::Pose3::from_xyz_rpy(0.0, 0.0, 2.0, 0.0, 0.0, 0.0), [] {
+  world->with_octree_on_strand([](mapping::OctoMapModel& octomap) {
     std::vector<Eigen::Vector3f> points_S;
     for (const Eigen::Vector3f& p : slab_points()) points_S.emplace_back(p - Eigen::Vector3f(0.0F, 0.0F, 2.0F));
-    return points_S;
-  }());
+    octomap.insert_cloud(geometry::Pose3::from_xyz_rpy(0.0, 0.0, 2.0, 0.0, 0.0, 0.0), points_S);
+  });
   return world->publish_octomap_on_strand();
 }
 

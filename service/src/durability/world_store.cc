@@ -113,12 +113,11 @@ struct SensorOrder {
 };
 
 // Applies one journalled sensor message as ingest did: at the pose it recorded, through the same insertion code.
-SensorOrder replay_sensor(World& world, const RobotModel& model, const JournalRecord& record,
+SensorOrder replay_sensor(World& world, IngestTarget& target, const RobotModel& model, const JournalRecord& record,
                           const std::filesystem::path& file) {
   const auto damaged = [&](const std::string& what) {
     return std::runtime_error("journal " + file.string() + " record " + std::to_string(record.lsn) + ": " + what);
   };
-  IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
   if (record.kind == "laser_scan") {
     v1::LaserScan message;
     if (!message.ParseFromString(record.body)) throw damaged("undecodable laser_scan");
@@ -195,7 +194,9 @@ ReplayResult replay_journal(ServerCore& core, World& world, const std::filesyste
       throw std::runtime_error("journal " + file.string() + " record " + std::to_string(record.lsn) +
                                ": no robot_spec precedes the data of robot '" + record.robot_id + "'");
     }
-    const SensorOrder order = replay_sensor(world, *robot->second, record, file);
+    IngestTarget target{world.grid_on_strand(), world.octomap_params(), std::nullopt, {}};
+    const SensorOrder order = replay_sensor(world, target, *robot->second, record, file);
+    world.apply_octree_work_on_strand(std::move(target.octree_work));
     auto& seqs = delivered[record.robot_id];
     seqs[order.seq] = message_fingerprint(record.kind, record.body);
     while (seqs.size() > WorldJournal::kDeliveredWindow) seqs.erase(seqs.begin());
@@ -257,7 +258,9 @@ void restore_worlds(ServerCore& core) {
     const std::uint64_t base_lsn = snapshot_lsn(dir);
     auto world = core.add_world(name, std::move(grid));
     // No strand work exists yet, so this thread is the worlds' only writer.
-    if (const auto bt = dir / "octomap.bt"; std::filesystem::exists(bt)) world->octomap_on_strand().load_bt(bt);
+    if (const auto bt = dir / "octomap.bt"; std::filesystem::exists(bt)) {
+      world->with_octree_on_strand([&](mapping::OctoMapModel& octomap) { octomap.load_bt(bt); });
+    }
     if (const auto ptem = dir / kPtemState; std::filesystem::exists(ptem)) restore_ptem(*world, ptem);
     ReplayResult replay{base_lsn, 0};
     WorldJournal::Delivered delivered = snapshot_delivered(dir);
@@ -275,7 +278,7 @@ void restore_worlds(ServerCore& core) {
          {"snapshot", has_grid || std::filesystem::exists(dir / "octomap.bt") ? dir.string() : std::string("none")},
          {"journal_records_replayed", replay.replayed},
          {"occupied_cells", world->grid_on_strand().occupied_cell_count()},
-         {"octomap_leaves", static_cast<std::uint64_t>(world->octomap_on_strand().leaf_count())},
+         {"octomap_leaves", static_cast<std::uint64_t>(world->snapshots().octomap->leaf_count())},
          {"ptem_clusters", static_cast<std::uint64_t>(world->snapshots().ptem->clusters().size())},
          {"restore_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}});
   }
@@ -285,7 +288,8 @@ bool snapshot_world(ServerCore& core, World& world) {
   WorldJournal* journal = world.journal();
   const std::uint64_t lsn = journal ? journal->last_lsn() : 0;
   const bool has_grid = world.grid_on_strand().tile_count() > 0;
-  const bool has_octomap = world.octomap_on_strand().leaf_count() > 0;
+  bool has_octomap = false;
+  world.with_octree_on_strand([&](mapping::OctoMapModel& octomap) { has_octomap = octomap.leaf_count() > 0; });
   const bool has_ptem = world.ptem_scan_count_on_strand() > 0;
   if (!has_grid && !has_octomap && !has_ptem && lsn == 0) return true;  // nothing observed, nothing to keep
   const auto final_dir = world_snapshot_dir(core.config().data_dir, world.name());
@@ -300,7 +304,7 @@ bool snapshot_world(ServerCore& core, World& world) {
       sync_path(temp_dir / "grid.yaml", false);
     }
     if (has_octomap) {
-      world.octomap_on_strand().save_bt(temp_dir / "octomap.bt");
+      world.with_octree_on_strand([&](mapping::OctoMapModel& octomap) { octomap.save_bt(temp_dir / "octomap.bt"); });
       sync_path(temp_dir / "octomap.bt", false);
     }
     if (has_ptem) {

@@ -63,9 +63,12 @@ void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const Las
   for (float& r : ranges) {
     if (r < range_min) r = 0.0F;
   }
-  target.octomap.insert_scan(X_WS, static_cast<float>(laser.angle_min_rad),
-                             static_cast<float>(laser.angle_increment_rad), ranges,
-                             static_cast<float>(laser.range_max_m));
+  target.octree_work.emplace_back([X_WS, angle_min = static_cast<float>(laser.angle_min_rad),
+                                   angle_increment = static_cast<float>(laser.angle_increment_rad),
+                                   range_max = static_cast<float>(laser.range_max_m),
+                                   ranges = std::move(ranges)](mapping::OctoMapModel& octomap) {
+    octomap.insert_scan(X_WS, angle_min, angle_increment, ranges, range_max);
+  });
 }
 
 // Feeds the scan's returns to the world's PTEM (seed 004 §4.2): the end points of the beams whose

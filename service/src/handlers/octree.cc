@@ -45,7 +45,7 @@ void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& r
       const std::filesystem::path path = export_path(world->name());
       std::string bytes;
       try {
-        world->octomap_on_strand().save_bt(path);
+        world->with_octree_on_strand([&](mapping::OctoMapModel& octomap) { octomap.save_bt(path); });
         const auto size = std::filesystem::file_size(path);
         if (size > max_bytes) {
           std::filesystem::remove(path);

@@ -29,7 +29,7 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
   target.touch(origin_W, cloud.range_max_m);
   const double top_m = footprint_height_m(model.footprint);
   // Points lower than this above the ground are the ground itself (noise on a flat floor), not obstacles.
-  const double ground_band_m = target.octomap.params().terrain.ground_band_m;
+  const double ground_band_m = target.octomap_params.terrain.ground_band_m;
   std::vector<Eigen::Vector3f> points_S;
   points_S.reserve(static_cast<std::size_t>(message.xyz_size() / 3));
   for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
@@ -38,7 +38,8 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
     if (p_W.z() < ground_band_m || p_W.z() > top_m) continue;
     target.grid.insert_ray(origin_W, p_W.head<2>(), true);
   }
-  target.octomap.insert_cloud(X_WS, points_S);
+  target.octree_work.emplace_back(
+      [X_WS, points_S = std::move(points_S)](mapping::OctoMapModel& octomap) { octomap.insert_cloud(X_WS, points_S); });
 }
 
 void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {

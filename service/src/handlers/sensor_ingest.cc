@@ -135,8 +135,9 @@ bool ingest_sensor_message_on_strand(
     lsn = appended.lsn;
     journal->note_delivered(model->id, header.seq, appended.fingerprint);
   }
-  IngestTarget target{world.grid_on_strand(), world.octomap_on_strand(), std::nullopt};
+  IngestTarget target{world.grid_on_strand(), world.octomap_params(), std::nullopt, {}};
   insert(*before.X_WB, target);
+  world.apply_octree_work_on_strand(std::move(target.octree_work));
   world.publish_on_strand(target.touched);
   if (header.message && session->data_watched()) publish_accepted(session, world, header, *before.X_WB, target.touched);
 
@@ -188,7 +189,9 @@ void insert_beam_3d(IngestTarget& target, const geometry::Pose3& X_WE, double re
                     double range_max_m) {
   target.touch(X_WE.translation().head<2>(), range_max_m);
   if (reading_m < range_min_m) return;
-  target.octomap.insert_ray(X_WE, reading_m, range_max_m);
+  target.octree_work.emplace_back([X_WE, reading_m, range_max_m](mapping::OctoMapModel& octomap) {
+    octomap.insert_ray(X_WE, reading_m, range_max_m);
+  });
 }
 
 geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Pose3& X_BS,

@@ -22,12 +22,15 @@ struct SensorMessageHeader {
 // and sends ERROR_INVALID_ARGUMENT naming the field. Nothing reaches the map.
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq);
 
-// What one sensor message's insertion updates, on the world's strand: the 2D grid and the 3D
-// OctoMap, and the box of grid cells whose occupancy may have flipped (for the distance field).
+// What one sensor message's insertion updates, on the world's strand: the 2D grid, the box of grid cells whose
+// occupancy may have flipped (for the distance field), and the work the message does to the 3D OctoMap, which the
+// world applies where its octree lives (World::apply_octree_work_on_strand) once the grid is updated. Octree work
+// owns what it reads: it may run on another thread after the message is gone.
 struct IngestTarget {
   mapping::HimmGrid& grid;
-  mapping::OctoMapModel& octomap;
+  const mapping::OctoMapParams& octomap_params;
   std::optional<mapping::CellBox> touched;
+  std::vector<OctreeWork> octree_work;
 
   // Adds the cells within radius_m of p_W (world, metres), plus one for the growth-rate operator,
   // to `touched`: call it with a sensor's position and its range_max_m.
