@@ -2,6 +2,7 @@
 // name, the option named in quotes, one line pointing at --help, and exit code 2, with nothing started.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,23 @@ TEST(CommandLine, EveryToolNamesAMissingValueTheSameWay) {
     const ProcessResult result = run_with(tool, {"--server"});
     EXPECT_EQ(result.exit_code, 2) << tool.name;
     EXPECT_EQ(result.err, tool.name + ": option '--server' needs a value\nrun '" + tool.name + " --help' for usage\n")
+        << tool.name;
+  }
+}
+
+// Each tool's numeric option given a word: the error names that option and the text it got, in one style.
+TEST(CommandLine, EveryToolNamesABadNumberTheSameWay) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"occgeo replay", "option '--speed' needs a positive number, got 'abc'"},
+      {"occgeo-sim", "option '--duration' needs a duration in seconds, got 'abc'"},
+      {"occgeo-load", "option '--duration' needs a finite number, got 'abc'"}};
+  for (const Tool& tool : tools()) {
+    const auto expected = std::find_if(cases.begin(), cases.end(), [&](const auto& c) { return c.first == tool.name; });
+    if (expected == cases.end()) continue;
+    const std::string flag = tool.name == "occgeo replay" ? "--speed" : "--duration";
+    const ProcessResult result = run_with(tool, {flag, "abc"});
+    EXPECT_EQ(result.exit_code, 2) << tool.name;
+    EXPECT_EQ(result.err, tool.name + ": " + expected->second + "\nrun '" + tool.name + " --help' for usage\n")
         << tool.name;
   }
 }

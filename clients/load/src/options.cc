@@ -1,9 +1,10 @@
 #include "occgeo/load/options.h"
-#include "occgeo/client/option_values.h"
+#include "occgeo/client/cli_options.h"
 
 #include <boost/asio/ip/address.hpp>
 #include <charconv>
 #include <cmath>
+#include <sstream>
 #include <string>
 
 namespace occgeo::load {
@@ -26,18 +27,6 @@ std::uint64_t parse_unsigned(std::string_view flag, std::string_view text, std::
                         std::to_string(max) + ", got " + std::to_string(value));
   }
   return value;
-}
-
-double parse_positive(std::string_view flag, std::string_view text, double max) {
-  const std::optional<double> value = client::finite_number(text);
-  if (!value) {
-    throw LoadArgsError("option '" + std::string(flag) + "' needs a number, got '" + std::string(text) + "'");
-  }
-  if (*value <= 0.0 || *value > max) {
-    throw LoadArgsError("option '" + std::string(flag) + "' needs a number > 0 and <= " + std::to_string(max) +
-                        ", got '" + std::string(text) + "'");
-  }
-  return *value;
 }
 
 std::map<QueryKind, std::uint32_t> parse_mix(std::string_view text) {
@@ -144,88 +133,139 @@ bool is_loopback_host(std::string_view host) {
   return !error && address.is_loopback();
 }
 
+namespace {
+
+// The options of occgeo-load as one CLI11 app writing into `options`; also the source of --help.
+struct LoadCommandLine {
+  CLI::App app{"occgeo-load: load an occgeod on this machine with simulated robots, query clients and observers",
+               "occgeo-load"};
+  std::string server, occgeod, server_config, robot_pace, client_sched, mix, world_file;
+  std::uint64_t server_pid = 0, robots = 0, clients = 0, depth = 0, ptem_points = 0, batch = 0, observers = 0,
+                warmup_scans = 0, threads = 0;
+  double observer_interval_s = 0.0, duration_s = 0.0, area_m = 0.0;
+
+  explicit LoadCommandLine(LoadOptions& options) {
+    using client::add_number;
+    using client::add_text;
+    using client::add_whole;
+    client::configure_cli(app, options.help);
+    app.footer(
+        "Exit status: 0 when every request was answered without error and the server is still up; 1 otherwise;\n"
+        "2 for a usage error.");
+    add_text(app, "--server", server,
+             "a running server on a loopback address (default: start occgeod on a free 127.0.0.1 port with a "
+             "temporary data directory, and stop it at the end)",
+             "HOST:PORT");
+    app.add_option("--occgeod", occgeod, "the server binary to start (default: service/occgeod of this build)")
+        ->type_name("PATH");
+    app.add_option("--server-config", server_config, "passed to the started server as --config")->type_name("FILE");
+    add_whole(app, "--server-pid", server_pid, 1, 4194304, "with --server: the process whose CPU and memory to report")
+        ->type_name("PID");
+    add_whole(app, "--robots", robots, 0, kMaxRobots, "simulated robots streaming scans (default 1)");
+    app.add_option("--robot", options.robot_preset, "their preset (default bearcat)")->type_name("PRESET");
+    app.add_option("--world-file", world_file, "their world (default clients/sim/worlds/open_field.yaml)")
+        ->type_name("FILE");
+    add_text(app, "--robot-pace", robot_pace, "sensors at real rates, or each scan as soon as the last was answered",
+             "realtime|lockstep");
+    add_whole(app, "--clients", clients, 0, kMaxClients, "query clients (default 4)");
+    add_whole(app, "--depth", depth, 1, kMaxDepth, "requests in flight per query client (default 1: one at a time)");
+    add_text(app, "--mix", mix,
+             "query kinds and their weights (default collision=4,clearance=4,ptem=1,status=1); kinds: collision, "
+             "clearance, ptem, status, grid, octree, raycast, occupancy, swept, grid_window, octree_window, and "
+             "collision_batch, clearance_batch, raycast_batch, occupancy_batch, swept_batch (--batch entries each)",
+             "K=W,...");
+    add_whole(app, "--batch", batch, 1, 100000, "entries per *_batch request (default 100; swept_batch: at most 1000)");
+    add_whole(app, "--ptem-points", ptem_points, 0, 100000, "points per PtemQuery (default 16)");
+    add_whole(app, "--observers", observers, 0, kMaxClients,
+              "observer sessions: each watches every robot's accepted sensor messages (WatchRequest) and polls the "
+              "server's status");
+    app.add_flag_callback(
+        "--no-watch", [&options] { options.observer_watch = false; }, "observers only poll");
+    add_number(app, "--observer-interval", observer_interval_s, "seconds between an observer's polls (default 0.1)")
+        ->type_name("S");
+    add_number(app, "--duration", duration_s, "measured seconds (default 10, at most 3600)")->type_name("S");
+    add_whole(app, "--warmup-scans", warmup_scans, 0, 100000,
+              "lockstep scans mapped by a seeding robot before measuring (default 100)");
+    add_number(app, "--area", area_m, "query poses uniformly in [-A, A] x [-A, A] metres (default 5)")->type_name("A");
+    add_whole(app, "--threads", threads, 1, 64, "threads running the query clients and observers (default 1)");
+    add_text(app, "--client-sched", client_sched,
+             "their scheduling policy (default batch: SCHED_BATCH, so that a client thread woken by a reply waits "
+             "for its turn instead of preempting the server it measures on a shared core; the server and the "
+             "simulated robots keep the normal policy)",
+             "batch|normal");
+    add_whole(app, "--seed", options.seed, 0, UINT64_MAX, "random seed (default 1)")->type_name("S");
+    app.add_flag("--json", options.json, "print one JSON object (queries_per_s, p50_us, p99_us, errors, ...)");
+    app.add_flag_callback(
+        "--quiet", [&options] { options.progress = false; }, "no progress lines on stderr");
+  }
+};
+
+// A positive number of at most `max`, already known finite.
+double positive_at_most(const std::string& flag, double value, double max) {
+  if (value <= 0.0 || value > max) {
+    std::ostringstream text;
+    text << "option '" << flag << "' needs a number > 0 and <= " << max << ", got " << value;
+    throw LoadArgsError(text.str());
+  }
+  return value;
+}
+
+}  // namespace
+
 LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
   LoadOptions options;
   options.mix = {{QueryKind::collision, 4}, {QueryKind::clearance, 4}, {QueryKind::ptem, 1}, {QueryKind::status, 1}};
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string_view flag = args[i];
-    const auto value = [&]() -> std::string_view {
-      if (i + 1 >= args.size()) throw LoadArgsError("option '" + std::string(flag) + "' needs a value");
-      return args[++i];
-    };
-    if (flag == "--help" || flag == "-h") {
-      options.help = true;
-    } else if (flag == "--server") {
-      try {
-        options.server = client::Endpoint::parse(value());
-      } catch (const client::ClientError& error) {
-        throw LoadArgsError(std::string("option '--server' ") + error.what());
-      }
-      if (!is_loopback_host(options.server->host)) {
-        throw LoadArgsError("option '--server' needs a loopback address, got '" + options.server->host +
-                            "'; occgeo-load only loads servers on this machine "
-                            "(127.0.0.0/8, ::1, localhost)");
-      }
-    } else if (flag == "--occgeod") {
-      options.occgeod = std::string(value());
-    } else if (flag == "--server-config") {
-      options.server_config = std::string(value());
-    } else if (flag == "--server-pid") {
-      options.server_pid = static_cast<int>(parse_unsigned(flag, value(), 1, 4194304));
-    } else if (flag == "--robots") {
-      options.robots = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, kMaxRobots));
-    } else if (flag == "--robot") {
-      options.robot_preset = std::string(value());
-    } else if (flag == "--world-file") {
-      options.world_file = std::string(value());
-    } else if (flag == "--robot-pace") {
-      const std::string_view pace = value();
-      if (pace == "realtime") {
-        options.robot_pace = RobotPace::realtime;
-      } else if (pace == "lockstep") {
-        options.robot_pace = RobotPace::lockstep;
-      } else {
-        throw LoadArgsError("option '--robot-pace' needs realtime or lockstep, got '" + std::string(pace) + "'");
-      }
-    } else if (flag == "--clients") {
-      options.clients = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, kMaxClients));
-    } else if (flag == "--depth") {
-      options.depth = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 1, kMaxDepth));
-    } else if (flag == "--mix") {
-      options.mix = parse_mix(value());
-    } else if (flag == "--ptem-points") {
-      options.ptem_points = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, 100000));
-    } else if (flag == "--batch") {
-      options.batch = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 1, 100000));
-    } else if (flag == "--no-watch") {
-      options.observer_watch = false;
-    } else if (flag == "--observers") {
-      options.observers = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, kMaxClients));
-    } else if (flag == "--observer-interval") {
-      options.observer_interval_s = parse_positive(flag, value(), 60.0);
-    } else if (flag == "--duration") {
-      options.duration_s = parse_positive(flag, value(), kMaxDuration_s);
-    } else if (flag == "--warmup-scans") {
-      options.warmup_scans = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 0, 100000));
-    } else if (flag == "--area") {
-      options.area_half_size_m = parse_positive(flag, value(), 1000.0);
-    } else if (flag == "--threads") {
-      options.threads = static_cast<std::uint32_t>(parse_unsigned(flag, value(), 1, 64));
-    } else if (flag == "--client-sched") {
-      const std::string policy(value());
-      if (policy != "batch" && policy != "normal") {
-        throw LoadArgsError("option '--client-sched' needs batch or normal, got '" + policy + "'");
-      }
-      options.client_sched_batch = policy == "batch";
-    } else if (flag == "--seed") {
-      options.seed = parse_unsigned(flag, value(), 0, UINT64_MAX);
-    } else if (flag == "--json") {
-      options.json = true;
-    } else if (flag == "--quiet") {
-      options.progress = false;
-    } else {
-      throw LoadArgsError("unknown option '" + std::string(flag) + "'");
+  LoadCommandLine line(options);
+  try {
+    client::parse_command_line(line.app, std::vector<std::string>(args.begin(), args.end()));
+  } catch (const client::UsageError& error) {
+    throw LoadArgsError(error.what());
+  }
+  const auto given = [&line](const char* flag) { return line.app.count(flag) > 0; };
+  if (given("--server")) {
+    try {
+      options.server = client::Endpoint::parse(line.server);
+    } catch (const client::ClientError& error) {
+      throw LoadArgsError(std::string("option '--server' ") + error.what());
     }
+    if (!is_loopback_host(options.server->host)) {
+      throw LoadArgsError("option '--server' needs a loopback address, got '" + options.server->host +
+                          "'; occgeo-load only loads servers on this machine "
+                          "(127.0.0.0/8, ::1, localhost)");
+    }
+  }
+  if (given("--occgeod")) options.occgeod = line.occgeod;
+  if (given("--server-config")) options.server_config = line.server_config;
+  if (given("--world-file")) options.world_file = line.world_file;
+  if (given("--server-pid")) options.server_pid = static_cast<int>(line.server_pid);
+  if (given("--robots")) options.robots = static_cast<std::uint32_t>(line.robots);
+  if (given("--robot-pace")) {
+    if (line.robot_pace == "realtime") {
+      options.robot_pace = RobotPace::realtime;
+    } else if (line.robot_pace == "lockstep") {
+      options.robot_pace = RobotPace::lockstep;
+    } else {
+      throw LoadArgsError("option '--robot-pace' needs realtime or lockstep, got '" + line.robot_pace + "'");
+    }
+  }
+  if (given("--clients")) options.clients = static_cast<std::uint32_t>(line.clients);
+  if (given("--depth")) options.depth = static_cast<std::uint32_t>(line.depth);
+  if (given("--mix")) options.mix = parse_mix(line.mix);
+  if (given("--ptem-points")) options.ptem_points = static_cast<std::uint32_t>(line.ptem_points);
+  if (given("--batch")) options.batch = static_cast<std::uint32_t>(line.batch);
+  if (given("--observers")) options.observers = static_cast<std::uint32_t>(line.observers);
+  if (given("--observer-interval")) {
+    options.observer_interval_s = positive_at_most("--observer-interval", line.observer_interval_s, 60.0);
+  }
+  if (given("--duration")) options.duration_s = positive_at_most("--duration", line.duration_s, kMaxDuration_s);
+  if (given("--warmup-scans")) options.warmup_scans = static_cast<std::uint32_t>(line.warmup_scans);
+  if (given("--area")) options.area_half_size_m = positive_at_most("--area", line.area_m, 1000.0);
+  if (given("--threads")) options.threads = static_cast<std::uint32_t>(line.threads);
+  if (given("--client-sched")) {
+    if (line.client_sched != "batch" && line.client_sched != "normal") {
+      throw LoadArgsError("option '--client-sched' needs batch or normal, got '" + line.client_sched + "'");
+    }
+    options.client_sched_batch = line.client_sched == "batch";
   }
   if (options.server_pid && !options.server) {
     throw LoadArgsError("option '--server-pid' needs --server (a server this tool starts is measured anyway)");
@@ -237,42 +277,9 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
 }
 
 std::string load_usage() {
-  return R"(occgeo-load: load an occgeod on this machine with simulated robots, query clients and observers
-
-  --server HOST:PORT      a running server on a loopback address (default: start occgeod on a free
-                          127.0.0.1 port with a temporary data directory, and stop it at the end)
-  --occgeod PATH          the server binary to start (default: service/occgeod of this build)
-  --server-config FILE    passed to the started server as --config
-  --server-pid PID        with --server: the process whose CPU and memory to report
-  --robots N              simulated robots streaming scans (default 1)
-  --robot PRESET          their preset (default bearcat)
-  --world-file FILE       their world (default clients/sim/worlds/open_field.yaml)
-  --robot-pace realtime|lockstep   sensors at real rates, or each scan as soon as the last was answered
-  --clients M             query clients (default 4)
-  --depth D               requests in flight per query client (default 1: one at a time)
-  --mix K=W,...           query kinds and their weights (default collision=4,clearance=4,ptem=1,status=1); kinds:
-                          collision, clearance, ptem, status, grid, octree, raycast, occupancy, swept,
-                          grid_window, octree_window, and collision_batch, clearance_batch, raycast_batch,
-                          occupancy_batch, swept_batch (--batch entries each)
-  --batch B               entries per *_batch request (default 100; swept_batch: at most 1000)
-  --ptem-points P         points per PtemQuery (default 16)
-  --observers K           observer sessions: each watches every robot's accepted sensor messages (WatchRequest)
-                          and polls the server's status
-  --no-watch              observers only poll
-  --observer-interval S   seconds between an observer's polls (default 0.1)
-  --duration S            measured seconds (default 10, at most 3600)
-  --warmup-scans N        lockstep scans mapped by a seeding robot before measuring (default 100)
-  --area A                query poses uniformly in [-A, A] x [-A, A] metres (default 5)
-  --threads T             threads running the query clients and observers (default 1)
-  --client-sched batch|normal   their scheduling policy (default batch: SCHED_BATCH, so that a client thread
-                          woken by a reply waits for its turn instead of preempting the server it measures on a
-                          shared core; the server and the simulated robots keep the normal policy)
-  --seed S                random seed (default 1)
-  --json                  print one JSON object (queries_per_s, p50_us, p99_us, errors, ...)
-  --quiet                 no progress lines on stderr
-Exit status: 0 when every request was answered without error and the server is still up; 1 otherwise;
-2 for a usage error.
-)";
+  LoadOptions options;
+  LoadCommandLine line(options);
+  return line.app.help();
 }
 
 }  // namespace occgeo::load

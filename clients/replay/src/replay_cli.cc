@@ -2,7 +2,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "occgeo/client/option_values.h"
+#include "occgeo/client/cli_options.h"
 #include "occgeo/replay/replay.h"
 
 namespace occgeo::replay {
@@ -11,7 +11,7 @@ namespace {
 double positive_number(const std::string& option, const std::string& value) {
   const std::optional<double> number = client::finite_number(value);
   if (!number || *number <= 0.0) {
-    throw std::invalid_argument("option '" + option + "' needs a positive number, got '" + value + "'");
+    throw client::UsageError("option '" + option + "' needs a positive number, got '" + value + "'");
   }
   return *number;
 }
@@ -23,13 +23,12 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
   for (std::size_t i = 0; i < out.size(); ++i) {
     const std::size_t comma = value.find(',', at);
     if ((i + 1 < out.size()) == (comma == std::string::npos)) {
-      throw std::invalid_argument("option '" + option + "' needs x,y,z,roll,pitch,yaw, got '" + value + "'");
+      throw client::UsageError("option '" + option + "' needs x,y,z,roll,pitch,yaw, got '" + value + "'");
     }
     const std::string part = value.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
     const std::optional<double> number = client::finite_number(part);
     if (!number) {
-      throw std::invalid_argument("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value +
-                                  "'");
+      throw client::UsageError("option '" + option + "' needs six numbers x,y,z,roll,pitch,yaw, got '" + value + "'");
     }
     out[i] = *number;
     at = comma + 1;
@@ -75,59 +74,44 @@ Exit code: 0 done, 1 failure or any server error, 2 usage.
 
 ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
   ReplayOptions options;
-  bool have_format = false;
-  bool have_speed = false;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    const auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw std::invalid_argument("option '" + arg + "' needs a value");
-      return args[++i];
-    };
-    if (arg == "--format") {
-      const std::string& name = value();
-      const auto format = parse_format(name);
-      if (!format)
-        throw std::invalid_argument("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
-      options.format = *format;
-      have_format = true;
-    } else if (arg == "--server") {
-      options.server = value();
-    } else if (arg == "--world") {
-      options.world = value();
-    } else if (arg == "--id") {
-      options.robot_id = value();
-    } else if (arg == "--speed") {
-      options.speed = positive_number(arg, value());
-      have_speed = true;
-    } else if (arg == "--max") {
-      options.as_fast_as_possible = true;
-    } else if (arg == "--max-range") {
-      options.max_range_m = positive_number(arg, value());
-    } else if (arg == "--out") {
-      options.out_prefix = value();
-    } else if (arg == "--json") {
-      options.json = true;
-    } else if (arg == "--topic-scan") {
-      options.mcap.topic_scan = value();
-    } else if (arg == "--topic-odom") {
-      options.mcap.topic_odom = value();
-    } else if (arg == "--topic-cloud") {
-      options.mcap.topic_cloud = value();
-    } else if (arg == "--laser-pose") {
-      options.mcap.laser_pose = six_numbers(arg, value());
-    } else if (arg == "--consistency") {
-      options.consistency = true;
-    } else if (arg.rfind("--", 0) == 0) {
-      throw std::invalid_argument("unknown option '" + arg + "'");
-    } else if (options.file.empty()) {
-      options.file = arg;
-    } else {
-      throw std::invalid_argument("unexpected argument '" + arg + "' (one log file only)");
-    }
+  bool help = false;
+  std::vector<std::string> files;
+  CLI::App app{"occgeo replay", "occgeo replay"};
+  client::configure_cli(app, help);
+  app.add_option_function<std::string>("--format", [&options](const std::string& name) {
+    const auto format = parse_format(name);
+    if (!format) throw client::UsageError("option '--format' needs carmen, dpslam, urg or mcap, got '" + name + "'");
+    options.format = *format;
+  });
+  app.add_option("--server", options.server);
+  app.add_option("--world", options.world);
+  app.add_option("--id", options.robot_id);
+  app.add_option_function<std::string>(
+      "--speed", [&options](const std::string& text) { options.speed = positive_number("--speed", text); });
+  app.add_flag("--max", options.as_fast_as_possible);
+  app.add_option_function<std::string>("--max-range", [&options](const std::string& text) {
+    options.max_range_m = positive_number("--max-range", text);
+  });
+  app.add_option("--out", options.out_prefix);
+  app.add_flag("--json", options.json);
+  app.add_option("--topic-scan", options.mcap.topic_scan);
+  app.add_option("--topic-odom", options.mcap.topic_odom);
+  app.add_option("--topic-cloud", options.mcap.topic_cloud);
+  app.add_option_function<std::string>("--laser-pose", [&options](const std::string& text) {
+    options.mcap.laser_pose = six_numbers("--laser-pose", text);
+  });
+  app.add_flag("--consistency", options.consistency);
+  app.add_option("FILE", files);
+  try {
+    client::parse_command_line(app, args);
+  } catch (const client::UsageError& e) {
+    throw std::invalid_argument(e.what());
   }
-  if (!have_format) throw std::invalid_argument("option '--format' is required");
-  if (options.file.empty()) throw std::invalid_argument("missing the log FILE");
-  if (have_speed && options.as_fast_as_possible)
+  if (files.size() > 1) throw std::invalid_argument("unexpected argument '" + files[1] + "' (one log file only)");
+  if (app.count("--format") == 0) throw std::invalid_argument("option '--format' is required");
+  if (files.empty()) throw std::invalid_argument("missing the log FILE");
+  options.file = files.front();
+  if (app.count("--speed") > 0 && options.as_fast_as_possible)
     throw std::invalid_argument("options '--speed' and '--max' exclude each other");
   return options;
 }

@@ -1,5 +1,5 @@
 #include "occgeo/sim/args.h"
-#include "occgeo/client/option_values.h"
+#include "occgeo/client/cli_options.h"
 
 #include <charconv>
 #include <cmath>
@@ -14,9 +14,6 @@ namespace {
 // period many times over, which no real robot survives and is more likely a unit mistake (milliseconds for seconds).
 constexpr double kMaxCommandLatency_s = 5.0;
 static_assert(kPhysicsStep_s == 0.01, "--command-latency's messages name the physics step");
-
-// Flags that take no value.
-const std::set<std::string_view> kSwitches = {"--lockstep", "--json", "--help", "-h"};
 
 // Flags that take one value.
 const std::set<std::string_view> kValueFlags = {
@@ -153,34 +150,48 @@ DriveScript parse_drive_script(std::string_view text) {
   return script;
 }
 
+namespace {
+
+// occgeo-sim's options as one CLI11 app: every value goes through apply(), which words its mistakes; each option may
+// be given once.
+struct SimCommandLine {
+  CLI::App app{"occgeo-sim", "occgeo-sim"};
+  std::set<std::string> seen;
+
+  explicit SimCommandLine(SimOptions& options) {
+    client::configure_cli(app, options.help);
+    for (const std::string_view flag : kValueFlags) {
+      const std::string name(flag);
+      app.add_option_function<std::string>(name, [this, &options, name](const std::string& value) {
+        once(name);
+        apply(options, name, value);
+      });
+    }
+    app.add_flag_function("--lockstep", [this, &options](std::int64_t) { once("--lockstep"), options.lockstep = true; })
+        ->disable_flag_override();
+    app.add_flag_function("--json", [this, &options](std::int64_t) { once("--json"), options.json = true; })
+        ->disable_flag_override();
+  }
+
+  void once(const std::string& flag) {
+    if (!seen.insert(flag).second) fail(flag, "given more than once");
+  }
+};
+
+}  // namespace
+
 SimOptions parse_args(const std::vector<std::string_view>& args) {
   SimOptions options;
-  std::set<std::string_view> seen;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string_view arg = args[i];
-    const std::size_t equals = arg.find('=');
-    const std::string_view flag = arg.substr(0, equals);
-    if (!kSwitches.contains(flag) && !kValueFlags.contains(flag)) {
-      if (flag.starts_with("-")) throw ArgsError("unknown option '" + std::string(flag) + "'");
-      throw ArgsError("unexpected argument '" + std::string(arg) + "'");
-    }
-    if (!seen.insert(flag).second) fail(flag, "given more than once");
-    if (kSwitches.contains(flag)) {
-      if (equals != std::string_view::npos) fail(flag, "takes no value");
-      if (flag == "--lockstep") options.lockstep = true;
-      if (flag == "--json") options.json = true;
-      if (flag == "--help" || flag == "-h") options.help = true;
-      continue;
-    }
-    std::string_view value;
-    if (equals != std::string_view::npos) {
-      value = arg.substr(equals + 1);
-    } else if (i + 1 < args.size() && !args[i + 1].starts_with("--")) {
-      value = args[++i];
-    } else {
-      fail(flag, "needs a value");
-    }
-    apply(options, flag, value);
+  SimCommandLine line(options);
+  // A repeated option is refused rather than the last one winning: two --seed values are a script's mistake.
+  line.app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  try {
+    client::parse_command_line(line.app, std::vector<std::string>(args.begin(), args.end()));
+  } catch (const client::UsageError& error) {
+    throw ArgsError(error.what());
+  }
+  for (const CLI::Option* option : line.app.get_options()) {
+    if (option->count() > 1) fail(option->get_name(), "given more than once");
   }
   if (!options.help && options.world_file.empty())
     fail("--world", "is required: a ROS map_server or shape world YAML file");

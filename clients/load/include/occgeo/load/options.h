@@ -9,14 +9,15 @@
 #include <string_view>
 #include <vector>
 
+#include "occgeo/client/cli_options.h"
 #include "occgeo/client/connection.h"
 
 namespace occgeo::load {
 
-// A command-line mistake; the message starts with the flag at fault, e.g. "--clients: ...".
-class LoadArgsError : public std::invalid_argument {
+// A command-line mistake, worded like every tool's: "option '--clients' needs a whole number, got 'x'".
+class LoadArgsError : public client::UsageError {
  public:
-  using std::invalid_argument::invalid_argument;
+  using client::UsageError::UsageError;
 };
 
 // The query kinds a query client can send. Each names one request message of occgeo.v1; the *_batch kinds carry
