@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "occgeo/client/cli_options.h"
 #include "occgeo/client/connection.h"
 #include "occgeo/client/grid.h"
 #include "occgeo/client/json.h"
@@ -91,15 +92,13 @@ commands:
                                              (occgeo record --help)
 common options (before or after the command):
   --server HOST:PORT   server address (default 127.0.0.1:7700)
+  --token T            the operator token (lease, drive, goto, waypoints, estop)
   --json               print the reply as one JSON object
+  --name=VALUE works as well as --name VALUE.
 Units: metres and radians; poses are base_link in the world frame.
 )";
 
-// Thrown for command-line mistakes; exit code 2.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using occgeo::client::UsageError;  // command-line mistakes; exit code 2
 
 // --name value options and bare --flags after the command words.
 struct Options {
@@ -127,31 +126,6 @@ struct Options {
     return *value;
   }
 };
-
-// `allowed` are the options that take a value, `switches` the bare flags (besides --json) the command accepts.
-Options parse_options(const std::vector<std::string>& args, std::size_t first, const std::vector<std::string>& allowed,
-                      const std::vector<std::string>& switches = {}) {
-  Options options;
-  for (std::size_t i = first; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    if (arg == "--json") {
-      options.json = true;
-      continue;
-    }
-    if (arg.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + arg + "'");
-    const std::string name = arg.substr(2);
-    if (std::find(switches.begin(), switches.end(), name) != switches.end()) {
-      options.switches.insert(name);
-      continue;
-    }
-    if (name != "server" && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
-      throw UsageError("unknown option '" + arg + "'");
-    }
-    if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value");
-    options.values[name] = args[++i];
-  }
-  return options;
-}
 
 Connection connect_query(const Options& options) {
   Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
@@ -981,24 +955,14 @@ int run_lease(const std::string& verb, const Options& options) {
   return reply.granted() ? 0 : 1;
 }
 
-int run_drive(const std::vector<std::string>& args) {
-  // occgeo drive --robot ID BEHAVIOUR [options]: the behaviour is the one bare word.
-  std::vector<std::string> rest;
-  std::string behaviour;
-  for (std::size_t i = 1; i < args.size(); ++i) {
-    if (args[i].rfind("--", 0) != 0 && (i == 1 || args[i - 1].rfind("--", 0) != 0 || args[i - 1] == "--json")) {
-      if (!behaviour.empty())
-        throw UsageError("drive takes one behaviour, got '" + behaviour + "' and '" + args[i] + "'");
-      behaviour = args[i];
-      continue;
-    }
-    rest.push_back(args[i]);
-  }
+// occgeo drive --robot ID BEHAVIOUR [options]: the behaviour is the one bare word.
+int run_drive(const std::vector<std::string>& words, const Options& options) {
+  if (words.size() > 1) throw UsageError("drive takes one behaviour, got '" + words[0] + "' and '" + words[1] + "'");
+  const std::string behaviour = words.empty() ? std::string() : words[0];
   if (behaviour != "bearcat" && behaviour != "bearcat_seed" && behaviour != "stop" && behaviour != "teleop" &&
       behaviour != "wander") {
     throw UsageError("drive needs a behaviour: bearcat, bearcat_seed, wander, stop or teleop");
   }
-  const Options options = parse_options(rest, 0, {"robot", "v", "w", "hold", "timeout", "token"});
   const std::string robot = options.required("robot");
   const double v = options.number("v", 0.0);
   const double w = options.number("w", 0.0);
@@ -1057,19 +1021,7 @@ extern "C" void on_interrupt(int /*signal*/) { g_interrupted = 1; }
 
 // occgeo goto --robot ID X Y: the two bare words are the goal; negative numbers are goal values, not options.
 // occgeo waypoints --robot ID X1,Y1 X2,Y2 ...: each bare word is one waypoint.
-int run_goto(const std::vector<std::string>& args) {
-  const bool waypoints = args[0] == "waypoints";
-  std::vector<std::string> rest;
-  std::vector<std::string> goal;
-  for (std::size_t i = 1; i < args.size(); ++i) {
-    const bool option_value =
-        i > 1 && args[i - 1].rfind("--", 0) == 0 && args[i - 1] != "--json" && args[i - 1] != "--no-escape";
-    if (args[i].rfind("--", 0) != 0 && !option_value) {
-      goal.push_back(args[i]);
-      continue;
-    }
-    rest.push_back(args[i]);
-  }
+int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options& options) {
   const auto number = [](const std::string& text, const std::string& what) {
     const std::optional<double> value = finite_number(text);
     if (!value) throw UsageError(what + " needs a number, got '" + text + "'");
@@ -1090,7 +1042,6 @@ int run_goto(const std::vector<std::string>& args) {
   }
   const double goal_x = points.back().first;
   const double goal_y = points.back().second;
-  const Options options = parse_options(rest, 0, {"robot", "limit", "timeout", "token"}, {"no-escape"});
   const std::string robot = options.required("robot");
   const double limit_s = options.number("limit", 600.0);
   if (!(limit_s > 0.0 && limit_s <= 86400.0)) throw UsageError("option '--limit' takes (0, 86400] seconds");
@@ -1208,96 +1159,149 @@ int run_estop(const Options& options) {
   return 0;
 }
 
-}  // namespace
+// The command line as CLI11 declares it: the common options (--server, --token, --json) on the tool, before or after
+// the command words (each command falls through to them); each command's own options and bare words on it.
+struct CommandLine {
+  CLI::App app{"occgeo: command-line client for occgeod", "occgeo"};
+  Options options;
+  std::vector<std::string> words;  // the chosen command's bare words (drive's behaviour, goto's goal, a .pcd file)
+  bool help = false;
 
-// The common options (--server HOST:PORT, --json) may come before the command, as in `occgeo --server H:P status`
-// (git, kubectl and redis-cli users type that); they are moved behind the command words, where every command reads
-// them. Anything else before the command is left for the command dispatch to refuse.
-std::vector<std::string> common_options_last(std::vector<std::string> args) {
-  std::vector<std::string> common;
-  std::size_t i = 0;
-  while (i < args.size()) {
-    if (args[i] == "--json") {
-      common.push_back(args[i++]);
-    } else if (args[i] == "--server") {
-      if (i + 1 >= args.size()) throw UsageError("option '--server' needs a value");
-      common.push_back(args[i++]);
-      common.push_back(args[i++]);
-    } else if (args[i].rfind("--server=", 0) == 0) {
-      common.emplace_back("--server");
-      common.push_back(args[i++].substr(9));
-    } else {
-      break;
-    }
+  CommandLine() {
+    occgeo::client::configure_cli(app, help);
+    value(app, "server");
+    value(app, "token");
+    app.add_flag_callback("--json", [this] { options.json = true; });
   }
-  if (i == 0) return args;
-  std::vector<std::string> out(args.begin() + static_cast<std::ptrdiff_t>(i), args.end());
-  if (out.empty()) throw UsageError("no command after the common options");
-  out.insert(out.end(), common.begin(), common.end());
-  return out;
+
+  // An option taking a value; the numeric ones are checked as they are read, before anything is sent.
+  void value(CLI::App& command, const std::string& name) {
+    static const std::set<std::string> numbers = {"x",     "y",    "z",        "theta", "max-distance", "max-range",
+                                                  "v",     "w",    "duration", "min-x", "min-y",        "max-x",
+                                                  "max-y", "hold", "timeout",  "limit"};
+    command.add_option_function<std::string>("--" + name, [this, name](const std::string& text) {
+      if (numbers.contains(name) && !finite_number(text)) {
+        throw UsageError("option '--" + name + "' needs a number, got '" + text + "'");
+      }
+      options.values[name] = text;
+    });
+  }
+
+  CLI::App* command(CLI::App& parent, const std::string& name, const std::vector<std::string>& values = {},
+                    const std::vector<std::string>& switches = {}, bool takes_words = false) {
+    CLI::App* sub = parent.add_subcommand(name);
+    sub->fallthrough();
+    sub->allow_extras();
+    for (const std::string& option : values) value(*sub, option);
+    for (const std::string& flag : switches) {
+      sub->add_flag_callback("--" + flag, [this, flag] { options.switches.insert(flag); });
+    }
+    if (takes_words) sub->add_option("WORDS", words);
+    return sub;
+  }
+};
+
+// The command's name as typed, e.g. "query collision", from the chain of parsed subcommands.
+std::string command_path(const CLI::App& app) {
+  std::string path;
+  for (const CLI::App* at = &app; !at->get_subcommands().empty();) {
+    at = at->get_subcommands().front();
+    path += (path.empty() ? "" : " ") + at->get_name();
+  }
+  return path;
 }
+
+// `occgeo replay|record ...` hands its words to that tool's own parser, with the common options given before it.
+std::vector<std::string> passed_on(const CLI::App& app, const CLI::App& command, const Options& options) {
+  std::vector<std::string> args = command.remaining();
+  if (app.count("--server") > 0) args.insert(args.end(), {"--server", options.text("server")});
+  if (app.count("--json") > 0) args.emplace_back("--json");
+  return args;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   try {
-    const std::vector<std::string> args = common_options_last({argv + 1, argv + argc});
-    if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
-      std::fputs(kUsage, args.empty() ? stderr : stdout);
-      return args.empty() ? 2 : 0;
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    if (args.empty()) {
+      std::fputs(kUsage, stderr);
+      return 2;
     }
-    if (args[0] == "replay") {
-      if (args.size() >= 2 && (args[1] == "--help" || args[1] == "-h")) {
-        std::fputs(occgeo::replay::kReplayUsage, stdout);
+    CommandLine line;
+    CLI::App& app = line.app;
+    const auto query = [&](const std::string& name, const std::vector<std::string>& values) {
+      return line.command(*app.get_subcommand("query"), name, values);
+    };
+    line.command(app, "help");
+    line.command(app, "status", {}, {"detailed"});
+    line.command(app, "query");
+    query("collision", {"robot", "x", "y", "theta", "models", "footprint"});
+    query("clearance", {"robot", "x", "y", "theta", "max-distance", "models", "footprint"});
+    query("raycast", {"world", "x", "y", "theta", "max-range", "models"});
+    query("occupancy", {"world", "x", "y", "z", "models"});
+    query("swept", {"robot", "x", "y", "theta", "v", "w", "duration", "models", "footprint"});
+    query("window", {"world", "min-x", "min-y", "max-x", "max-y", "since"});
+    query("ptem", {"world", "x", "y"});
+    line.command(*line.command(app, "map"), "export", {"world", "out", "format", "trajectory", "scale"}, {"ptem"});
+    line.command(*line.command(app, "cloud"), "insert", {"pose", "world", "robot"}, {}, true);
+    line.command(app, "lease", {"robot", "timeout"}, {}, true);
+    line.command(app, "drive", {"robot", "v", "w", "hold", "timeout"}, {}, true);
+    line.command(app, "goto", {"robot", "limit", "timeout"}, {"no-escape"}, true);
+    line.command(app, "waypoints", {"robot", "limit", "timeout"}, {"no-escape"}, true);
+    line.command(app, "estop", {"robot"}, {"release"});
+    // replay and record parse their own options (shared with their library entry points).
+    app.add_subcommand("replay")->prefix_command();
+    app.add_subcommand("record")->prefix_command();
+
+    occgeo::client::parse_cli_args(app, args);
+    const std::string command = command_path(app);
+    if (command == "replay" || command == "record") {
+      const CLI::App& tool = *app.get_subcommand(command);
+      const std::vector<std::string> rest = passed_on(app, tool, line.options);
+      if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
+        std::fputs(command == "replay" ? occgeo::replay::kReplayUsage : occgeo::client::kRecordUsage, stdout);
         return 0;
       }
-      return occgeo::replay::run_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
+      return command == "replay" ? occgeo::replay::run_cli(rest, std::cout, std::cerr)
+                                 : occgeo::client::run_record_cli(rest, std::cout, std::cerr);
     }
-    if (args[0] == "record") {
-      if (args.size() >= 2 && (args[1] == "--help" || args[1] == "-h")) {
-        std::fputs(occgeo::client::kRecordUsage, stdout);
-        return 0;
-      }
-      return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout,
-                                            std::cerr);
+    if (line.help || command == "help") {
+      std::fputs(kUsage, stdout);
+      return 0;
     }
-    if (args[0] == "status") return run_status(parse_options(args, 1, {}, {"detailed"}));
-    if (args[0] == "lease") {
-      if (args.size() < 2) throw UsageError("lease needs acquire, retain, return or take");
-      return run_lease(args[1], parse_options(args, 2, {"robot", "timeout", "token"}));
+    const std::vector<std::string> extras = app.remaining(true);
+    if ((command.empty() || command == "query" || command == "map" || command == "cloud") && !extras.empty() &&
+        extras[0].rfind("-", 0) != 0) {
+      throw UsageError("unknown command '" + (command.empty() ? "" : command + " ") + extras[0] + "'");
     }
-    if (args[0] == "drive") return run_drive(args);
-    if (args[0] == "goto" || args[0] == "waypoints") return run_goto(args);
-    if (args[0] == "estop") return run_estop(parse_options(args, 1, {"robot", "token"}, {"release"}));
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "collision") {
-      return run_query_collision(parse_options(args, 2, {"robot", "x", "y", "theta", "models", "footprint"}));
+    occgeo::client::refuse_extras(app);
+    const Options& options = line.options;
+    const std::vector<std::string>& words = line.words;
+    if (command.empty()) throw UsageError("no command after the common options");
+    if (command == "status") return run_status(options);
+    if (command == "lease") {
+      if (words.empty()) throw UsageError("lease needs acquire, retain, return or take");
+      if (words.size() > 1) throw UsageError("unexpected argument '" + words[1] + "'");
+      return run_lease(words[0], options);
     }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "clearance") {
-      return run_query_clearance(
-          parse_options(args, 2, {"robot", "x", "y", "theta", "max-distance", "models", "footprint"}));
+    if (command == "drive") return run_drive(words, options);
+    if (command == "goto" || command == "waypoints") return run_goto(command == "waypoints", words, options);
+    if (command == "estop") return run_estop(options);
+    if (command == "query collision") return run_query_collision(options);
+    if (command == "query clearance") return run_query_clearance(options);
+    if (command == "query raycast") return run_query_raycast(options);
+    if (command == "query occupancy") return run_query_occupancy(options);
+    if (command == "query swept") return run_query_swept(options);
+    if (command == "query window") return run_query_window(options);
+    if (command == "query ptem") return run_query_ptem(options);
+    if (command == "map export") return run_map_export(options);
+    if (command == "cloud insert") {
+      if (words.empty()) throw UsageError("cloud insert needs a FILE.pcd");
+      if (words.size() > 1) throw UsageError("unexpected argument '" + words[1] + "'");
+      return run_cloud_insert(words[0], options);
     }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "raycast") {
-      return run_query_raycast(parse_options(args, 2, {"world", "x", "y", "theta", "max-range", "models"}));
-    }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "occupancy") {
-      return run_query_occupancy(parse_options(args, 2, {"world", "x", "y", "z", "models"}));
-    }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "swept") {
-      return run_query_swept(
-          parse_options(args, 2, {"robot", "x", "y", "theta", "v", "w", "duration", "models", "footprint"}));
-    }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "window") {
-      return run_query_window(parse_options(args, 2, {"world", "min-x", "min-y", "max-x", "max-y", "since"}));
-    }
-    if (args.size() >= 2 && args[0] == "query" && args[1] == "ptem") {
-      return run_query_ptem(parse_options(args, 2, {"world", "x", "y"}));
-    }
-    if (args.size() >= 2 && args[0] == "map" && args[1] == "export") {
-      return run_map_export(parse_options(args, 2, {"world", "out", "format", "trajectory", "scale"}, {"ptem"}));
-    }
-    if (args.size() >= 2 && args[0] == "cloud" && args[1] == "insert") {
-      if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("cloud insert needs a FILE.pcd");
-      return run_cloud_insert(args[2], parse_options(args, 3, {"pose", "world", "robot"}));
-    }
-    throw UsageError("unknown command '" + args[0] + (args.size() > 1 ? " " + args[1] : "") + "'");
+    throw UsageError("unknown command '" + command + "'");
   } catch (const UsageError& e) {
     std::cerr << "occgeo: " << e.what() << "\nrun 'occgeo --help' for usage\n";
     return 2;
