@@ -21,21 +21,6 @@ namespace {
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-// Ranges of the Bearcat's laser (181 beams over 180 degrees) at X_WB inside a 12 m square room centred on the origin.
-std::vector<float> room_ranges(double x, double y, double theta) {
-  std::vector<float> ranges(181);
-  for (std::size_t i = 0; i < ranges.size(); ++i) {
-    const double angle = theta - std::numbers::pi / 2.0 + static_cast<double>(i) * std::numbers::pi / 180.0;
-    const double c = std::cos(angle);
-    const double s = std::sin(angle);
-    double range = 1e9;
-    if (std::abs(c) > 1e-9) range = std::min(range, ((c > 0 ? 6.0 : -6.0) - x) / c);
-    if (std::abs(s) > 1e-9) range = std::min(range, ((s > 0 ? 6.0 : -6.0) - y) / s);
-    ranges[i] = static_cast<float>(std::min(range, 8.5));
-  }
-  return ranges;
-}
-
 // What one flooding query client saw.
 struct FloodResult {
   std::uint64_t sent = 0;
