@@ -153,6 +153,17 @@ TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
                                               std::chrono::seconds(30));
   ASSERT_EQ(all_first.exit_code, 0) << all_first.err;
   EXPECT_NE(all_first.out.find("\"hit\":false"), std::string::npos) << all_first.out;
+  // Split around the command, with the command's own flag among them.
+  const ProcessResult split = run_process({occgeo, "--json", "status", "--detailed", "--server=" + server_->address()},
+                                          std::chrono::seconds(30));
+  ASSERT_EQ(split.exit_code, 0) << split.err;
+  EXPECT_NE(split.out.find("\"id\":\"probe\""), std::string::npos) << split.out;
+  // A bad number is refused before anything is sent, naming the option.
+  const ProcessResult bad_number = run_process(
+      {occgeo, "--server", server_->address(), "query", "collision", "--robot", "probe", "--x", "abc", "--y", "0"},
+      std::chrono::seconds(30));
+  EXPECT_EQ(bad_number.exit_code, 2);
+  EXPECT_NE(bad_number.err.find("option '--x' needs a number, got 'abc'"), std::string::npos) << bad_number.err;
   // A mistake names itself, wherever the options stand.
   const ProcessResult bad =
       run_process({occgeo, "--server", server_->address(), "status", "--bogus", "1"}, std::chrono::seconds(30));

@@ -54,10 +54,14 @@ inline const CLI::Option* find_cli_option(const CLI::App& app, const std::string
 }
 
 // Parses args (without the program name) into app; throws UsageError in the tools' wording. Arguments no option
-// claims are refused unless the app (or the subcommand parsed) collects them itself.
-inline void parse_command_line(CLI::App& app, const std::vector<std::string>& args) {
+// claims are left in app.remaining(true) (see refuse_extras).
+inline void parse_cli_args(CLI::App& app, const std::vector<std::string>& args) {
   // A value never starts with "--": "--world --json" is a forgotten value, not a world called "--json".
   for (std::size_t i = 0; i < args.size(); ++i) {
+    // A prefix command (occgeo replay) parses what follows it itself.
+    const auto prefix = [&](const CLI::App* sub) { return sub->get_name() == args[i] && sub->get_prefix_command(); };
+    const std::vector<CLI::App*> commands = app.get_subcommands([](const CLI::App*) { return true; });
+    if (std::any_of(commands.begin(), commands.end(), prefix)) break;
     if (args[i].rfind("--", 0) != 0 || args[i].find('=') != std::string::npos) continue;
     const CLI::Option* option = find_cli_option(app, args[i]);
     if (option == nullptr || option->get_expected_min() == 0) continue;
@@ -81,12 +85,22 @@ inline void parse_command_line(CLI::App& app, const std::vector<std::string>& ar
   } catch (const CLI::ParseError& error) {
     throw UsageError(error.what());
   }
+}
+
+// Refuses the arguments no option or positional of app (or a subcommand parsed) claimed.
+inline void refuse_extras(const CLI::App& app) {
   for (const std::string& extra : app.remaining(true)) {
     if (extra.rfind("-", 0) == 0 && extra.size() > 1 && !finite_number(extra)) {
       throw UsageError("unknown option '" + extra.substr(0, extra.find('=')) + "'");
     }
     throw UsageError("unexpected argument '" + extra + "'");
   }
+}
+
+// parse_cli_args, then refuse_extras.
+inline void parse_command_line(CLI::App& app, const std::vector<std::string>& args) {
+  parse_cli_args(app, args);
+  refuse_extras(app);
 }
 
 // --flag VALUE as a finite number (SI units), checked when parsed.
