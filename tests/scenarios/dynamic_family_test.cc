@@ -6,7 +6,8 @@
 //
 // CI drives the first OCCGEO_DYNAMIC_WORLDS worlds (default 6, a few minutes); the family of 50 runs with
 //   OCCGEO_DYNAMIC_WORLDS=50 dynamic_family_test
-// and the run's rates are printed either way.
+// and the run's rates are printed either way. OCCGEO_DYNAMIC_CONFIG is YAML added to the server's configuration, e.g.
+// "guard: {predict_horizon_s: 0}" for the same worlds without the prediction of moving obstacles.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -53,6 +54,7 @@ Scenario family_scenario(const std::string& name, const std::string& world_file,
   s.goal = goal;
   s.duration_s = 120.0;
   s.max_wall_s = 120.0;
+  if (const char* extra = std::getenv("OCCGEO_DYNAMIC_CONFIG")) s.extra_config = std::string(extra) + "\n";
   return s;
 }
 

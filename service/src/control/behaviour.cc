@@ -735,10 +735,11 @@ class YieldWrapper final : public Behaviour {
   [[nodiscard]] std::string_view name() const override { return inner_->name(); }
   [[nodiscard]] std::optional<Eigen::Vector2d> current_goal() const override { return inner_->current_goal(); }
   [[nodiscard]] std::vector<Eigen::Vector2d> planned_path() const override { return inner_->planned_path(); }
-  [[nodiscard]] std::vector<TrackedObstacle> moving_obstacles() const override { return tracker_.moving(); }
+  [[nodiscard]] std::vector<TrackedObstacle> moving_obstacles() const override { return moving_; }
 
   BehaviourCommand decide(const BehaviourInput& input) override {
     BehaviourCommand command = inner_->decide(input);
+    moving_.clear();
     if (!input.X_WB || !(guard_.predict_horizon_s > 0.0)) return command;
     const geometry::Pose2& X_WB = *input.X_WB;
     if (input.ptem != nullptr) {
@@ -748,7 +749,24 @@ class YieldWrapper final : public Behaviour {
           input.scan.range_max_m > 0.0 ? input.scan.range_max_m : std::numeric_limits<double>::infinity();
       tracker_.update(*input.ptem, p_WS, range_m);
     }
-    const std::vector<TrackedObstacle> moving = tracker_.moving();
+    // The robot's own velocity over the last cycle, world frame.
+    Eigen::Vector2d robot_velocity_W = Eigen::Vector2d::Zero();
+    if (last_position_W_ && input.stamp_s - last_stamp_s_ > 1e-6) {
+      robot_velocity_W = (X_WB.position() - *last_position_W_) / (input.stamp_s - last_stamp_s_);
+    }
+    last_position_W_ = X_WB.position();
+    last_stamp_s_ = input.stamp_s;
+    for (const TrackedObstacle& track : tracker_.moving()) {
+      // Returns that travel with the robot are where its laser plane meets a slope or reaches its range: the
+      // viewpoint moves, not the thing seen (and a walker keeping pace ahead is no closer for it).
+      if ((track.velocity_W - robot_velocity_W).norm() < kSameVelocity_mps) continue;
+      // One going away from the robot is leaving its way (and where a laser plane meets a slope ahead, the returns
+      // recede as the robot climbs): what it still blocks, the behaviour and the guard see as it stands.
+      const Eigen::Vector2d away_W = track.centre_W - X_WB.position();
+      if (away_W.norm() > 1e-6 && track.velocity_W.dot(away_W.normalized()) > kReceding_mps) continue;
+      moving_.push_back(track);
+    }
+    const std::vector<TrackedObstacle>& moving = moving_;
     if (moving.empty() || command.state == "reached") {
       aside_ = std::nullopt;
       return command;
@@ -779,6 +797,8 @@ class YieldWrapper final : public Behaviour {
 
  private:
   static constexpr double kYieldSlowRatio = 0.5;
+  static constexpr double kSameVelocity_mps = 0.2;
+  static constexpr double kReceding_mps = 0.1;
   static constexpr double kAsideTurn_radps = 0.7;
   static constexpr double kAsideHysteresis_m = 0.05;  // keep the previous arc unless another is clearly better
 
@@ -844,6 +864,9 @@ class YieldWrapper final : public Behaviour {
   ClusterTracker tracker_;
   double aside_linear_mps_ = 0.4;
   std::optional<std::size_t> aside_;  // the arc stepped aside along in the previous cycle
+  std::optional<Eigen::Vector2d> last_position_W_;
+  double last_stamp_s_ = 0.0;
+  std::vector<TrackedObstacle> moving_;  // as of the latest decision, for the guard
 };
 
 }  // namespace

@@ -33,7 +33,7 @@ struct ClusterTrackerParams {
   double attached_gap_m = 0.4;       // a cluster this close to another is part of a wall or shelf: never moving
   double range_margin_m = 0.5;       // a cluster this close to the laser's range limit is never moving (see .cc)
   double lost_after_s = 0.5;         // a track unseen this long is dropped
-  double max_speed_mps = 3.0;        // an association implying more than this starts a new track instead
+  double max_speed_mps = 1.5;        // an association implying more than this starts a new track instead
 };
 
 class ClusterTracker {
