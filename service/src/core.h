@@ -17,6 +17,7 @@
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/beam_limits.h"
 #include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -46,6 +47,18 @@ struct WorldSnapshot {
   std::shared_ptr<const mapping::DistanceFieldSnapshot> distance;  // matches grid (same version)
   std::shared_ptr<const mapping::OctoMapSnapshot> octomap;
 };
+
+// Heap bytes a world's models take, counted from their latest snapshots (see each snapshot's memory_bytes). The
+// terrain has no entry: it is estimated from the octree snapshot per query and kept by nobody in between.
+struct WorldMemory {
+  std::uint64_t grid_bytes = 0;
+  std::uint64_t distance_field_bytes = 0;
+  std::uint64_t octomap_bytes = 0;
+  std::uint64_t ptem_bytes = 0;
+};
+
+// The process's resident memory (/proc/self/statm), bytes; nullopt where it cannot be read.
+std::optional<std::uint64_t> process_resident_bytes();
 
 // The models a world keeps, and their parameters.
 struct WorldParams {
@@ -91,6 +104,9 @@ class World : public std::enable_shared_from_this<World> {
   void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt);
   // Publishes the OctoMap now (e.g. before an export); call only from the world's strand.
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
+  // What the models take as of their latest snapshots; safe from any thread, costs a walk over the snapshots' tiles
+  // and blocks (not their cells).
+  [[nodiscard]] WorldMemory memory() const;
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
   // The journal every accepted sensor message is written to before it is applied (see durability/journal.h); set
@@ -133,6 +149,7 @@ struct LaserModel {
   std::uint32_t beam_count = 0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
 };
 
 // A ring or array of single-beam range sensors (sonar, infrared) as declared in a RobotSpec.
@@ -143,6 +160,7 @@ struct RangeArrayModel {
   double beam_width_rad = 0.0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
   double period_s = 0.0;
 };
 
@@ -156,6 +174,7 @@ struct ServoRangeModel {
   double step_period_s = 0.0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
 };
 
 // A 3D point sensor (depth camera, 3D lidar).
@@ -163,7 +182,8 @@ struct PointCloudModel {
   std::string name;
   geometry::Pose3 X_BS;  // sensor in base_link
   double range_max_m = 0.0;
-  std::size_t max_points = 0;  // the spec's limit, or the server's when the spec leaves it 0
+  std::size_t max_points = 0;       // the spec's limit, or the server's when the spec leaves it 0
+  mapping::BeamLimits beam_limits;  // what its points change: the spec's ranges over the server's defaults
 };
 
 // How the robot's wheels or tracks move it; decides what a motion command's wheel speeds mean.
