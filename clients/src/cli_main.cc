@@ -34,7 +34,8 @@ using occgeo::client::finite_number;
 
 constexpr const char* kUsage = R"(usage: occgeo [--server HOST:PORT] [--json] COMMAND [options]
 commands:
-  status                                     robots, worlds and clients of the server
+  status [--detailed]                        robots, worlds and clients of the server (--detailed: also
+                                             each robot's planned path and latest laser returns)
   query collision --robot ID --x X --y Y [--theta T] [--models grid,octomap,ptem] [--footprint SHAPE]
                                              is the robot's footprint at this pose in collision?
   query clearance --robot ID --x X --y Y [--theta T] [--max-distance D] [--models grid,octomap,ptem]
@@ -272,7 +273,16 @@ int run_status(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   request.mutable_status()->set_request_id(1);
+  const bool detailed = options.switches.contains("detailed");
+  request.mutable_status()->set_detailed(detailed);
   const v1::StatusReply status = connection.call(request, 1).status();
+  const auto json_points = [](const google::protobuf::RepeatedPtrField<v1::Point2D>& points) {
+    std::string out = "[";
+    for (int k = 0; k < points.size(); ++k) {
+      out += (k ? ",[" : "[") + fmt(points[k].x()) + "," + fmt(points[k].y()) + "]";
+    }
+    return out + "]";
+  };
   if (options.json) {
     std::ostringstream out;
     out << "{\"server_version\":" << json_string(status.server_version()) << ",\"clients\":" << status.clients()
@@ -293,6 +303,10 @@ int run_status(const Options& options) {
             << ",\"expires_in_s\":" << fmt(r.lease_expires_in_s()) << "}";
       } else {
         out << "null";
+      }
+      if (detailed) {
+        out << ",\"path\":" << json_points(r.path()) << ",\"scan\":" << json_points(r.scan())
+            << ",\"scan_stamp_s\":" << fmt(r.scan_stamp_s());
       }
       out << "}";
     }
@@ -322,6 +336,11 @@ int run_status(const Options& options) {
                 << ")";
     }
     std::cout << "\n";
+    if (detailed) {
+      std::cout << "    path: " << r.path_size() << " point(s)";
+      for (const auto& p : r.path()) std::cout << " (" << fmt(p.x()) << ", " << fmt(p.y()) << ")";
+      std::cout << "\n    scan: " << r.scan_size() << " return(s) at " << fmt(r.scan_stamp_s()) << " s\n";
+    }
   }
   std::cout << "worlds:\n";
   for (const auto& w : status.worlds()) {
@@ -1240,7 +1259,7 @@ int main(int argc, char** argv) {
       return occgeo::client::run_record_cli(std::vector<std::string>(args.begin() + 1, args.end()), std::cout,
                                             std::cerr);
     }
-    if (args[0] == "status") return run_status(parse_options(args, 1, {}));
+    if (args[0] == "status") return run_status(parse_options(args, 1, {}, {"detailed"}));
     if (args[0] == "lease") {
       if (args.size() < 2) throw UsageError("lease needs acquire, retain, return or take");
       return run_lease(args[1], parse_options(args, 2, {"robot", "timeout", "token"}));

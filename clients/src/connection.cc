@@ -7,6 +7,7 @@
 #include <array>
 #include <boost/asio.hpp>
 #include <charconv>
+#include <cstdio>
 #include <deque>
 #include <optional>
 #include <unordered_map>
@@ -67,7 +68,13 @@ std::string Endpoint::to_string() const { return host + ":" + std::to_string(por
 std::string describe(const v1::Error& error) {
   std::string text = v1::ErrorCode_Name(error.code());
   if (!error.field().empty()) text += " " + error.field();
-  return text + ": " + error.message();
+  text += ": " + error.message();
+  if (error.code() == v1::ERROR_BUSY) {
+    char hint[64];
+    std::snprintf(hint, sizeof hint, " (server busy: retry in %g s)", error.retry_after_s());
+    text += hint;
+  }
+  return text;
 }
 
 struct Connection::Impl {

@@ -247,6 +247,7 @@ void ServerConfig::validate() const {
           "must be set together with tls." + std::string(tls.cert.empty() ? "key" : "cert"));
   require(limits.max_batch_queries > 0, "limits.max_batch_queries", "must be positive");
   require(limits.max_pending_requests > 0, "limits.max_pending_requests", "must be positive");
+  require(limits.max_query_backlog > 0, "limits.max_query_backlog", "must be positive");
   require(limits.max_watch_queue_messages > 0, "limits.max_watch_queue_messages", "must be positive");
   require(limits.hello_timeout_s > 0 && limits.hello_timeout_s <= 3600, "limits.hello_timeout_s",
           "must be in (0, 3600] seconds");
@@ -321,6 +322,7 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("max_scan_voxels", config.limits.max_scan_voxels)
                        .field("max_batch_queries", config.limits.max_batch_queries)
                        .field("max_pending_requests", config.limits.max_pending_requests)
+                       .field("max_query_backlog", config.limits.max_query_backlog)
                        .field("max_watch_queue_messages", config.limits.max_watch_queue_messages)
                        .field("hello_timeout_s", config.limits.hello_timeout_s)
                        .field("max_silent_per_address", config.limits.max_silent_per_address)

@@ -1,12 +1,18 @@
 #include "core.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
+
 #include <algorithm>
 #include <boost/asio/post.hpp>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
+#include <latch>
 
 #include "durability/world_store.h"
 #include "model_geometry.h"
+#include "occgeo/service/log.h"
 
 namespace occgeo::service {
 
@@ -97,7 +103,7 @@ std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
 }
 
 WorldMemory World::memory() const {
-  const WorldSnapshot models = snapshots();
+  const WorldSnapshot& models = snapshots_for_this_thread();
   WorldMemory memory;
   memory.grid_bytes = models.grid->memory_bytes();
   memory.distance_field_bytes = models.distance ? models.distance->memory_bytes() : 0;
@@ -112,6 +118,19 @@ std::optional<std::uint64_t> process_resident_bytes() {
   std::uint64_t resident_pages = 0;
   if (!(statm >> size_pages >> resident_pages)) return std::nullopt;
   return resident_pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+std::size_t World::octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const {
+  {
+    const std::lock_guard lock(leaf_count_mutex_);
+    if (leaf_count_of_ == &snapshot && leaf_count_version_ == snapshot.version()) return leaf_count_;
+  }
+  const std::size_t leaves = snapshot.leaf_count();  // outside the lock: other threads' statuses need not wait
+  const std::lock_guard lock(leaf_count_mutex_);
+  leaf_count_of_ = &snapshot;
+  leaf_count_version_ = snapshot.version();
+  leaf_count_ = leaves;
+  return leaves;
 }
 
 WorldSnapshot World::snapshots() const {
@@ -196,7 +215,28 @@ control::BearcatParams bearcat_params_for(const RobotModel& model, control::Bear
 }
 
 ServerCore::ServerCore(ServerConfig config)
-    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {}
+    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
+  // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
+  // strand, which maps the scans and computes the robots' commands, gets the CPU first. Each pool thread takes one
+  // of these tasks (they wait for each other), so every thread is lowered. The latch is shared: a pool thread may
+  // still be inside arrive_and_wait after the constructor's wait has returned.
+  const int nice = config_.queries.network_nice;
+  if (nice > 0) {
+    auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(kQueryThreads));
+    for (std::size_t i = 0; i < kQueryThreads; ++i) {
+      asio::post(query_pool_, [lowered, nice] {
+        const auto thread = static_cast<id_t>(gettid());
+        errno = 0;
+        const int current = getpriority(PRIO_PROCESS, thread);
+        if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+          log::warn("query_pool_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
+        }
+        lowered->arrive_and_wait();
+      });
+    }
+    lowered->wait();
+  }
+}
 
 ServerCore::~ServerCore() { drain(); }
 

@@ -119,6 +119,9 @@ class World : public std::enable_shared_from_this<World> {
   // no lock is taken and no reference count touched (both are shared by every thread). The reference is valid until
   // this thread calls it again.
   [[nodiscard]] const WorldSnapshot& snapshots_for_this_thread() const;
+  // The leaf count of a published octree snapshot of this world. Counting walks the whole tree, so it is done once per
+  // snapshot (by the first status that asks) and kept; safe from any thread.
+  [[nodiscard]] std::size_t octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const;
 
  private:
   std::string name_;
@@ -138,6 +141,10 @@ class World : public std::enable_shared_from_this<World> {
   // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).
   std::atomic<std::uint64_t> snapshot_generation_{0};
   std::shared_ptr<durability::WorldJournal> journal_;
+  mutable std::mutex leaf_count_mutex_;  // guards the two below
+  mutable const mapping::OctoMapSnapshot* leaf_count_of_ = nullptr;
+  mutable std::uint64_t leaf_count_version_ = 0;
+  mutable std::size_t leaf_count_ = 0;
 };
 
 // A planar laser as declared in a RobotSpec, converted to SI geometry types.
@@ -281,10 +288,18 @@ struct RobotState {
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
   v1::GuardDecision guard;              // the safety guard's verdict on the latest command
-  std::vector<Eigen::Vector2d> path_W;  // the active behaviour's planned path, world frame; empty without one
+  // The active behaviour's planned path, world frame; null without one. Shared, as scan_W, so that copying the state
+  // (every sensor message, every status) never copies a path.
+  std::shared_ptr<const std::vector<Eigen::Vector2d>> path_W;
   // The first laser's latest accepted returns, world frame; shared so that copying the state stays cheap.
   std::shared_ptr<const std::vector<Eigen::Vector2f>> scan_W;
   std::optional<double> scan_stamp_s;  // stamp of the scan in scan_W
+
+  // The planned path (empty without one).
+  [[nodiscard]] const std::vector<Eigen::Vector2d>& path() const {
+    static const std::vector<Eigen::Vector2d> kNone;
+    return path_W ? *path_W : kNone;
+  }
 };
 
 class Robot : public std::enable_shared_from_this<Robot> {
@@ -384,6 +399,8 @@ class ServerCore {
                                         std::string& error);
 
   std::atomic<std::uint32_t> sessions{0};
+  // Queries admitted and not yet answered, over every session (limits.max_query_backlog); see Session.
+  std::atomic<std::size_t> queries_in_flight{0};
   std::atomic<std::uint64_t> next_session_id{1};
   [[nodiscard]] double uptime_s() const;
 
@@ -393,7 +410,8 @@ class ServerCore {
  private:
   ServerConfig config_;
   asio::thread_pool ingest_pool_{1};
-  asio::thread_pool query_pool_{2};
+  static constexpr std::size_t kQueryThreads = 2;
+  asio::thread_pool query_pool_{kQueryThreads};
   mutable std::mutex registry_mutex_;
   std::map<std::string, std::shared_ptr<World>> worlds_;
   std::map<std::string, std::shared_ptr<Robot>> robots_;

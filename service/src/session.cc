@@ -15,6 +15,26 @@ namespace occgeo::service {
 
 namespace {
 
+// How long a client told ERROR_BUSY should wait before asking again: long enough for the query pool to work off a
+// good part of a full backlog, short enough that a polite client loses little.
+constexpr double kBusyRetryAfter_s = 0.05;
+
+// Query and observer sessions' requests may be refused when the backlog is full; a driver's or controller's never
+// are (they query for the robot they drive).
+bool may_be_refused_busy(v1::Role role) { return role == v1::ROLE_QUERY || role == v1::ROLE_OBSERVER; }
+
+// The request_id of a request (every request message has one) and the name of its kind, e.g. "collision_batch".
+std::pair<std::uint64_t, std::string> request_id_and_kind(const v1::ClientMessage& message) {
+  const auto* field = v1::ClientMessage::descriptor()->FindFieldByNumber(message.body_case());
+  if (field == nullptr) return {0, {}};
+  const auto& body = message.GetReflection()->GetMessage(message, field);
+  const auto* id = body.GetDescriptor()->FindFieldByName("request_id");
+  const std::uint64_t request_id = id != nullptr && id->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64
+                                       ? body.GetReflection()->GetUInt64(body, id)
+                                       : 0;
+  return {request_id, field->name()};
+}
+
 std::chrono::steady_clock::duration seconds(double s) {
   return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
 }
@@ -146,7 +166,11 @@ Session::Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket 
   ++core_.sessions;
 }
 
-Session::~Session() { --core_.sessions; }
+Session::~Session() {
+  // Requests never answered (none should be: every admitted one gets a reply or an error) leave the backlog here.
+  core_.queries_in_flight.fetch_sub(pending_requests_.load(), std::memory_order_relaxed);
+  --core_.sessions;
+}
 
 void Session::start() {
   boost::system::error_code ignored;
@@ -266,7 +290,15 @@ bool Session::dispatch_frames() {
       fail_stream(v1::ERROR_BAD_FRAME, "the frame does not decode as an occgeo.v1 ClientMessage");
       return false;
     }
-    if (is_request(message.body_case())) ++pending_requests_;
+    if (is_request(message.body_case())) {
+      ++pending_requests_;
+      const std::size_t backlog = core_.queries_in_flight.fetch_add(1, std::memory_order_relaxed);
+      if (backlog >= core_.config().limits.max_query_backlog && info_.greeted && may_be_refused_busy(info_.role)) {
+        refuse_busy(message, backlog);
+        arena.end_message();
+        continue;
+      }
+    }
     const bool was_greeted = info_.greeted;
     dispatch_message(self, message);
     arena.end_message();
@@ -296,6 +328,8 @@ void Session::send(const v1::ServerMessage& message) {
     std::size_t pending = pending_requests_.load();
     while (pending > 0 && !pending_requests_.compare_exchange_weak(pending, pending - 1)) {
     }
+    // The server-wide backlog is the sum of the sessions' pending requests.
+    if (pending > 0) core_.queries_in_flight.fetch_sub(1, std::memory_order_relaxed);
   }
   // An answer given inline while this session's frames are being handled is serialised straight into the outbox.
   // corked_ is read only on the session's own thread (the && stops before it elsewhere).
@@ -309,6 +343,24 @@ void Session::send(const v1::ServerMessage& message) {
   // this session's thread): the caller may be another session's handler holding locks that closing this one takes.
   std::string frame = proto::encode_frame(message);
   asio::post(executor_, [self = shared_from_this(), frame = std::move(frame)] { self->enqueue(frame); });
+}
+
+void Session::refuse_busy(const v1::ClientMessage& message, std::size_t backlog) {
+  const auto [request_id, kind] = request_id_and_kind(message);
+  static metrics::Counter& refused = metrics::counter(
+      "occgeo_queries_busy_total", {}, "Queries answered ERROR_BUSY: the server's query backlog was full");
+  refused.inc();
+  v1::ServerMessage reply;
+  v1::Error& error = *reply.mutable_error();
+  error.set_code(v1::ERROR_BUSY);
+  error.set_field(kind);
+  error.set_message("the server is busy: " + std::to_string(backlog) +
+                    " queries are in flight (limits.max_query_backlog " +
+                    std::to_string(core_.config().limits.max_query_backlog) +
+                    "); nothing was done, send it again after retry_after_s");
+  error.set_request_id(request_id);
+  error.set_retry_after_s(kBusyRetryAfter_s);
+  send(reply);
 }
 
 void Session::close_after_send() {

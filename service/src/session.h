@@ -120,6 +120,8 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   void enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event);
   void write_next();
   void arm_write_timer();
+  // Answers a request ERROR_BUSY (the server-wide query backlog is full), doing nothing else.
+  void refuse_busy(const v1::ClientMessage& message, std::size_t backlog);
   // Sends an error, then closes once it is written (for a stream that cannot be trusted).
   void fail_stream(v1::ErrorCode code, const std::string& message);
   void shutdown();

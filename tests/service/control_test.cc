@@ -285,20 +285,32 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   go.mutable_drive()->mutable_goal()->set_y_m(1.0);
   ASSERT_TRUE(send(holder, go).has_drive());
   static_cast<void>(scan(d));
-  std::vector<Eigen::Vector2d> path = core_.find_robot("r1")->state().path_W;
+  std::vector<Eigen::Vector2d> path = core_.find_robot("r1")->state().path();
   ASSERT_EQ(path.size(), 2U) << "from the robot straight to the goal";
   EXPECT_TRUE(path.front().isApprox(Eigen::Vector2d(0.0, 0.0)));
   EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0)));
+  // A plain status stays cheap: no path and no scan; the detailed one carries both, world frame.
+  v1::ClientMessage status;
+  status.mutable_status()->set_request_id(9);
+  const v1::RobotStatus plain = send(holder, status).status().robots(0);
+  EXPECT_EQ(plain.path_size(), 0);
+  EXPECT_EQ(plain.scan_size(), 0);
+  status.mutable_status()->set_detailed(true);
+  const v1::RobotStatus detailed = send(holder, status).status().robots(0);
+  ASSERT_EQ(detailed.path_size(), 2);
+  EXPECT_NEAR(detailed.path(1).x(), 3.0, 1e-9);
+  EXPECT_NEAR(detailed.path(1).y(), 1.0, 1e-9);
+  EXPECT_GT(detailed.scan_size(), 0) << "the driver's latest laser returns";
   // Teleop plans nothing; stopping clears the path.
   ASSERT_TRUE(drive(holder, "teleop", 0.2).has_drive());
   static_cast<void>(scan(d));
-  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   ASSERT_TRUE(send(holder, go).has_drive());
   static_cast<void>(scan(d));
-  EXPECT_FALSE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_FALSE(core_.find_robot("r1")->state().path().empty());
   ASSERT_TRUE(drive(holder, "stop").has_drive());
   static_cast<void>(scan(d));
-  EXPECT_TRUE(core_.find_robot("r1")->state().path_W.empty());
+  EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
 }
 

@@ -53,17 +53,24 @@ class ServerError(Exception):
 
     Attributes: ``code`` (``occgeo.v1.ErrorCode`` value, e.g. ``session_pb2.ERROR_UNKNOWN_ROBOT``),
     ``code_name`` (e.g. ``"ERROR_UNKNOWN_ROBOT"``), ``field`` (path of the offending field, e.g.
-    ``"collision.robot_id"``), ``message`` (text), ``request_id`` (the query's id, 0 otherwise) and
-    ``seq`` (the rejected sensor/odometry message's seq, 0 otherwise).
+    ``"collision.robot_id"``), ``message`` (text), ``request_id`` (the query's id, 0 otherwise),
+    ``seq`` (the rejected sensor/odometry message's seq, 0 otherwise) and ``retry_after_s``
+    (``ERROR_BUSY``: the server's query backlog was full and nothing was done; send the request
+    again after this many seconds). ``busy`` is true for ``ERROR_BUSY``.
     """
 
-    def __init__(self, code, field, message, request_id=0, seq=0):
+    def __init__(self, code, field, message, request_id=0, seq=0, retry_after_s=0.0):
         self.code = int(code)
         self.field = field
         self.message = message
         self.request_id = request_id
         self.seq = seq
+        self.retry_after_s = retry_after_s
         super().__init__(self.__str__())
+
+    @property
+    def busy(self):
+        return self.code == session_pb2.ERROR_BUSY
 
     @property
     def code_name(self):
@@ -74,13 +81,16 @@ class ServerError(Exception):
 
     @classmethod
     def from_proto(cls, error):
-        return cls(error.code, error.field, error.message, error.request_id, error.seq)
+        return cls(error.code, error.field, error.message, error.request_id, error.seq, error.retry_after_s)
 
     def __str__(self):
         text = self.code_name
         if self.field:
             text += " " + self.field
-        return text + ": " + self.message
+        text += ": " + self.message
+        if self.busy:
+            text += " (server busy: retry in %g s)" % self.retry_after_s
+        return text
 
 
 class LeaseRefused(Exception):
@@ -397,10 +407,15 @@ class Client:
 
     # ----------------------------------------------------------------------------- queries
 
-    def status(self, timeout_s=None):
+    def status(self, detailed=False, timeout_s=None):
         """The server's ``StatusReply``: ``robots`` (id, world, pose, scans ...), ``worlds`` (name,
-        cell_size_m, version, occupied_cells, PTEM and OctoMap counts), ``clients``, ``uptime_s``."""
-        return self._call("status", lambda r: None, timeout_s)
+        cell_size_m, version, occupied_cells, PTEM and OctoMap counts), ``clients``, ``uptime_s``.
+        ``detailed``: each robot also carries ``path`` (its planned path) and ``scan`` (its first
+        laser's latest returns, at ``scan_stamp_s``), world frame, metres; heavier, so off by default."""
+
+        def fill(r):
+            r.detailed = bool(detailed)
+        return self._call("status", fill, timeout_s)
 
     def collision(self, robot, x, y, theta=0.0, models=None, footprint=None, timeout_s=None):
         """Is robot ``robot``'s footprint at pose (x, y, theta) — ``base_link`` in the world frame,
@@ -685,7 +700,7 @@ class Client:
         sent before; raises the first :class:`ServerError` about them (robot spec, odometry,
         sensor data) that arrived meanwhile."""
         self.errors.clear()
-        self.status(timeout_s)
+        self.status(timeout_s=timeout_s)
         if self.errors:
             raise self.errors.popleft()
 

@@ -353,5 +353,21 @@ class ClientTest(ServerTestCase):
         self.assertGreater(reply.resolution_m, 0.0)
 
 
+class BusyErrorTest(unittest.TestCase):
+    """ERROR_BUSY (the server's query backlog was full) reads as such, with its retry hint."""
+
+    def test_busy_error_names_the_retry(self):
+        proto = session_pb2.Error(code=session_pb2.ERROR_BUSY, field="collision_batch", request_id=9,
+                                  message="the server is busy", retry_after_s=0.05)
+        error = occgeo.ServerError.from_proto(proto)
+        self.assertTrue(error.busy)
+        self.assertEqual(error.code_name, "ERROR_BUSY")
+        self.assertEqual(error.request_id, 9)
+        self.assertAlmostEqual(error.retry_after_s, 0.05)
+        self.assertIn("ERROR_BUSY collision_batch", str(error))
+        self.assertIn("retry in 0.05 s", str(error))
+        self.assertFalse(occgeo.ServerError(session_pb2.ERROR_UNKNOWN_ROBOT, "collision.robot_id", "no").busy)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -303,9 +303,25 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     *out->mutable_guard() = state.guard;
     out->set_last_linear_mps(state.last_linear_mps);
     out->set_last_angular_radps(state.last_angular_radps);
+    if (request.detailed()) {
+      for (const Eigen::Vector2d& p : state.path()) {
+        auto* point = out->add_path();
+        point->set_x(p.x());
+        point->set_y(p.y());
+      }
+      if (state.scan_W) {
+        out->mutable_scan()->Reserve(static_cast<int>(state.scan_W->size()));
+        for (const Eigen::Vector2f& p : *state.scan_W) {
+          auto* point = out->add_scan();
+          point->set_x(p.x());
+          point->set_y(p.y());
+        }
+      }
+      out->set_scan_stamp_s(state.scan_stamp_s.value_or(0.0));
+    }
   }
   for (const auto& world : core.worlds()) {
-    const WorldSnapshot snapshots = world->snapshots();
+    const WorldSnapshot& snapshots = world->snapshots_for_this_thread();
     const auto& snapshot = snapshots.grid;
     auto* out = status->add_worlds();
     out->set_name(world->name());
@@ -318,7 +334,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_ptem_scans(snapshots.ptem->scan_count());
     out->set_octomap_version(snapshots.octomap->version());
     out->set_octomap_nodes(snapshots.octomap->node_count());
-    out->set_octomap_leaves(snapshots.octomap->leaf_count());
+    out->set_octomap_leaves(world->octomap_leaf_count(*snapshots.octomap));
     out->set_octomap_resolution_m(snapshots.octomap->resolution());
     const WorldMemory memory = world->memory();
     out->set_grid_bytes(memory.grid_bytes);

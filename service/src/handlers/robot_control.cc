@@ -106,6 +106,12 @@ bool known_behaviour(const std::string& name) {
 
 namespace {
 
+// A planned path as the robot's state keeps it: shared, null when there is none.
+std::shared_ptr<const std::vector<Eigen::Vector2d>> shared_path(std::vector<Eigen::Vector2d> path_W) {
+  if (path_W.empty()) return nullptr;
+  return std::make_shared<const std::vector<Eigen::Vector2d>>(std::move(path_W));
+}
+
 control::RobotShape robot_shape(const RobotModel& model) {
   control::RobotShape shape;
   shape.footprint = model.footprint;
@@ -219,7 +225,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     command.set_stop(true);
     robot.update_state([](RobotState& s) {
       s.guard.Clear();
-      s.path_W.clear();
+      s.path_W.reset();
     });
     return command;
   }
@@ -255,7 +261,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     command.set_stop(true);
     robot.update_state([&](RobotState& s) {
       s.guard.Clear();
-      s.path_W = std::move(path_W);
+      s.path_W = shared_path(std::move(path_W));
     });
     return command;
   }
@@ -303,7 +309,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   *command.mutable_guard() = guard;
   robot.update_state([&](RobotState& s) {
     s.guard = guard;
-    s.path_W = std::move(path_W);
+    s.path_W = shared_path(std::move(path_W));
   });
   return command;
 }
@@ -341,7 +347,7 @@ v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const
     s.behaviour_state = state;
     s.last_linear_mps = 0.0;
     s.last_angular_radps = 0.0;
-    s.path_W.clear();
+    s.path_W.reset();
   });
   return command;
 }

@@ -172,7 +172,7 @@ void append_robots(std::string& out, ServerCore& core, const std::string& shown_
     }
     out += R"(,"path":)";
     if (shown) {
-      append_points(out, state.path_W);
+      append_points(out, state.path());
     } else {
       out += "[]";
     }

@@ -44,6 +44,9 @@ struct LimitsConfig {
                                                                // max_send_queue_bytes / 2) is refused
   std::size_t max_batch_queries = 100000;  // entries (poses, rays, points) in one batch request
   std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
+  // Queries in flight across all sessions (admitted, not yet answered). A query or observer session's request beyond
+  // it is answered ERROR_BUSY at once, so a query flood cannot queue work ahead of the robots'.
+  std::size_t max_query_backlog = 256;
   std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
   double hello_timeout_s = 5.0;  // a connection that has not completed its hello by then is closed
   // Connections from one address that have not said hello yet; a newer one evicts the oldest of them, so idle
