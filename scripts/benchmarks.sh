@@ -5,7 +5,8 @@
 #    redis-benchmark (PING and GET, the same client counts, -P 16 for the pipelined one) against a redis-server this
 #    script starts on 127.0.0.1 and stops;
 #  - ingest: time from sending a scan to its ScanAck, idle and while 64 query clients are busy;
-#  - real logs: occgeo replay --max of the shared logs (DATASETS, default ../shared/datasets), scans/s per tenth.
+#  - real logs: occgeo replay --max of the shared logs (DATASETS, default ../shared/datasets), scans/s per tenth,
+#    and the models' bytes per known grid cell and per octree leaf at the end of each.
 # Environment: BUILD_DIR (default build), OUT (default docs/BENCHMARKS.md), DURATION (seconds per occgeo-load run,
 # default 5), BENCH_MIN_TIME (Google Benchmark --benchmark_min_time, default 0.5), BENCH_DIR (the benchmark binaries,
 # default BUILD_DIR/tests/bench), SKIP_BUILD=1 to use the build as is.
@@ -106,18 +107,26 @@ kill "$redis_pid" && wait "$redis_pid" 2>/dev/null || true
 redis_pid=
 
 # Real logs at speed: each shared log replayed with --max into a fresh server of its own (default settings: every
-# model on, every scan journalled), its summary with scans/s per tenth of the log.
+# model on, every scan journalled), its summary with scans/s per tenth of the log. Then the models' bytes (/metrics),
+# the status and the grid as a map, for the bytes per known cell and octree leaf.
 replay_log() {  # NAME, then the replay's arguments
   local name=$1
   shift
   local dir="$work/replay_$name"
   mkdir -p "$dir"
-  "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" --http off \
-    --log-level warn >"$dir/server.log" 2>&1 &
+  "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" \
+    --http 127.0.0.1:0 --log-level info >"$dir/server.log" 2>&1 &
   local pid=$!
   for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
-  "$BUILD_DIR/clients/occgeo" replay --server "127.0.0.1:$(cat "$dir/port")" --max --json "$@" \
-    >"$work/replay_$name.json" 2>/dev/null || true
+  local server="127.0.0.1:$(cat "$dir/port")"
+  "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --json "$@" >"$work/replay_$name.json" 2>/dev/null || true
+  local http_port
+  http_port=$(grep -o '"event":"http_listening".*"port":[0-9]*' "$dir/server.log" | grep -o '[0-9]*$' | head -n 1)
+  python3 -c 'import sys, urllib.request; sys.stdout.write(urllib.request.urlopen(sys.argv[1], timeout=10).read().decode())' \
+    "http://127.0.0.1:$http_port/metrics" >"$work/replay_$name.metrics" 2>/dev/null || true
+  "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/replay_$name.status.json" 2>/dev/null || true
+  "$BUILD_DIR/clients/occgeo" --server "$server" map export --format pgm --world default --out "$dir/map" \
+    >/dev/null 2>&1 || true
   kill "$pid" 2>/dev/null || true
   wait "$pid" 2>/dev/null || true
 }
@@ -322,6 +331,63 @@ for name, label in (("intel", "Intel (CARMEN, 180 beams)"), ("intel_80m", "Intel
             f"{tenths[-1] / tenths[0]:.2f} | {' '.join(fmt(t) for t in tenths)} |")
     else:
         add(f"| {label} | n/a | n/a | n/a | n/a | n/a | n/a |")
+add("")
+
+# Bytes per known grid cell (pixels of the exported map that are not 205, unknown) and per octree leaf (every leaf
+# at least one known voxel, so this bounds the bytes per known voxel from above), from the server's own count.
+def model_bytes(name):
+    values = {}
+    try:
+        for line in open(os.path.join(work, f"replay_{name}.metrics")):
+            if line.startswith('occgeo_world_model_bytes{world="default",model="'):
+                model = line.split('model="')[1].split('"')[0]
+                values[model] = float(line.rsplit(" ", 1)[1])
+            elif line.startswith("occgeo_process_resident_bytes "):
+                values["resident"] = float(line.rsplit(" ", 1)[1])
+    except OSError:
+        pass
+    return values
+
+def known_cells(name):
+    try:
+        data = open(os.path.join(work, f"replay_{name}", "map.pgm"), "rb").read()
+    except OSError:
+        return None
+    fields, pos = [], 0
+    while len(fields) < 4:  # P5, width, height, maxval; comments start with '#'
+        while data[pos:pos + 1].isspace():
+            pos += 1
+        if data[pos:pos + 1] == b"#":
+            pos = data.index(b"\n", pos)
+            continue
+        end = pos
+        while not data[end:end + 1].isspace():
+            end += 1
+        fields.append(data[pos:end])
+        pos = end
+    width, height = int(fields[1]), int(fields[2])
+    pixels = data[pos + 1:pos + 1 + width * height]
+    return len(pixels) - pixels.count(205)
+
+def status_world(name):
+    try:
+        return json.loads(open(os.path.join(work, f"replay_{name}.status.json")).read())["worlds"][0]
+    except (OSError, ValueError, KeyError, IndexError):
+        return None
+
+add("Memory at the end of each replay (goals: at most 2 B per known grid cell, 16 B per known octree voxel):")
+add("")
+add("| log | known cells | grid bytes | B per known cell | octree leaves | octree bytes | B per leaf | resident |")
+add("|---|---|---|---|---|---|---|---|")
+for name, label in (("intel", "Intel"), ("intel_80m", "Intel, `--max-range 80`"), ("exp1", "exp1")):
+    values, cells, world = model_bytes(name), known_cells(name), status_world(name)
+    if "grid" in values and "octomap" in values and cells and world and world.get("octomap_leaves"):
+        leaves = world["octomap_leaves"]
+        add(f"| {label} | {cells:,} | {values['grid']:,.0f} | {values['grid'] / cells:.2f} | {leaves:,} | "
+            f"{values['octomap']:,.0f} | {values['octomap'] / leaves:.0f} | "
+            f"{values.get('resident', 0) / 2**20:.0f} MiB |")
+    else:
+        add(f"| {label} | n/a | n/a | n/a | n/a | n/a | n/a | n/a |")
 add("")
 
 # ---- goals

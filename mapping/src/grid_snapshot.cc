@@ -133,4 +133,14 @@ const Tile* GridSnapshot::find_tile(const geometry::CellIndex& c) const {
   return it == tiles_.end() ? nullptr : it->second.get();
 }
 
+std::size_t GridSnapshot::memory_bytes() const {
+  // Per tile: its cells' array, the Tile in its shared pointer's control block, and the hash node holding that pointer.
+  constexpr std::size_t kMallocHeader = 8;
+  constexpr std::size_t kControlBlock = 16;
+  constexpr std::size_t kHashNode = sizeof(void*) + sizeof(TileIndex) + sizeof(std::shared_ptr<const Tile>);
+  const std::size_t per_tile = layout_.cells_per_tile() + kMallocHeader + sizeof(Tile) + kControlBlock + kMallocHeader +
+                               kHashNode + kMallocHeader;
+  return tiles_.size() * per_tile + tiles_.bucket_count() * sizeof(void*);
+}
+
 }  // namespace occgeo::mapping

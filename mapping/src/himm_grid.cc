@@ -44,7 +44,7 @@ void HimmGrid::insert_ray(const Eigen::Vector2d& sensor_origin_W, const Eigen::V
 }
 
 void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float angle_increment,
-                           std::span<const float> ranges, float range_max) {
+                           std::span<const float> ranges, float range_max, const BeamLimits& limits) {
   if (!is_finite(X_WS)) throw std::invalid_argument("insert_scan: X_WS is not finite");
   if (!std::isfinite(angle_min)) throw std::invalid_argument("insert_scan: angle_min is not finite");
   if (!std::isfinite(angle_increment)) throw std::invalid_argument("insert_scan: angle_increment is not finite");
@@ -79,12 +79,23 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   lowered_cells.clear();
   hit_cells.clear();
   for (const float reading : ranges) {
-    const bool is_hit = reading < range_max;
-    const double range = is_hit ? static_cast<double>(reading) : max_range;
-    const Eigen::Vector2d end_W = p_WS + range * direction;
+    const double range = static_cast<double>(reading);
+    const BeamUse use = beam_use(range, max_range, limits);
     // Only a return beyond a cell shows the sensor saw through it (a beam with none may have passed glass or a gap).
-    writer.trace_beam(p_WS, end_W, is_hit, see_through && is_hit ? &lowered_cells : nullptr);
-    if (see_through && is_hit) hit_cells.insert(geometry_.cell_of(end_W));
+    std::vector<geometry::CellIndex>* lowered = see_through && range < max_range ? &lowered_cells : nullptr;
+    if (use.hit && use.free_m >= range) {
+      const Eigen::Vector2d end_W = p_WS + range * direction;
+      writer.trace_beam(p_WS, end_W, true, lowered);
+      if (see_through) hit_cells.insert(geometry_.cell_of(end_W));
+    } else {
+      if (use.free_m > 0.0) writer.trace_beam(p_WS, p_WS + use.free_m * direction, false, lowered);
+      if (use.hit) {
+        // A beam from the end to itself marks only the end cell.
+        const Eigen::Vector2d end_W = p_WS + range * direction;
+        writer.trace_beam(end_W, end_W, true);
+        if (see_through) hit_cells.insert(geometry_.cell_of(end_W));
+      }
+    }
     direction = rotation * direction;
   }
   if (!see_through) return;

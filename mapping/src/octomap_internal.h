@@ -79,6 +79,8 @@ struct OctoMapSnapshot::Impl {
   OctoTiles tiles;
   // The nodes above the tiles' depth that the model's tree has (every tile's tree repeats its own path to the root).
   std::size_t nodes_above_tiles = 0;
+  // Nodes of the model's live tree at publication (OcTree::size, kept by the tree as it changes).
+  std::size_t live_tree_nodes = 0;
 };
 
 // Runs the PCL filters params enables over points_W (all finite), in that order: voxel grid, then statistical outlier

@@ -237,6 +237,34 @@ OctoCollision OctoMapSnapshot::collide_fcl_only(const geometry::Footprint& footp
 }
 
 double OctoMapSnapshot::resolution() const { return impl_->empty->tree->getResolution(); }
+
+namespace {
+
+// What glibc's malloc takes for `size` bytes: an 8-byte header, rounded up to 16, at least 32.
+constexpr std::size_t heap_chunk(std::size_t size) { return std::max<std::size_t>(32, (size + 8 + 15) / 16 * 16); }
+
+}  // namespace
+
+std::size_t OctoMapSnapshot::memory_bytes() const {
+  const std::size_t node_bytes = heap_chunk(sizeof(octomap::OcTreeNode));
+  const std::size_t children_bytes = heap_chunk(8 * sizeof(octomap::AbstractOcTreeNode*));
+  std::size_t bytes = 0;
+  std::size_t nodes = 0;
+  std::size_t leaves = 0;
+  for (const auto& [id, tile] : impl_->tiles) {
+    bytes += tile->node_count * node_bytes + (tile->node_count - tile->leaf_count) * children_bytes;
+    bytes += (tile->columns.z_low.capacity() + tile->columns.z_high.capacity()) * sizeof(std::uint16_t);
+    bytes += heap_chunk(sizeof(OctoTile)) + heap_chunk(sizeof(octomap::OcTree));
+    nodes += tile->node_count;
+    leaves += tile->leaf_count;
+  }
+  // The live tree holds the same leaves; its inner nodes are taken in the snapshot's proportion.
+  const std::size_t live = impl_->live_tree_nodes;
+  const double inner_share = nodes == 0 ? 0.0 : static_cast<double>(nodes - leaves) / static_cast<double>(nodes);
+  bytes += live * node_bytes +
+           static_cast<std::size_t>(std::llround(static_cast<double>(live) * inner_share)) * children_bytes;
+  return bytes;
+}
 std::size_t OctoMapSnapshot::leaf_count() const {
   std::size_t count = 0;
   for (const auto& [id, tile] : impl_->tiles) count += tile->leaf_count;
@@ -256,10 +284,12 @@ struct OctoMapModel::Impl {
     apply_params(*tree, params);
   }
 
-  // One reading's ray: from the batch's origin to end; end is marked occupied only when hit.
+  // One reading's ray: from the batch's origin to end, carving free space unless !carve; end is marked occupied only
+  // when hit.
   struct Ray {
     octomap::point3d end;
     bool hit;
+    bool carve = true;
   };
 
   // Applies one batch of rays from origin exactly as OccupancyOcTreeBase::insertPointCloud → computeUpdate does
@@ -286,7 +316,7 @@ struct OctoMapModel::Impl {
       }
     };
     for (const Ray& ray : batch) {
-      if (tree->computeRayKeys(origin, ray.end, key_ray) && key_ray.size() != 0) {
+      if (ray.carve && tree->computeRayKeys(origin, ray.end, key_ray) && key_ray.size() != 0) {
         ray_keys.insert(ray_keys.end(), key_ray.begin(), key_ray.end());
         extend(*key_ray.begin());
         extend(*(key_ray.end() - 1));
@@ -703,6 +733,24 @@ struct OctoMapModel::Impl {
   std::vector<Ray> rays;
 };
 
+namespace {
+
+// The rays one reading r along direction_S (unit, sensor frame) of a sensor at X_WS adds under limits (beam_use): one
+// ray to the end when it is marked and carved alike, else a carving ray and a marking one.
+template <typename Ray>
+void push_rays(const geometry::Pose3& X_WS, const Eigen::Vector3d& direction_S, double r, double range_max,
+               const BeamLimits& limits, std::vector<Ray>& rays) {
+  const BeamUse use = beam_use(r, range_max, limits);
+  if (use.hit && use.free_m >= r) {
+    rays.push_back(Ray{to_octo(X_WS.transform * (r * direction_S)), true});
+    return;
+  }
+  if (use.free_m > 0.0) rays.push_back(Ray{to_octo(X_WS.transform * (use.free_m * direction_S)), false});
+  if (use.hit) rays.push_back(Ray{to_octo(X_WS.transform * (r * direction_S)), true, false});
+}
+
+}  // namespace
+
 OctoMapModel::OctoMapModel(const OctoMapParams& params) : params_(params) {
   params_.validate();
   impl_ = std::make_unique<Impl>(params_);
@@ -713,7 +761,7 @@ OctoMapModel::OctoMapModel(const OctoMapParams& params) : params_(params) {
 OctoMapModel::~OctoMapModel() = default;
 
 void OctoMapModel::insert_scan(const geometry::Pose3& X_WS, float angle_min, float angle_increment,
-                               std::span<const float> ranges, float range_max) {
+                               std::span<const float> ranges, float range_max, const BeamLimits& limits) {
   require_finite_pose(X_WS, "insert_scan");
   if (!std::isfinite(angle_min) || !std::isfinite(angle_increment)) {
     throw std::invalid_argument("insert_scan: angle_min and angle_increment must be finite");
@@ -726,7 +774,7 @@ void OctoMapModel::insert_scan(const geometry::Pose3& X_WS, float angle_min, flo
       throw std::invalid_argument("insert_scan: ranges[" + std::to_string(i) + "] must be >= 0 and not NaN");
     }
   }
-  const double clear_length = std::min<double>(range_max, params_.max_range_m);
+  const BeamLimits beam_limits = limits.capped(params_.max_range_m);
   const octomap::point3d origin = to_octo(X_WS.translation());
   std::vector<Impl::Ray>& rays = impl_->rays;
   rays.clear();
@@ -734,32 +782,29 @@ void OctoMapModel::insert_scan(const geometry::Pose3& X_WS, float angle_min, flo
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     const double r = ranges[i];
     if (r == 0.0) continue;  // no return: says nothing about the beam
-    const bool hit = r < double{range_max} && r <= params_.max_range_m;
-    const double length = hit ? r : clear_length;
     const double angle = double{angle_min} + static_cast<double>(i) * double{angle_increment};
-    const Eigen::Vector3d p_S{length * std::cos(angle), length * std::sin(angle), 0.0};
-    rays.push_back({to_octo(X_WS.transform * p_S), hit});
+    push_rays(X_WS, Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0), r, range_max, beam_limits, rays);
   }
   impl_->apply(origin, rays, params_.laser_see_through_clears);
   ++version_;
 }
 
-void OctoMapModel::insert_ray(const geometry::Pose3& X_WS, double range_m, double range_max_m) {
+void OctoMapModel::insert_ray(const geometry::Pose3& X_WS, double range_m, double range_max_m,
+                              const BeamLimits& limits) {
   require_finite_pose(X_WS, "insert_ray");
   if (!std::isfinite(range_max_m) || range_max_m <= 0.0) {
     throw std::invalid_argument("insert_ray: range_max_m must be finite and > 0");
   }
   if (std::isnan(range_m) || range_m < 0.0) throw std::invalid_argument("insert_ray: range_m must be >= 0");
   if (range_m == 0.0) return;
-  const bool hit = range_m < range_max_m && range_m <= params_.max_range_m;
-  const double length = hit ? range_m : std::min(range_max_m, params_.max_range_m);
-  const Eigen::Vector3d p_S{length, 0.0, 0.0};
-  impl_->rays.assign({Impl::Ray{to_octo(X_WS.transform * p_S), hit}});
+  impl_->rays.clear();
+  push_rays(X_WS, Eigen::Vector3d::UnitX(), range_m, range_max_m, limits.capped(params_.max_range_m), impl_->rays);
   impl_->apply(to_octo(X_WS.translation()), impl_->rays);
   ++version_;
 }
 
-std::size_t OctoMapModel::insert_cloud(const geometry::Pose3& X_WS, std::span<const Eigen::Vector3f> points_S) {
+std::size_t OctoMapModel::insert_cloud(const geometry::Pose3& X_WS, std::span<const Eigen::Vector3f> points_S,
+                                       const BeamLimits& limits) {
   require_finite_pose(X_WS, "insert_cloud");
   const Eigen::Isometry3f X_WS_f = X_WS.transform.cast<float>();
   std::vector<Eigen::Vector3f> points_W;
@@ -769,6 +814,7 @@ std::size_t OctoMapModel::insert_cloud(const geometry::Pose3& X_WS, std::span<co
   }
   if (params_.voxel_filter_enabled || params_.outlier_filter_enabled) points_W = filter_cloud(points_W, params_);
 
+  const BeamLimits cloud_limits = limits.capped(params_.max_range_m);
   const octomap::point3d origin = to_octo(X_WS.translation());
   const octomap::OcTree& tree = *impl_->tree;
   std::vector<Impl::Ray>& rays = impl_->rays;
@@ -784,10 +830,19 @@ std::size_t OctoMapModel::insert_cloud(const geometry::Pose3& X_WS, std::span<co
       end = tree.keyToCoord(key);
     }
     // Same arithmetic (float) as computeUpdate's max-range branch, so that this path and insertPointCloud agree.
-    if ((end - origin).norm() <= params_.max_range_m) {
+    const double length = (end - origin).norm();
+    if (length <= cloud_limits.max_insert_range_m && length <= cloud_limits.max_free_range_m) {
       rays.push_back({end, true});
+    } else if (length > cloud_limits.max_insert_range_m) {
+      const double carve = std::min(cloud_limits.max_insert_range_m, cloud_limits.max_free_range_m);
+      if (carve > 0.0) rays.push_back({origin + (end - origin).normalized() * static_cast<float>(carve), false});
     } else {
-      rays.push_back({origin + (end - origin).normalized() * static_cast<float>(params_.max_range_m), false});
+      // Marked, but carved only up to max_free_range_m.
+      if (cloud_limits.max_free_range_m > 0.0) {
+        rays.push_back(
+            {origin + (end - origin).normalized() * static_cast<float>(cloud_limits.max_free_range_m), false});
+      }
+      rays.push_back({end, true, false});
     }
   }
   impl_->apply(origin, rays);
@@ -844,6 +899,7 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
     }
   }
   snapshot_impl->nodes_above_tiles = above.size();
+  snapshot_impl->live_tree_nodes = impl_->tree->size();
   std::shared_ptr<const OctoMapSnapshot> snapshot{
       new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
   {

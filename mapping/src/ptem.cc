@@ -187,6 +187,12 @@ std::optional<double> sigma_for_radius(double radius_m, double f_r) {
   return radius_m / std::sqrt(2.0 * u);
 }
 
+std::size_t PtemSnapshot::memory_bytes() const {
+  std::size_t bytes = clusters_.capacity() * sizeof(PtemCluster) + terms_.capacity() * sizeof(Term);
+  for (const PtemCluster& cluster : clusters_) bytes += cluster.extent_W.capacity() * sizeof(Eigen::Vector2d);
+  return bytes;
+}
+
 PtemSnapshot::PtemSnapshot(std::vector<PtemCluster> clusters, std::optional<double> f_r, std::uint64_t scan_count,
                            std::optional<double> latest_stamp_s)
     : clusters_(std::move(clusters)), f_r_(f_r), scan_count_(scan_count), latest_stamp_s_(latest_stamp_s) {

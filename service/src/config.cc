@@ -5,6 +5,7 @@
 #include <boost/asio/ip/address.hpp>
 
 #include <charconv>
+#include <cmath>
 #include <functional>
 #include <map>
 
@@ -278,6 +279,12 @@ void ServerConfig::validate() const {
   require(octomap_publish_every_messages <= 1000000, "octomap.publish_every_messages", "must be in [0, 1000000]");
   validate_block(terrain, "terrain");
   validate_block(distance_field, "distance_field");
+  require(std::isfinite(sensors.max_insert_range_m) && sensors.max_insert_range_m > 0, "sensors.max_insert_range_m",
+          "must be a positive length in metres");
+  require(std::isfinite(sensors.max_free_range_m) && sensors.max_free_range_m >= 0, "sensors.max_free_range_m",
+          "must be a length >= 0 in metres");
+  require(std::isfinite(sensors.no_return_clear_m) && sensors.no_return_clear_m >= 0, "sensors.no_return_clear_m",
+          "must be a length >= 0 in metres (0: no-return beams clear nothing)");
   for (const auto& [name, override_params] : ptem.worlds) {
     validate_block(ptem.params_for(name), "ptem.worlds." + name);
   }
@@ -455,9 +462,16 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("predict_horizon_s", g.predict_horizon_s)
                        .field("predict_margin_m", g.predict_margin_m);
                  })
-        .section("distance_field", [&](Section& s) {
-          auto& d = config.distance_field;
-          s.field("max_distance_m", d.max_distance_m);
+        .section("distance_field",
+                 [&](Section& s) {
+                   auto& d = config.distance_field;
+                   s.field("max_distance_m", d.max_distance_m);
+                 })
+        .section("sensors", [&](Section& s) {
+          auto& r = config.sensors;
+          s.field("max_insert_range_m", r.max_insert_range_m)
+              .field("max_free_range_m", r.max_free_range_m)
+              .field("no_return_clear_m", r.no_return_clear_m);
         });
     top.reject_unknown();
   } catch (const ConfigError& e) {

@@ -7,6 +7,7 @@
 #include <boost/asio/post.hpp>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
 #include <future>
 #include <latch>
 
@@ -159,6 +160,24 @@ bool World::restore_ptem_on_strand(std::string_view state) {
 std::shared_ptr<const mapping::GridSnapshot> World::snapshot() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_.grid;
+}
+
+WorldMemory World::memory() const {
+  const WorldSnapshot& models = snapshots_for_this_thread();
+  WorldMemory memory;
+  memory.grid_bytes = models.grid->memory_bytes();
+  memory.distance_field_bytes = models.distance ? models.distance->memory_bytes() : 0;
+  memory.octomap_bytes = models.octomap->memory_bytes();
+  memory.ptem_bytes = models.ptem->memory_bytes();
+  return memory;
+}
+
+std::optional<std::uint64_t> process_resident_bytes() {
+  std::ifstream statm("/proc/self/statm");
+  std::uint64_t size_pages = 0;
+  std::uint64_t resident_pages = 0;
+  if (!(statm >> size_pages >> resident_pages)) return std::nullopt;
+  return resident_pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
 std::size_t World::octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const {

@@ -18,6 +18,7 @@
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/beam_limits.h"
 #include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -49,6 +50,18 @@ struct WorldSnapshot {
   std::shared_ptr<const mapping::DistanceFieldSnapshot> distance;  // matches grid (same version)
   std::shared_ptr<const mapping::OctoMapSnapshot> octomap;
 };
+
+// Heap bytes a world's models take, counted from their latest snapshots (see each snapshot's memory_bytes). The
+// terrain has no entry: it is estimated from the octree snapshot per query and kept by nobody in between.
+struct WorldMemory {
+  std::uint64_t grid_bytes = 0;
+  std::uint64_t distance_field_bytes = 0;
+  std::uint64_t octomap_bytes = 0;
+  std::uint64_t ptem_bytes = 0;
+};
+
+// The process's resident memory (/proc/self/statm), bytes; nullopt where it cannot be read.
+std::optional<std::uint64_t> process_resident_bytes();
 
 // The models a world keeps, and their parameters.
 struct WorldParams {
@@ -116,6 +129,9 @@ class World : public std::enable_shared_from_this<World> {
   void retire_octree_lane() { octree_lane_.reset(); }
   // How many messages' octree work the lane may hold before the ingest strand waits for it.
   static constexpr int kOctreeBacklogMessages = 32;
+  // What the models take as of their latest snapshots; safe from any thread, costs a walk over the snapshots' tiles
+  // and blocks (not their cells).
+  [[nodiscard]] WorldMemory memory() const;
   // The latest published state of the grid; safe from any thread.
   [[nodiscard]] std::shared_ptr<const mapping::GridSnapshot> snapshot() const;
   // The journal every accepted sensor message is written to before it is applied (see durability/journal.h); set
@@ -171,6 +187,7 @@ struct LaserModel {
   std::uint32_t beam_count = 0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
 };
 
 // A ring or array of single-beam range sensors (sonar, infrared) as declared in a RobotSpec.
@@ -181,6 +198,7 @@ struct RangeArrayModel {
   double beam_width_rad = 0.0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
   double period_s = 0.0;
 };
 
@@ -194,6 +212,7 @@ struct ServoRangeModel {
   double step_period_s = 0.0;
   double range_min_m = 0.0;
   double range_max_m = 0.0;
+  mapping::BeamLimits beam_limits;  // what its readings change: the spec's ranges over the server's defaults
 };
 
 // A 3D point sensor (depth camera, 3D lidar).
@@ -201,7 +220,8 @@ struct PointCloudModel {
   std::string name;
   geometry::Pose3 X_BS;  // sensor in base_link
   double range_max_m = 0.0;
-  std::size_t max_points = 0;  // the spec's limit, or the server's when the spec leaves it 0
+  std::size_t max_points = 0;       // the spec's limit, or the server's when the spec leaves it 0
+  mapping::BeamLimits beam_limits;  // what its points change: the spec's ranges over the server's defaults
 };
 
 // How the robot's wheels or tracks move it; decides what a motion command's wheel speeds mean.
@@ -298,7 +318,7 @@ struct RobotState {
   std::string behaviour_state;
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
-  v1::GuardDecision guard;              // the safety guard's verdict on the latest command
+  v1::GuardDecision guard;  // the safety guard's verdict on the latest command
   // The active behaviour's planned path, world frame; null without one. Shared, as scan_W, so that copying the state
   // (every sensor message, every status) never copies a path.
   std::shared_ptr<const std::vector<Eigen::Vector2d>> path_W;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -293,10 +294,35 @@ bool parse_point_cloud(const v1::PointCloudSpec& cloud, const std::string& prefi
   return true;
 }
 
+// A sensor's SensorSpec.ranges over the server's defaults; each given length finite and >= 0 (the insert range > 0).
+bool parse_sensor_ranges(const v1::SensorSpec& sensor, const std::string& prefix,
+                         const mapping::BeamLimits& sensor_defaults, mapping::BeamLimits& limits, FieldError& error) {
+  limits = sensor_defaults;
+  if (!sensor.has_ranges()) return true;
+  const v1::SensorRanges& ranges = sensor.ranges();
+  const auto take = [&](bool given, double value, const char* name, bool zero_allowed, double& out) {
+    if (!given) return true;
+    if (!std::isfinite(value) || value < 0.0 || (!zero_allowed && value == 0.0)) {
+      error = field_error(prefix + ".ranges." + name, "is " + std::to_string(value) + "; must be a finite length " +
+                                                          (zero_allowed ? ">= 0" : "> 0") + " in metres");
+      return false;
+    }
+    out = value;
+    return true;
+  };
+  return take(ranges.has_max_insert_range_m(), ranges.max_insert_range_m(), "max_insert_range_m", false,
+              limits.max_insert_range_m) &&
+         take(ranges.has_max_free_range_m(), ranges.max_free_range_m(), "max_free_range_m", true,
+              limits.max_free_range_m) &&
+         take(ranges.has_no_return_clear_m(), ranges.no_return_clear_m(), "no_return_clear_m", true,
+              limits.no_return_clear_m);
+}
+
 }  // namespace
 
 std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot_id, const v1::RobotSpec& spec,
-                                                        const LimitsConfig& limits, FieldError& error) {
+                                                        const LimitsConfig& limits, FieldError& error,
+                                                        const mapping::BeamLimits& sensor_defaults) {
   auto model = std::make_shared<RobotModel>();
   model->id = robot_id;
   model->model = spec.model();
@@ -335,11 +361,14 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
     }
     const geometry::Pose3 X_BS = geometry::Pose3::from_xyz_rpy(
         mount.position().x(), mount.position().y(), mount.position().z(), mount.roll(), mount.pitch(), mount.yaw());
+    mapping::BeamLimits beam_limits;
+    if (!parse_sensor_ranges(sensor, prefix, sensor_defaults, beam_limits, error)) return nullptr;
     switch (sensor.model_case()) {
       case v1::SensorSpec::kLaser: {
         LaserModel laser;
         laser.name = sensor.name();
         laser.X_BS = X_BS;
+        laser.beam_limits = beam_limits;
         if (!parse_laser(sensor.laser(), prefix + ".laser", limits, laser, error)) return nullptr;
         model->lasers.push_back(std::move(laser));
         break;
@@ -348,6 +377,7 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         RangeArrayModel array;
         array.name = sensor.name();
         array.X_BS = X_BS;
+        array.beam_limits = beam_limits;
         if (!parse_range_array(sensor.range_array(), prefix + ".range_array", limits, array, error)) return nullptr;
         model->range_arrays.push_back(std::move(array));
         break;
@@ -356,6 +386,7 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         ServoRangeModel servo;
         servo.name = sensor.name();
         servo.X_BS = X_BS;
+        servo.beam_limits = beam_limits;
         if (!parse_servo_range(sensor.servo_range(), prefix + ".servo_range", limits, servo, error)) return nullptr;
         model->servo_ranges.push_back(std::move(servo));
         break;
@@ -364,6 +395,7 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         PointCloudModel cloud;
         cloud.name = sensor.name();
         cloud.X_BS = X_BS;
+        cloud.beam_limits = beam_limits;
         if (!parse_point_cloud(sensor.point_cloud(), prefix + ".point_cloud", limits, cloud, error)) return nullptr;
         model->point_clouds.push_back(std::move(cloud));
         break;
@@ -461,20 +493,25 @@ std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel
 
 std::uint64_t scan_voxel_estimate(const v1::LaserScan& scan, const LaserModel& laser, double octree_max_range_m,
                                   double resolution_m) {
-  const double cut_m = std::min(octree_max_range_m, laser.range_max_m);
+  // The lengths the octree carves (OctoMapModel::insert_scan), plus one voxel per beam for its end.
+  const mapping::BeamLimits limits = laser.beam_limits.capped(octree_max_range_m);
   std::uint64_t voxels = 0;
   for (const float range : scan.ranges()) {
-    const double length_m = std::min(static_cast<double>(range), cut_m);
+    const double length_m = mapping::beam_use(static_cast<double>(range), laser.range_max_m, limits).free_m;
     voxels += static_cast<std::uint64_t>(std::ceil(length_m / resolution_m)) + 1;
   }
   return voxels;
 }
 
-std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, double octree_max_range_m, double resolution_m) {
+std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, const PointCloudModel& cloud,
+                                   double octree_max_range_m, double resolution_m) {
+  const mapping::BeamLimits limits = cloud.beam_limits.capped(octree_max_range_m);
   std::uint64_t voxels = 0;
   for (int i = 0; i + 2 < message.xyz_size(); i += 3) {
     const double length_m =
-        std::min(Eigen::Vector3d(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2)).norm(), octree_max_range_m);
+        mapping::beam_use(Eigen::Vector3d(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2)).norm(),
+                          std::numeric_limits<double>::infinity(), limits)
+            .free_m;
     voxels += static_cast<std::uint64_t>(std::ceil(length_m / resolution_m)) + 1;
   }
   return voxels;

@@ -16,9 +16,11 @@ struct FieldError {
   std::string message;
 };
 
-// Checks a RobotSpec and converts it; the error names the first offending field.
-std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot_id, const v1::RobotSpec& spec,
-                                                        const LimitsConfig& limits, FieldError& error);
+// Checks a RobotSpec and converts it; the error names the first offending field. Each sensor's beam_limits are its
+// SensorSpec.ranges, fields left unset taken from sensor_defaults (the config's `sensors:`).
+std::shared_ptr<const RobotModel> robot_model_from_spec(
+    const std::string& robot_id, const v1::RobotSpec& spec, const LimitsConfig& limits, FieldError& error,
+    const mapping::BeamLimits& sensor_defaults = default_sensor_beam_limits());
 
 // Why the robot cannot run the behaviour (a sensor it needs is missing), or nullopt when it can.
 std::optional<std::string> missing_sensor_for(const std::string& behaviour, const RobotModel& model);
@@ -33,12 +35,13 @@ std::optional<FieldError> check_odometry(const v1::Odometry& odometry, const Lim
 // Checks a scan against its robot's spec: known sensor, beam count, finite non-negative ranges.
 std::optional<FieldError> check_scan(const v1::LaserScan& scan, const RobotModel& model);
 
-// The octree voxels a sensor message's rays would touch at most: per ray, its length (cut at the octree's
-// max_range_m; a no-return beam counts as cut) over the resolution, plus its end voxel. For an already checked scan
-// or cloud of the robot's spec.
+// The octree voxels a sensor message's rays would touch at most: per ray, the length it carves (cut by the sensor's
+// beam_limits and the octree's max_range_m, as mapping::beam_use says) over the resolution, plus its end voxel. For
+// an already checked scan or cloud of the robot's spec.
 std::uint64_t scan_voxel_estimate(const v1::LaserScan& scan, const LaserModel& laser, double octree_max_range_m,
                                   double resolution_m);
-std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, double octree_max_range_m, double resolution_m);
+std::uint64_t cloud_voxel_estimate(const v1::PointCloud& message, const PointCloudModel& cloud,
+                                   double octree_max_range_m, double resolution_m);
 // An error naming limits.max_scan_voxels when `voxels` exceeds it (field: the message's ranges or points).
 std::optional<FieldError> check_voxel_budget(std::uint64_t voxels, std::uint64_t limit, const std::string& field);
 

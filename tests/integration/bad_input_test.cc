@@ -435,8 +435,9 @@ TEST(BatchLimit, ConfiguredLimitRefusesALargerBatchNamingIt) {
   }
 }
 
-// A scan whose rays would touch more octree voxels than limits.max_scan_voxels is refused naming the limit; the
-// server stays up, and the robot's next ordinary scan is taken and answered.
+// A scan whose rays would touch more octree voxels than limits.max_scan_voxels is refused naming the limit and the
+// count; the server stays up, what it took before is still in the map, and the robot's next ordinary scan is taken
+// and answered.
 TEST(ScanVoxelLimit, ScanOverTheLimitIsRefusedNamingItAndTheRobotCarriesOn) {
   TempDir dir;
   const auto config = dir.path() / "occgeod.yaml";
@@ -457,7 +458,26 @@ TEST(ScanVoxelLimit, ScanOverTheLimitIsRefusedNamingItAndTheRobotCarriesOn) {
     for (int beam = 0; beam < 181; ++beam) scan.mutable_laser_scan()->add_ranges(range_m);
     return scan;
   };
-  driver.send(scan_of(2, 4.0F));
+  // An ordinary scan first: accepted, its walls in the map.
+  driver.send(scan_of(2, 1.0F));
+  bool acknowledged = false;
+  for (int i = 0; i < 10 && !acknowledged; ++i) {
+    const auto reply = driver.receive(std::chrono::seconds(5));
+    ASSERT_TRUE(reply) << "no answer to the first scan";
+    ASSERT_FALSE(reply->has_error()) << reply->DebugString();
+    acknowledged = reply->has_scan_ack() && reply->scan_ack().seq() == 2;
+  }
+  ASSERT_TRUE(acknowledged);
+  auto query = open_query_session(server.address());
+  const auto world_status = [&query](std::uint64_t id) {
+    v1::ClientMessage request;
+    request.mutable_status()->set_request_id(id);
+    return query.call(request, id).status().worlds(0);
+  };
+  const v1::WorldStatus before = world_status(1);
+  ASSERT_GT(before.occupied_cells(), 0U);
+
+  driver.send(scan_of(3, 4.0F));
   bool refused = false;
   for (int i = 0; i < 10 && !refused; ++i) {
     const auto reply = driver.receive(std::chrono::seconds(5));
@@ -473,12 +493,16 @@ TEST(ScanVoxelLimit, ScanOverTheLimitIsRefusedNamingItAndTheRobotCarriesOn) {
     EXPECT_FALSE(reply->has_scan_ack()) << "the oversized scan must not be acknowledged";
   }
   ASSERT_TRUE(refused);
-  driver.send(scan_of(3, 1.0F));
+  // The refused scan changed nothing; the accepted one is still there.
+  const v1::WorldStatus after = world_status(2);
+  EXPECT_EQ(after.version(), before.version());
+  EXPECT_EQ(after.occupied_cells(), before.occupied_cells());
+  driver.send(scan_of(4, 1.0F));
   bool answered = false;
   for (int i = 0; i < 10 && !answered; ++i) {
     const auto reply = driver.receive(std::chrono::seconds(5));
     ASSERT_TRUE(reply) << "no answer to the ordinary scan";
-    answered = reply->has_motion_command() && reply->motion_command().answers_scan_seq() == 3;
+    answered = reply->has_motion_command() && reply->motion_command().answers_scan_seq() == 4;
   }
   EXPECT_TRUE(answered);
 }

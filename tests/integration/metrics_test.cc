@@ -262,6 +262,56 @@ TEST_F(MetricsEndpoint, CountersMoveByWhatTheClientsDid) {
   for (const auto& [name, type] : after.types) EXPECT_TRUE(after.help.count(name)) << name << " has no HELP";
 }
 
+// Each world's model sizes and the process's resident memory: in the status reply and as gauges, the same numbers,
+// growing with what the robot saw.
+TEST_F(MetricsEndpoint, ReportsModelSizesAndResidentMemoryAsTheStatusDoes) {
+  auto query = open_query_session(server_->address());
+  const auto status = [&query](std::uint64_t id) {
+    v1::ClientMessage request;
+    request.mutable_status()->set_request_id(id);
+    return query.call(request, id).status();
+  };
+  const v1::StatusReply empty = status(1);
+  ASSERT_EQ(empty.worlds_size(), 1);
+  EXPECT_EQ(empty.worlds(0).tiles(), 0U);
+  EXPECT_GT(empty.resident_bytes(), 1U << 20) << "a running server holds more than a megabyte";
+
+  const auto sim = run_process(
+      {binary("clients/sim/occgeo-sim").string(), "--world", source("clients/sim/worlds/open_field.yaml").string(),
+       "--server", server_->address(), "--id", "bearcat-m", "--lockstep", "--duration", "5"},
+      std::chrono::seconds(60));
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  // The octree publishes at most every octomap.min_publish_interval_s (0.2 s): wait for the last scans to show.
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+
+  const v1::StatusReply mapped = status(2);
+  ASSERT_EQ(mapped.worlds_size(), 1);
+  const v1::WorldStatus& world = mapped.worlds(0);
+  ASSERT_GT(world.tiles(), 0U);
+  // One byte per cell of each 64 x 64 tile, and less than an eighth more for the tile's record and index entry.
+  EXPECT_GE(world.grid_bytes(), world.tiles() * 4096U);
+  EXPECT_LT(world.grid_bytes(), world.tiles() * 4608U + 4096U);
+  EXPECT_GT(world.grid_bytes(), empty.worlds(0).grid_bytes());
+  EXPECT_GT(world.distance_field_bytes(), 0U);
+  ASSERT_GT(world.octomap_leaves(), 0U);
+  // Every octree node is an allocation of its own: at least 32 bytes per node of the published copy.
+  EXPECT_GE(world.octomap_bytes(), world.octomap_nodes() * 32U);
+  EXPECT_GT(world.octomap_bytes(), empty.worlds(0).octomap_bytes());
+  EXPECT_GT(mapped.resident_bytes(), 1U << 20);
+
+  const Exposition metrics = scrape();
+  EXPECT_EQ(metrics.types.at("occgeo_world_model_bytes"), "gauge");
+  const auto gauge = [&metrics](const std::string& model) {
+    return metrics.value("occgeo_world_model_bytes", {{"world", "default"}, {"model", model}});
+  };
+  // Nothing was ingested since the status: the same numbers.
+  EXPECT_EQ(gauge("grid"), static_cast<double>(world.grid_bytes()));
+  EXPECT_EQ(gauge("distance_field"), static_cast<double>(world.distance_field_bytes()));
+  EXPECT_EQ(gauge("octomap"), static_cast<double>(world.octomap_bytes()));
+  EXPECT_EQ(gauge("ptem"), static_cast<double>(world.ptem_bytes()));
+  EXPECT_GT(metrics.value("occgeo_process_resident_bytes").value_or(0), static_cast<double>(1U << 20));
+}
+
 TEST_F(MetricsEndpoint, ServesThePageAnswers404ForUnknownPathsAndCanBeTurnedOff) {
   EXPECT_EQ(http_get(port_, "/nope").status, 404u);
   const HttpResult page = http_get(port_, "/");

@@ -68,6 +68,9 @@ TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
   EXPECT_EQ(loaded.octomap.resolution_m, defaults.octomap.resolution_m);
   EXPECT_EQ(loaded.octomap.clamping_min, defaults.octomap.clamping_min);
   EXPECT_EQ(loaded.distance_field.max_distance_m, defaults.distance_field.max_distance_m);
+  EXPECT_EQ(loaded.sensors.max_insert_range_m, defaults.sensors.max_insert_range_m);
+  EXPECT_EQ(loaded.sensors.max_free_range_m, defaults.sensors.max_free_range_m);
+  EXPECT_EQ(loaded.sensors.no_return_clear_m, defaults.sensors.no_return_clear_m);
   EXPECT_EQ(loaded.queries.network_threads, defaults.queries.network_threads);
   EXPECT_EQ(loaded.queries.network_poll_us, defaults.queries.network_poll_us);
   EXPECT_EQ(loaded.queries.network_nice, defaults.queries.network_nice);

@@ -179,7 +179,7 @@ ReplayResult replay_journal(ServerCore& core, World& world, const std::filesyste
                                  ": undecodable robot_spec");
       }
       FieldError error;
-      auto model = robot_model_from_spec(record.robot_id, spec, core.config().limits, error);
+      auto model = robot_model_from_spec(record.robot_id, spec, core.config().limits, error, core.config().sensors);
       if (!model) {
         throw std::runtime_error("journal " + file.string() + " record " + std::to_string(record.lsn) +
                                  ": the robot_spec of '" + record.robot_id + "' is refused by this configuration (" +

@@ -36,18 +36,17 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   const auto range_min = static_cast<float>(laser.range_min_m);
   const bool all_valid = std::all_of(ranges.begin(), ranges.end(), [&](float r) { return r >= range_min; });
   if (all_valid) {
-    grid.insert_scan(sensor.X_WS, angle_min, angle_increment, ranges, static_cast<float>(laser.range_max_m));
+    grid.insert_scan(sensor.X_WS, angle_min, angle_increment, ranges, static_cast<float>(laser.range_max_m),
+                     laser.beam_limits);
     return;
   }
   const Eigen::Vector2d origin = sensor.X_WS.position();
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (ranges[i] < range_min) continue;
-    const double reading = static_cast<double>(ranges[i]);
-    const double range = std::min(reading, laser.range_max_m);
     const double bearing =
         sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    const Eigen::Vector2d end = origin + range * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
-    grid.insert_ray(origin, end, reading < laser.range_max_m);
+    insert_limited_ray(grid, origin, Eigen::Vector2d(std::cos(bearing), std::sin(bearing)),
+                       static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
   }
 }
 
@@ -57,7 +56,7 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
 void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
                     const v1::LaserScan& scan) {
   const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
-  target.touch(X_WS.translation().head<2>(), laser.range_max_m);
+  target.touch(X_WS.translation().head<2>(), laser.beam_limits.reach_m(laser.range_max_m));
   std::vector<float> ranges(scan.ranges().begin(), scan.ranges().end());
   const auto range_min = static_cast<float>(laser.range_min_m);
   for (float& r : ranges) {
@@ -65,25 +64,27 @@ void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const Las
   }
   target.octree_work.emplace_back([X_WS, angle_min = static_cast<float>(laser.angle_min_rad),
                                    angle_increment = static_cast<float>(laser.angle_increment_rad),
-                                   range_max = static_cast<float>(laser.range_max_m),
+                                   range_max = static_cast<float>(laser.range_max_m), limits = laser.beam_limits,
                                    ranges = std::move(ranges)](mapping::OctoMapModel& octomap) {
-    octomap.insert_scan(X_WS, angle_min, angle_increment, ranges, range_max);
+    octomap.insert_scan(X_WS, angle_min, angle_increment, ranges, range_max, limits);
   });
 }
 
 // Feeds the scan's returns to the world's PTEM (seed 004 §4.2): the end points of the beams whose
-// reading lies in [range_min_m, range_max_m), placed in the world frame from the sensor's ground pose
-// exactly as the grid insertion places them, with the sector the scan covered (centred on the middle
-// beam, one angle increment per beam wide, out to range_max_m) for the single-scan rule.
+// reading lies in [range_min_m, range_max_m) and within the laser's max_insert_range_m, placed in the
+// world frame from the sensor's ground pose exactly as the grid insertion places them, with the sector
+// the scan covered (centred on the middle beam, one angle increment per beam wide, out to the shorter
+// of range_max_m and max_insert_range_m) for the single-scan rule.
 void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel& laser, const v1::LaserScan& scan) {
   constexpr double kTwoPi = 2.0 * M_PI;
   const double sign = sensor.mirrored ? -1.0 : 1.0;
   const Eigen::Vector2d origin = sensor.X_WS.position();
   std::vector<Eigen::Vector2d> points_W;
   points_W.reserve(static_cast<std::size_t>(scan.ranges_size()));
+  const double insert_range_m = laser.beam_limits.max_insert_range_m;
   for (int i = 0; i < scan.ranges_size(); ++i) {
     const double reading = static_cast<double>(scan.ranges(i));
-    if (reading < laser.range_min_m || reading >= laser.range_max_m) continue;
+    if (reading < laser.range_min_m || reading >= laser.range_max_m || reading > insert_range_m) continue;
     const double bearing =
         sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
     points_W.push_back(origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)));
@@ -94,7 +95,7 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   ptem_scan.p_WS = origin;
   ptem_scan.yaw_WS = sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * (beams - 1.0) / 2.0);
   ptem_scan.field_of_view_rad = std::clamp(std::abs(laser.angle_increment_rad) * beams, 1e-9, kTwoPi);
-  ptem_scan.max_range_m = laser.range_max_m;
+  ptem_scan.max_range_m = std::min(laser.range_max_m, insert_range_m);
   ptem_scan.points_W = points_W;
   world.insert_ptem_on_strand(ptem_scan);
 }

@@ -1,4 +1,5 @@
 #include <boost/asio/post.hpp>
+#include <limits>
 #include <variant>
 #include <vector>
 
@@ -26,7 +27,7 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
                         const PointCloudModel& cloud, const v1::PointCloud& message) {
   const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(cloud.X_BS);
   const Eigen::Vector2d origin_W = X_WS.translation().head<2>();
-  target.touch(origin_W, cloud.range_max_m);
+  target.touch(origin_W, cloud.beam_limits.reach_m(cloud.range_max_m));
   const double top_m = footprint_height_m(model.footprint);
   // Points lower than this above the ground are the ground itself (noise on a flat floor), not obstacles.
   const double ground_band_m = target.octomap_params.terrain.ground_band_m;
@@ -36,10 +37,20 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
     points_S.emplace_back(message.xyz(i), message.xyz(i + 1), message.xyz(i + 2));
     const Eigen::Vector3d p_W = X_WS.transform * points_S.back().cast<double>();
     if (p_W.z() < ground_band_m || p_W.z() > top_m) continue;
-    target.grid.insert_ray(origin_W, p_W.head<2>(), true);
+    const Eigen::Vector2d ray_W = p_W.head<2>() - origin_W;
+    const double length_m = ray_W.norm();
+    if (length_m == 0.0) {
+      target.grid.insert_ray(origin_W, origin_W, true);
+      continue;
+    }
+    // A point has no "no return": every one is a return, however far.
+    insert_limited_ray(target.grid, origin_W, ray_W / length_m, length_m, std::numeric_limits<double>::infinity(),
+                       cloud.beam_limits);
   }
   target.octree_work.emplace_back(
-      [X_WS, points_S = std::move(points_S)](mapping::OctoMapModel& octomap) { octomap.insert_cloud(X_WS, points_S); });
+      [X_WS, limits = cloud.beam_limits, points_S = std::move(points_S)](mapping::OctoMapModel& octomap) {
+        octomap.insert_cloud(X_WS, points_S, limits);
+      });
 }
 
 void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
@@ -49,7 +60,8 @@ void handle_point_cloud(const SessionPtr& session, v1::PointCloud message) {
     return;
   }
   const ServerConfig& config = session->core().config();
-  const std::uint64_t voxels = cloud_voxel_estimate(message, config.octomap.max_range_m, config.octomap.resolution_m);
+  const std::uint64_t voxels = cloud_voxel_estimate(message, *robot->model().find_point_cloud(message.sensor()),
+                                                    config.octomap.max_range_m, config.octomap.resolution_m);
   if (auto error = check_voxel_budget(voxels, config.limits.max_scan_voxels, "point_cloud.xyz")) {
     reject_sensor_message(session, *robot, *error, message.seq());
     return;

@@ -274,6 +274,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
   status->set_server_version("occgeod 0.1.0");
   status->set_clients(core.sessions.load());
   status->set_uptime_s(core.uptime_s());
+  status->set_resident_bytes(process_resident_bytes().value_or(0));
   for (const auto& robot : core.robots()) {
     const RobotState state = robot->state();
     auto* out = status->add_robots();
@@ -335,6 +336,11 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_octomap_nodes(snapshots.octomap->node_count());
     out->set_octomap_leaves(world->octomap_leaf_count(*snapshots.octomap));
     out->set_octomap_resolution_m(snapshots.octomap->resolution());
+    const WorldMemory memory = world->memory();
+    out->set_grid_bytes(memory.grid_bytes);
+    out->set_distance_field_bytes(memory.distance_field_bytes);
+    out->set_octomap_bytes(memory.octomap_bytes);
+    out->set_ptem_bytes(memory.ptem_bytes);
   }
   session->send(reply);
 }

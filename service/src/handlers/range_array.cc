@@ -17,9 +17,9 @@ void insert_range_array(IngestTarget& target, const geometry::Pose2& X_WB, const
   for (std::size_t k = 0; k < array.X_SE.size(); ++k) {
     const double reading = static_cast<double>(message.ranges(static_cast<int>(k)));
     const geometry::Pose2 X_WE = planar_beam_pose(X_WB, array.X_BS, array.X_SE[k]);
-    insert_beam(target.grid, X_WE, reading, array.range_min_m, array.range_max_m);
+    insert_beam(target.grid, X_WE, reading, array.range_min_m, array.range_max_m, array.beam_limits);
     insert_beam_3d(target, X_WS.compose(geometry::Pose3::from_pose2(array.X_SE[k])), reading, array.range_min_m,
-                   array.range_max_m);
+                   array.range_max_m, array.beam_limits);
   }
 }
 

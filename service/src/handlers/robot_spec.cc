@@ -14,7 +14,8 @@ void handle_robot_spec(const SessionPtr& session, const v1::RobotSpec& spec) {
     return;
   }
   FieldError error;
-  auto model = robot_model_from_spec(info.robot_id, spec, session->core().config().limits, error);
+  auto model = robot_model_from_spec(info.robot_id, spec, session->core().config().limits, error,
+                                     session->core().config().sensors);
   if (!model) {
     session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message);
     return;

@@ -186,11 +186,11 @@ void IngestTarget::touch(const Eigen::Vector2d& p_W, double radius_m) {
 }
 
 void insert_beam_3d(IngestTarget& target, const geometry::Pose3& X_WE, double reading_m, double range_min_m,
-                    double range_max_m) {
-  target.touch(X_WE.translation().head<2>(), range_max_m);
+                    double range_max_m, const mapping::BeamLimits& limits) {
+  target.touch(X_WE.translation().head<2>(), limits.reach_m(range_max_m));
   if (reading_m < range_min_m) return;
-  target.octree_work.emplace_back([X_WE, reading_m, range_max_m](mapping::OctoMapModel& octomap) {
-    octomap.insert_ray(X_WE, reading_m, range_max_m);
+  target.octree_work.emplace_back([X_WE, reading_m, range_max_m, limits](mapping::OctoMapModel& octomap) {
+    octomap.insert_ray(X_WE, reading_m, range_max_m, limits);
   });
 }
 
@@ -200,12 +200,22 @@ geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Po
 }
 
 void insert_beam(mapping::HimmGrid& grid, const geometry::Pose2& X_WE, double reading_m, double range_min_m,
-                 double range_max_m) {
+                 double range_max_m, const mapping::BeamLimits& limits) {
   if (reading_m < range_min_m) return;
-  const double range = std::min(reading_m, range_max_m);
-  const Eigen::Vector2d origin = X_WE.position();
-  const Eigen::Vector2d end = origin + range * Eigen::Vector2d(std::cos(X_WE.theta), std::sin(X_WE.theta));
-  grid.insert_ray(origin, end, reading_m < range_max_m);
+  insert_limited_ray(grid, X_WE.position(), Eigen::Vector2d(std::cos(X_WE.theta), std::sin(X_WE.theta)), reading_m,
+                     range_max_m, limits);
+}
+
+void insert_limited_ray(mapping::HimmGrid& grid, const Eigen::Vector2d& origin_W, const Eigen::Vector2d& direction_W,
+                        double reading_m, double range_max_m, const mapping::BeamLimits& limits) {
+  const mapping::BeamUse use = mapping::beam_use(reading_m, range_max_m, limits);
+  if (use.hit && use.free_m >= reading_m) {
+    grid.insert_ray(origin_W, origin_W + reading_m * direction_W, true);
+    return;
+  }
+  if (use.free_m > 0.0) grid.insert_ray(origin_W, origin_W + use.free_m * direction_W, false);
+  // A ray from the end to itself marks only the end cell.
+  if (use.hit) grid.insert_ray(origin_W + reading_m * direction_W, origin_W + reading_m * direction_W, true);
 }
 
 }  // namespace occgeo::service

@@ -71,14 +71,19 @@ geometry::Pose2 planar_beam_pose(const geometry::Pose2& X_WB, const geometry::Po
                                  const geometry::Pose2& X_SE = {});
 
 // Applies one single-beam reading taken from a beam at X_WE on the ground plane: readings below
-// range_min_m carry no information and are skipped; readings at or beyond range_max_m clear the
-// beam up to range_max_m without marking; others clear up to the reading and mark its cell.
+// range_min_m carry no information and are skipped; the others change the grid as limits say
+// (mapping::beam_use: a return within max_insert_range_m is marked, free space is carved up to the
+// return, max_free_range_m or, for a reading at or beyond range_max_m, no_return_clear_m).
 void insert_beam(mapping::HimmGrid& grid, const geometry::Pose2& X_WE, double reading_m, double range_min_m,
-                 double range_max_m);
+                 double range_max_m, const mapping::BeamLimits& limits = {});
+
+// The same for one beam from origin_W along the unit direction_W in the grid.
+void insert_limited_ray(mapping::HimmGrid& grid, const Eigen::Vector2d& origin_W, const Eigen::Vector2d& direction_W,
+                        double reading_m, double range_max_m, const mapping::BeamLimits& limits);
 
 // The same reading in the OctoMap, along the x axis of the beam's full 6-DoF pose X_WE (robot pose
 // at z = 0 ∘ mount ∘ element), and marks the cells it may touch in target.touched.
 void insert_beam_3d(IngestTarget& target, const geometry::Pose3& X_WE, double reading_m, double range_min_m,
-                    double range_max_m);
+                    double range_max_m, const mapping::BeamLimits& limits = {});
 
 }  // namespace occgeo::service

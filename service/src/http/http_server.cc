@@ -58,7 +58,25 @@ Response make_response(const Request& request, bhttp::status status, std::string
   return response;
 }
 
-Response route(const Request& request) {
+// Brings the memory gauges up to date for a scrape: each world's model sizes and the process's resident memory.
+void record_memory_metrics(ServerCore& core) {
+  for (const auto& world : core.worlds()) {
+    const WorldMemory memory = world->memory();
+    for (const auto& [model, bytes] :
+         {std::pair{"grid", memory.grid_bytes}, std::pair{"distance_field", memory.distance_field_bytes},
+          std::pair{"octomap", memory.octomap_bytes}, std::pair{"ptem", memory.ptem_bytes}}) {
+      metrics::gauge("occgeo_world_model_bytes", {{"world", world->name()}, {"model", model}},
+                     "Heap bytes of a world's model as of its latest snapshot, counted by the server")
+          .set(static_cast<std::int64_t>(bytes));
+    }
+  }
+  if (const auto resident = process_resident_bytes()) {
+    metrics::gauge("occgeo_process_resident_bytes", {}, "Resident memory of the server process (/proc/self/statm)")
+        .set(static_cast<std::int64_t>(*resident));
+  }
+}
+
+Response route(ServerCore& core, const Request& request) {
   std::string_view target(request.target().data(), request.target().size());
   if (const auto query = target.find('?'); query != std::string_view::npos) target = target.substr(0, query);
   if (request.method() != bhttp::verb::get) {
@@ -68,6 +86,7 @@ Response route(const Request& request) {
     return response;
   }
   if (target == "/metrics") {
+    record_memory_metrics(core);
     return make_response(request, bhttp::status::ok, "text/plain; version=0.0.4; charset=utf-8", metrics::render());
   }
   const std::string_view asset_path = target == "/" ? "/index.html" : target;
@@ -410,7 +429,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request));
       return;
     }
-    auto response = std::make_shared<Response>(route(request));
+    auto response = std::make_shared<Response>(route(core_, request));
     metrics::counter("occgeo_http_requests_total",
                      {{"path", path_label(target)}, {"code", std::to_string(response->result_int())}})
         .inc();

@@ -66,6 +66,16 @@ class DistanceFieldSnapshot {
   // direction is undefined. Throws like compute_clearance.
   [[nodiscard]] Eigen::Vector2d clearance_gradient(const geometry::ClearanceRequest& request) const;
 
+  // Heap bytes of the reference blocks this snapshot holds and their directory (blocks shared with the previous
+  // snapshot counted once here, as the field keeps one copy of each between updates).
+  [[nodiscard]] std::size_t memory_bytes() const {
+    std::size_t blocks = 0;
+    for (const auto& block : refs_.blocks) blocks += block != nullptr ? 1 : 0;
+    constexpr std::size_t kControlBlockAndHeader = 32;
+    return refs_.blocks.capacity() * sizeof(RefBlocks::value_type) +
+           blocks * (sizeof(RefBlock) + kControlBlockAndHeader);
+  }
+
   // Number of compute_clearance and clearance_gradient calls so far that needed an exact check (local or global).
   [[nodiscard]] std::uint64_t exact_fallback_count() const { return fallbacks_.load(std::memory_order_relaxed); }
 

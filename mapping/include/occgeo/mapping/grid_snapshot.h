@@ -57,6 +57,9 @@ class GridSnapshot final : public geometry::OccupiedCellSource {
   [[nodiscard]] std::size_t occupied_cell_count() const { return occupied_cells_; }
   // Largest certainty a cell can hold (HimmParams::max_certainty).
   [[nodiscard]] int max_certainty() const { return max_certainty_; }
+  // Heap bytes of the tiles this snapshot holds (cells, tile records, their shared pointers and the index), counted;
+  // the live grid shares these tiles, so this is the grid's memory too.
+  [[nodiscard]] std::size_t memory_bytes() const;
 
  private:
   friend class HimmGrid;

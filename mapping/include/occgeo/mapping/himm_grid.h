@@ -12,6 +12,7 @@
 #include "occgeo/geometry/cell.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/mapfile/map_file.h"
+#include "occgeo/mapping/beam_limits.h"
 #include "occgeo/mapping/grid_snapshot.h"
 #include "occgeo/mapping/himm_params.h"
 #include "occgeo/mapping/tiles.h"
@@ -37,9 +38,11 @@ class HimmGrid {
   // (radians, counter-clockwise from the sensor's x axis) and starts at the sensor's position; readings >= range_max
   // (metres, +inf included) clear their beam up to range_max and mark nothing. Throws std::invalid_argument, changing
   // nothing, for a NaN or negative reading (naming its index), a non-finite pose or angle, a range_max that is not
-  // finite and positive, or a pose more than 2^30 cells from the origin.
+  // finite and positive, or a pose more than 2^30 cells from the origin. limits cut what each reading changes
+  // (beam_use): a return beyond limits.max_insert_range_m is not marked, no beam clears beyond max_free_range_m, a
+  // no-return beam clears only up to no_return_clear_m.
   void insert_scan(const geometry::Pose2& X_WS, float angle_min, float angle_increment, std::span<const float> ranges,
-                   float range_max);
+                   float range_max, const BeamLimits& limits = {});
 
   // Certainty of cell c; 0 when c was never observed.
   [[nodiscard]] std::uint8_t certainty(const geometry::CellIndex& c) const;

@@ -14,6 +14,7 @@
 
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/mapping/beam_limits.h"
 #include "occgeo/mapping/terrain_params.h"
 
 // A 3D occupancy octree (OctoMap) per world. OctoMap, FCL and PCL stay inside octomap_*.cc: this header names none of
@@ -149,6 +150,10 @@ class OctoMapSnapshot {
   [[nodiscard]] std::size_t node_count() const;
   // The model's version when the snapshot was taken.
   [[nodiscard]] std::uint64_t version() const { return version_; }
+  // Heap bytes of the model as of this snapshot, counted from node numbers (each node and each inner node's array of
+  // child pointers is an allocation of its own): the snapshot's tiles (trees and column summaries) plus the live tree
+  // the model inserts into, whose node count publish records.
+  [[nodiscard]] std::size_t memory_bytes() const;
 
  private:
   friend class OctoMapModel;
@@ -182,21 +187,24 @@ class OctoMapModel {
   // sensor's x-y plane. Readings >= range_max (metres, +inf included) or beyond params.max_range_m clear their beam up
   // to the shorter of the two and mark nothing; a reading of 0 means "no return" and is skipped. Throws
   // std::invalid_argument, changing nothing, for a NaN or negative reading (naming its index), a non-finite pose or
-  // angle, or a range_max that is not finite and positive.
+  // angle, or a range_max that is not finite and positive. limits (each capped at params.max_range_m) cut what each
+  // reading changes, as beam_use says.
   void insert_scan(const geometry::Pose3& X_WS, float angle_min, float angle_increment, std::span<const float> ranges,
-                   float range_max);
+                   float range_max, const BeamLimits& limits = {});
 
   // Applies single readings (a sonar's acoustic axis, a servo-swept beam): each is a ray along the x axis of its own
   // sensor pose X_WS; a range >= range_max_m clears up to range_max_m (capped at params.max_range_m) and marks
   // nothing. Throws std::invalid_argument, changing nothing, for a NaN or negative range, a non-finite pose, or a
-  // range_max_m that is not finite and positive.
-  void insert_ray(const geometry::Pose3& X_WS, double range_m, double range_max_m);
+  // range_max_m that is not finite and positive. limits as in insert_scan.
+  void insert_ray(const geometry::Pose3& X_WS, double range_m, double range_max_m, const BeamLimits& limits = {});
 
   // Applies a point cloud given in the frame of a sensor at pose X_WS: non-finite points (organized clouds' NaNs) are
   // dropped, the rest go through the PCL filters the params enable (in the world frame), then each is a ray from the
   // sensor's position. Returns the number of points inserted after filtering. Throws std::invalid_argument, changing
-  // nothing, for a non-finite pose.
-  std::size_t insert_cloud(const geometry::Pose3& X_WS, std::span<const Eigen::Vector3f> points_S);
+  // nothing, for a non-finite pose. limits as in insert_scan: a point beyond limits.max_insert_range_m only carves its
+  // ray up to that distance (clouds have no "no return").
+  std::size_t insert_cloud(const geometry::Pose3& X_WS, std::span<const Eigen::Vector3f> points_S,
+                           const BeamLimits& limits = {});
 
   // Reads a .pcd file (any fields including x, y, z; binary_compressed too) with PCL's reader and inserts it as
   // insert_cloud does with the sensor at X_WS. Returns the number of points inserted. Throws std::runtime_error when

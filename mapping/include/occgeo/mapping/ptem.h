@@ -158,6 +158,8 @@ class PtemSnapshot {
   [[nodiscard]] std::optional<double> restricted_threshold() const { return f_r_; }
   // Number of scans the model had taken when the snapshot was made.
   [[nodiscard]] std::uint64_t scan_count() const { return scan_count_; }
+  // Heap bytes of its clusters (with their extents) and their threat terms.
+  [[nodiscard]] std::size_t memory_bytes() const;
   // Stamp of the latest scan, seconds; nullopt before the first scan.
   [[nodiscard]] std::optional<double> latest_stamp_s() const { return latest_stamp_s_; }
 

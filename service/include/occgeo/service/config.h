@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "occgeo/mapping/beam_limits.h"
 #include "occgeo/mapping/distance_field.h"
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/mapping/octomap_model.h"
@@ -156,6 +157,17 @@ inline mapping::DistanceFieldParams default_distance_field_params() {
   return params;
 }
 
+// What every sensor's readings change unless its RobotSpec says otherwise (section `sensors:`, the fields of
+// mapping::BeamLimits): enough for indoor sensors to map as far as they see, while an 80 m lidar costs each scan what
+// its near 30 m do (docs/CONFIG.md has the measurements).
+inline mapping::BeamLimits default_sensor_beam_limits() {
+  mapping::BeamLimits limits;
+  limits.max_insert_range_m = 30.0;
+  limits.max_free_range_m = 30.0;
+  limits.no_return_clear_m = 10.0;
+  return limits;
+}
+
 // Everything occgeod can be configured with; file keys mirror the field names.
 struct ServerConfig {
   std::string listen = "127.0.0.1:7700";
@@ -185,6 +197,8 @@ struct ServerConfig {
   // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
   // clearance queries are answered from the field.
   mapping::DistanceFieldParams distance_field = default_distance_field_params();
+  // Each sensor's reach into the maps unless its RobotSpec's SensorSpec.ranges says otherwise (section `sensors:`).
+  mapping::BeamLimits sensors = default_sensor_beam_limits();
 
   // Checks every field; throws ConfigError naming the first bad one.
   void validate() const;
