@@ -359,7 +359,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                    s.field("clearance_max_distance_m", config.queries.clearance_max_distance_m)
                        .field("network_threads", config.queries.network_threads)
                        .field("network_poll_us", config.queries.network_poll_us)
-                       .field("network_nice", config.queries.network_nice);
+                       .field("network_nice", config.queries.network_nice)
+                       .field("driver_loop", config.queries.driver_loop);
                  })
         .section("durability",
                  [&](Section& s) {

@@ -15,6 +15,7 @@
 #include <csignal>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -130,6 +131,11 @@ struct Server::Impl {
   std::vector<asio::executor_work_guard<asio::io_context::executor_type>> more_loops_work;  // kept until shutdown
   std::size_t next_loop = 0;                                                                // on control
   asio::strand<asio::io_context::executor_type> control = asio::make_strand(net);
+  // Robot drivers' sessions, once they said hello: a loop of their own, run by a thread at the process's priority
+  // that answers no client's queries, so a driver's scans are read and its commands written without waiting behind
+  // the query sessions sharing a network thread (queries.driver_loop).
+  std::unique_ptr<asio::io_context> driver_loop;
+  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> driver_loop_work;
   tcp::acceptor acceptor{control};
   asio::signal_set signals{control, SIGINT, SIGTERM};
   std::mutex sessions_mutex;
@@ -182,7 +188,8 @@ struct Server::Impl {
 
   void accept() {
     // Each loop is run by one thread, so a session on it needs no strand: its handlers never run concurrently.
-    acceptor.async_accept(loop_for_next_session(), [this](const boost::system::error_code& error, tcp::socket socket) {
+    asio::io_context& loop = loop_for_next_session();
+    acceptor.async_accept(loop, [this, &loop](const boost::system::error_code& error, tcp::socket socket) {
       if (error) {
         if (error != asio::error::operation_aborted) {
           log::warn("accept_failed", {{"error", error.message()}});
@@ -200,7 +207,7 @@ struct Server::Impl {
         if (silent_sessions_from(address) >= core.config().limits.max_silent_per_address) {
           evict_silent_session(&address);
         }
-        auto session = std::make_shared<Session>(core, session_shared, std::move(socket), core.next_session_id++);
+        auto session = std::make_shared<Session>(core, session_shared, loop, std::move(socket), core.next_session_id++);
         {
           const std::lock_guard lock(sessions_mutex);
           std::erase_if(sessions, [](const auto& weak) { return weak.expired(); });
@@ -225,6 +232,7 @@ struct Server::Impl {
     }
     // The other loops end once the closes just posted to them have run.
     for (auto& work : more_loops_work) work.reset();
+    driver_loop_work.reset();
   }
 };
 
@@ -235,6 +243,11 @@ Server::Server(ServerConfig config) {
   for (std::size_t i = 1; i < impl_->core.config().queries.network_threads; ++i) {
     impl_->more_loops.push_back(std::make_unique<asio::io_context>(1));
     impl_->more_loops_work.push_back(asio::make_work_guard(*impl_->more_loops.back()));
+  }
+  if (impl_->core.config().queries.driver_loop) {
+    impl_->driver_loop = std::make_unique<asio::io_context>(1);
+    impl_->driver_loop_work.emplace(asio::make_work_guard(*impl_->driver_loop));
+    impl_->session_shared.driver_loop = impl_->driver_loop.get();
   }
   restore_worlds(impl_->core);
   impl_->core.world(impl_->core.config().default_world);
@@ -291,10 +304,16 @@ void Server::run() {
       run_network_loop(*loop, poll_us);
     });
   }
+  // Started before the calling thread lowers its priority, so the driver loop keeps the process's.
+  std::thread driver_thread;
+  if (impl_->driver_loop) {
+    driver_thread = std::thread([loop = impl_->driver_loop.get(), poll_us] { run_network_loop(*loop, poll_us); });
+  }
   // The calling thread serves `net` too. Threads it starts later inherit its niceness; every pool exists by now.
   lower_this_threads_priority(nice);
   run_network_loop(impl_->net, poll_us);
   for (std::thread& thread : more_network_threads) thread.join();
+  if (driver_thread.joinable()) driver_thread.join();
   if (impl_->http) impl_->http->stop();
   impl_->core.drain();
   save_worlds(impl_->core);

@@ -1,6 +1,7 @@
 #include "session.h"
 
 #include <google/protobuf/arena.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <boost/asio/io_context.hpp>
@@ -144,10 +145,11 @@ void WatchHub::publish_data(const std::shared_ptr<const v1::WatchEvent>& event) 
   for (const auto& session : targets) session->push_watch_event(event);
 }
 
-Session::Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket socket, std::uint64_t id)
+Session::Session(ServerCore& core, SessionShared& shared, asio::io_context& loop, asio::ip::tcp::socket socket,
+                 std::uint64_t id)
     : core_(core),
       shared_(shared),
-      executor_(socket.get_executor()),
+      loop_(&loop),
       socket_(socket.get_executor()),
       write_timer_(socket.get_executor()),
       hello_timer_(socket.get_executor()),
@@ -206,11 +208,11 @@ void Session::start() {
 
 void Session::close() {
   // Posted, never run inline: the caller may hold locks that closing takes (leases, the session list).
-  asio::post(executor_, [self = shared_from_this()] { self->shutdown(); });
+  post_here([self = shared_from_this()] { self->shutdown(); });
 }
 
 void Session::close_if_silent() {
-  asio::post(executor_, [self = shared_from_this()] {
+  post_here([self = shared_from_this()] {
     if (self->info_.greeted) return;
     log::info("session_evicted", {{"session", self->info_.id}, {"peer", self->info_.peer}, {"reason", "no hello yet"}});
     self->shutdown();
@@ -218,8 +220,42 @@ void Session::close_if_silent() {
 }
 
 bool Session::on_session_thread() const {
-  const auto* loop = executor_.target<asio::io_context::executor_type>();
-  return loop != nullptr && loop->running_in_this_thread();
+  return loop_.load(std::memory_order_acquire)->get_executor().running_in_this_thread();
+}
+
+bool Session::should_move_to_driver_loop() const {
+  return shared_.driver_loop != nullptr && !tls_ && info_.role == v1::ROLE_DRIVER && !writing_ && !reading_ &&
+         !write_timer_armed_ && loop_.load(std::memory_order_relaxed) != shared_.driver_loop;
+}
+
+bool Session::move_to_driver_loop() {
+  boost::system::error_code error;
+  const auto protocol = socket_.local_endpoint(error).protocol();
+  asio::ip::tcp::socket moved(*shared_.driver_loop);
+  if (!error) {
+    // release() takes the descriptor out of this loop's reactor; nothing is in flight on it (should_move...).
+    const auto handle = socket_.release(error);
+    if (!error) {
+      moved.assign(protocol, handle, error);
+      if (error) {
+        // The descriptor is no longer owned by any socket object: close it rather than leak it, and end the session.
+        ::close(handle);
+        log::warn("session_move_failed", {{"session", info_.id}, {"error", error.message()}});
+        shutdown();
+        return true;  // nothing left to do on either loop
+      }
+    }
+  }
+  if (error) {
+    log::warn("session_move_failed", {{"session", info_.id}, {"error", error.message()}});
+    return false;
+  }
+  socket_ = std::move(moved);
+  write_timer_ = asio::steady_timer(*shared_.driver_loop);
+  hello_timer_ = asio::steady_timer(*shared_.driver_loop);  // the old one's wait was cancelled at the hello
+  loop_.store(shared_.driver_loop, std::memory_order_release);
+  log::debug("session_moved_to_driver_loop", {{"session", info_.id}, {"robot", info_.robot_id}});
+  return true;
 }
 
 void Session::read_more() {
@@ -253,11 +289,21 @@ void Session::process_frames() {
   const bool budget_spent = dispatch_frames();
   corked_ = false;
   if (closed_) return;
+  if (move_pending_) {
+    move_pending_ = false;
+    if (move_to_driver_loop()) {
+      // The welcome and any frames after the hello are written and handled on the driver loop.
+      post_here([self = shared_from_this()] {
+        if (!self->closed_) self->process_frames();
+      });
+      return;
+    }
+  }
   if (!writing_) write_next();
   if (closed_ || close_after_write_ || read_paused_) return;
   if (budget_spent) {
     // More frames are buffered: let other work on this network thread run first, then go on.
-    asio::post(executor_, [self = shared_from_this()] {
+    post_here([self = shared_from_this()] {
       if (!self->closed_ && !self->read_paused_) self->process_frames();
     });
     return;
@@ -306,6 +352,10 @@ bool Session::dispatch_frames() {
       metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
       greeted_.store(true, std::memory_order_release);
       hello_timer_.cancel();
+      if (should_move_to_driver_loop()) {
+        move_pending_ = true;
+        return false;
+      }
     }
   }
   return false;
@@ -342,7 +392,7 @@ void Session::send(const v1::ServerMessage& message) {
   // Encoding happens on the caller's thread so the network thread only moves bytes. Posted (not run inline even on
   // this session's thread): the caller may be another session's handler holding locks that closing this one takes.
   std::string frame = proto::encode_frame(message);
-  asio::post(executor_, [self = shared_from_this(), frame = std::move(frame)] { self->enqueue(frame); });
+  post_here([self = shared_from_this(), frame = std::move(frame)] { self->enqueue(frame); });
 }
 
 void Session::refuse_busy(const v1::ClientMessage& message, std::size_t backlog) {
@@ -411,9 +461,8 @@ void Session::publish_data(std::shared_ptr<v1::WatchEvent> event) {
 }
 
 void Session::push_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
-  asio::post(executor_, [self = shared_from_this(), event = std::move(event)]() mutable {
-    self->enqueue_watch_event(std::move(event));
-  });
+  post_here(
+      [self = shared_from_this(), event = std::move(event)]() mutable { self->enqueue_watch_event(std::move(event)); });
 }
 
 void Session::enqueue_watch_event(std::shared_ptr<const v1::WatchEvent> event) {
@@ -443,7 +492,7 @@ void Session::after_enqueue() {
   }
   if (read_paused_ && pending_requests_.load() < core_.config().limits.max_pending_requests) {
     read_paused_ = false;
-    asio::post(executor_, [self = shared_from_this()] {
+    post_here([self = shared_from_this()] {
       if (!self->closed_ && !self->read_paused_) self->process_frames();
     });
   }

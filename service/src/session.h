@@ -57,6 +57,9 @@ struct SessionShared {
   WatchHub watch;
   HelloThrottle hello_throttle;
   std::shared_ptr<asio::ssl::context> tls;  // null: plain TCP
+  // The event loop robot drivers' sessions move to once they said hello (plain TCP), run by a thread that answers
+  // no queries; null: they stay on the loop that accepted them.
+  asio::io_context* driver_loop = nullptr;
 };
 
 // One client connection. Reads frames on its strand and hands them to the handlers; replies
@@ -67,7 +70,9 @@ struct SessionShared {
 // queries in flight is not read until some are answered.
 class Session final : public SessionContext, public std::enable_shared_from_this<Session> {
  public:
-  Session(ServerCore& core, SessionShared& shared, asio::ip::tcp::socket socket, std::uint64_t id);
+  // loop: the event loop the socket was accepted on, run by one thread.
+  Session(ServerCore& core, SessionShared& shared, asio::io_context& loop, asio::ip::tcp::socket socket,
+          std::uint64_t id);
   ~Session() override;
 
   void start();
@@ -114,6 +119,24 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   bool dispatch_frames();
   // True on the thread running this session's event loop (its handlers all run there, one at a time).
   [[nodiscard]] bool on_session_thread() const;
+  // Runs f on this session's event loop later. A driver's session changes loops once (move_to_driver_loop): what was
+  // posted to the old loop before then is passed on to the new one, so f always runs on the session's own thread.
+  template <typename Function>
+  void post_here(Function&& f) {
+    asio::post(*loop_.load(std::memory_order_acquire),
+               [self = shared_from_this(), f = std::forward<Function>(f)]() mutable {
+                 if (!self->on_session_thread()) {
+                   self->post_here(std::move(f));
+                   return;
+                 }
+                 f();
+               });
+  }
+  // Whether this session should move to the driver loop now: a plain-TCP driver just greeted, nothing in flight.
+  [[nodiscard]] bool should_move_to_driver_loop() const;
+  // Moves the socket and timers to shared_.driver_loop; on this session's thread, with no read or write in flight.
+  // False (the session stays) when the socket cannot be handed over.
+  bool move_to_driver_loop();
   // Checks the outbox after frames were appended to it, then writes unless corked or a write is in progress.
   void after_enqueue();
   void enqueue(const std::string& frame);
@@ -128,8 +151,9 @@ class Session final : public SessionContext, public std::enable_shared_from_this
 
   ServerCore& core_;
   SessionShared& shared_;
-  // The session's event loop, run by one thread: no strand is needed to keep its handlers apart.
-  asio::any_io_executor executor_;
+  // The session's event loop, run by one thread: no strand is needed to keep its handlers apart. Changes once at
+  // most, from the accepting loop to the driver loop, on the session's own thread.
+  std::atomic<asio::io_context*> loop_;
   asio::ip::tcp::socket socket_;  // plain TCP; unused (moved into tls_) with TLS
   std::unique_ptr<asio::ssl::stream<asio::ip::tcp::socket>> tls_;
   asio::steady_timer write_timer_;
@@ -161,6 +185,7 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   bool corked_ = false;  // frames are being dispatched: replies queue up for one write after them
   bool close_after_write_ = false;
   bool closed_ = false;
+  bool move_pending_ = false;  // a driver's hello was handled: dispatching stops until the session has moved
 };
 
 }  // namespace occgeo::service

@@ -348,6 +348,48 @@ TEST(Backpressure, AQueryFloodDoesNotStarveIngestOrOtherClients) {
   EXPECT_TRUE(server->running());
 }
 
+// A driver's session moves to the driver loop (queries.driver_loop) right after its hello, also when the spec and
+// the first scans arrive in the same write as the hello: they are handled after the move, in order, and answered
+// after the welcome. With the loop off the same bytes get the same answers.
+TEST(Backpressure, ADriversFramesBehindItsHelloInOneWriteAreAnsweredInOrderAfterItMovesToTheDriverLoop) {
+  for (const bool driver_loop : {true, false}) {
+    SCOPED_TRACE(driver_loop ? "driver loop" : "no driver loop");
+    TempDir dir;
+    auto server = start_server(
+        dir, std::string("log_level: debug\nqueries:\n  driver_loop: ") + (driver_loop ? "true" : "false") + "\n");
+    RawClient client(server->port(), 1 << 20);
+    std::string burst;
+    v1::ClientMessage hello;
+    *hello.mutable_hello() = sim::make_driver_hello("bot", "");
+    proto::append_frame(hello, burst);
+    v1::ClientMessage spec;
+    *spec.mutable_robot_spec() = bearcat_spec();
+    proto::append_frame(spec, burst);
+    constexpr std::uint64_t kScans = 3;
+    for (std::uint64_t seq = 1; seq <= kScans; ++seq) {
+      const double t = 0.1 * static_cast<double>(seq);
+      proto::append_frame(sim::make_odometry_message(seq, t, {0.0, 0.0, 0.0}, {0.0, 0.0}), burst);
+      proto::append_frame(sim::make_laser_scan_message("front_laser", seq, t, room_ranges(0.0, 0.0, 0.0)), burst);
+    }
+    client.send_bytes(burst);
+    const auto first = client.receive(5s);
+    ASSERT_TRUE(first && first->has_welcome()) << (first ? first->DebugString() : "nothing");
+    std::vector<std::uint64_t> acked;
+    std::size_t commands = 0;
+    for (int i = 0; i < 50 && acked.size() < kScans; ++i) {
+      const auto reply = client.receive(5s);
+      ASSERT_TRUE(reply) << "no answer after " << acked.size() << " acks";
+      ASSERT_FALSE(reply->has_error()) << reply->DebugString();
+      if (reply->has_scan_ack()) acked.push_back(reply->scan_ack().seq());
+      if (reply->has_motion_command()) ++commands;
+    }
+    EXPECT_EQ(acked, (std::vector<std::uint64_t>{1, 2, 3}));
+    EXPECT_GE(commands, 1U) << "the server steered the robot from its scans";
+    const bool moved = server->log().find("session_moved_to_driver_loop") != std::string::npos;
+    EXPECT_EQ(moved, driver_loop);
+  }
+}
+
 // The niceness of each of the process's threads, from /proc (field 19 of each task's stat, counted after the
 // command name, which may hold spaces).
 std::vector<int> thread_niceness(pid_t pid) {

@@ -28,6 +28,8 @@ class RawClient {
   void send(const v1::ClientMessage& message) {
     boost::asio::write(socket_, boost::asio::buffer(proto::encode_frame(message)));
   }
+  // Already framed bytes (several frames in one write, as a client batching its writes sends them).
+  void send_bytes(const std::string& frames) { boost::asio::write(socket_, boost::asio::buffer(frames)); }
   // Sends without ever blocking longer than `limit`; false when the bytes could not all be written in time.
   bool send_within(const v1::ClientMessage& message, std::chrono::milliseconds limit) {
     const std::string frame = proto::encode_frame(message);

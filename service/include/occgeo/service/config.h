@@ -108,6 +108,10 @@ struct QueryConfig {
   // Niceness the network threads add to their own (Linux, 0-19). They answer queries inline; at a lower priority than
   // the ingest and control threads, a flood of queries slows the queries, not the robot's map updates and commands.
   int network_nice = 5;
+  // Robot drivers' sessions (plain TCP) move after their hello to an event loop of their own, served by a thread at
+  // the process's priority that answers no queries: scans are read and commands written without queuing behind
+  // query sessions. false: they stay on the network thread that accepted them.
+  bool driver_loop = true;
 };
 
 // The HTTP listener: the live web view (/), its WebSocket (/ws) and Prometheus metrics (/metrics).
