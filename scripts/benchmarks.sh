@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Runs the benchmarks side by side in one go and writes docs/BENCHMARKS.md:
 #  - in-process: every Google Benchmark binary in BUILD_DIR/tests/bench;
+#  - the mix users run: 2 simulated robots at real rates with 64 query clients (default mix, then clearance only), on
+#    the seeded map and on the Intel log's map, command latency with and without the clients, next to redis GET;
 #  - over loopback: occgeo-load (one sequential client; 1, 16 and 64 clients; 16 clients pipelined 16 deep) next to
 #    redis-benchmark (PING and GET, the same client counts, -P 16 for the pipelined one) against a redis-server this
 #    script starts on 127.0.0.1 and stops;
@@ -85,6 +87,32 @@ occgeo_load() {  # NAME ARGS...
   "$load" --duration "$DURATION" --json --quiet "$@" >"$work/occgeo_$name.json" || true
 }
 
+# The mix users run, first: two simulated Bearcats streaming scans at their real rates (every model on) while 64 query
+# clients ask the default mix (collision, clearance, ptem, status), then only clearance; the robots alone for the
+# command latency without clients. Next to redis GET with 64 clients from the same run (below).
+occgeo_load mix --robots 2 --clients 64 --depth 1
+occgeo_load mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
+occgeo_load command_idle --robots 2 --clients 0
+# The same mix on a larger map: a server that replayed the Intel log first (its map several times the seeded open
+# field's), with the robots and clients added to that world.
+large_map_load() {
+  local dir="$work/large_map"
+  mkdir -p "$dir"
+  "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" \
+    --http 127.0.0.1:0 --log-level warn >"$dir/server.log" 2>&1 &
+  local pid=$!
+  for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
+  local server="127.0.0.1:$(cat "$dir/port")"
+  "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --format carmen \
+    "$DATASETS/carmen-intel/intel-corrected.log.gz" >/dev/null 2>&1 || true
+  "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/large_map.status.json" 2>/dev/null || true
+  occgeo_load mix_large --server "$server" --server-pid "$pid" --robots 2 --clients 64 --depth 1
+  kill "$pid" 2>/dev/null || true
+  wait "$pid" 2>/dev/null || true
+}
+DATASETS=${DATASETS:-../shared/datasets}
+[ -f "$DATASETS/carmen-intel/intel-corrected.log.gz" ] && large_map_load
+
 # The same shapes side by side: occgeo answers one collision query per request (a footprint against the map), redis
 # one GET of a 3-byte value (SET first so GET finds it) or a PING.
 occgeo_load c1 --robots 0 --clients 1 --depth 1 --mix collision
@@ -130,7 +158,6 @@ replay_log() {  # NAME, then the replay's arguments
   kill "$pid" 2>/dev/null || true
   wait "$pid" 2>/dev/null || true
 }
-DATASETS=${DATASETS:-../shared/datasets}
 if [ -d "$DATASETS" ]; then
   echo "benchmarks.sh: replaying the shared logs" >&2
   replay_log intel --format carmen "$DATASETS/carmen-intel/intel-corrected.log.gz"
@@ -219,6 +246,43 @@ for path in sorted(glob.glob(os.path.join(work, "inprocess", "*.json"))):
         add(f"| `{key}` | {fmt(ns / 1000.0, 3)} µs | {fmt(per_s)} {unit}/s |")
 if not inprocess:
     add("| (no benchmark binaries found) | | |")
+add("")
+
+# ---- the mix users run
+add("## The mix users run: robots attached")
+add("")
+add("Two simulated Bearcats stream LMS200 scans at 10 Hz each (every model on: grid, distance field, octree, PTEM,")
+add("in the open-field world, map seeded by 100 lockstep scans) while 64 query clients ask one request at a time. The")
+add("command latency runs from the send of a steering scan to the `MotionCommand` answering it. redis GET: 64 clients,")
+add("same run. \"Intel map\": the same, on a server that replayed the Intel log (910 scans) into the world first.")
+add("")
+add("| run | queries/s | p50 / p99 µs | command p50 / p99 ms | errors | redis GET/s | occgeo ÷ GET |")
+add("|---|---|---|---|---|---|---|")
+get64 = redis_rps(redis("c64"), "GET")
+mix_rows = [("mix", "2 robots, 64 clients, default mix"), ("mix_clearance", "2 robots, 64 clients, clearance only"),
+            ("mix_large", "2 robots, 64 clients, default mix, Intel map"), ("command_idle", "2 robots, no clients")]
+for name, label in mix_rows:
+    run = occgeo(name)
+    if not run:
+        add(f"| {label} | n/a | n/a | n/a | n/a | {fmt(get64)} | n/a |")
+        continue
+    qps = run.get("queries_per_s") or 0
+    ratio = f"{qps / get64:.2f}×" if qps and get64 else "–"
+    latency = f"{fmt(run['p50_us'], 1)} / {fmt(run['p99_us'], 1)}" if qps else "–"
+    command = (f"{run['command_p50_us'] / 1000:.2f} / {run['command_p99_us'] / 1000:.2f}"
+               if run.get("command_p50_us") is not None else "n/a")
+    add(f"| {label} | {fmt(qps) if qps else '–'} | {latency} | {command} | {run['errors']} | {fmt(get64)} | {ratio} |")
+add("")
+idle, loaded = occgeo("command_idle"), occgeo("mix")
+if idle and loaded and idle.get("command_p99_us") and loaded.get("command_p99_us"):
+    add(f"Command p99 with the 64 clients ÷ without: {loaded['command_p99_us'] / idle['command_p99_us']:.2f}×.")
+try:
+    large_status = json.loads(open(os.path.join(work, "large_map.status.json")).read())
+    add("The Intel map's world at the start of its run: " + ", ".join(
+        f"{w.get('name', '?')}: {w.get('octomap_leaves', 0):,} octree leaves, grid {w.get('grid_bytes', 0):,} B"
+        for w in large_status.get("worlds", [])) + ".")
+except (OSError, ValueError):
+    pass
 add("")
 
 # ---- loopback
@@ -400,6 +464,25 @@ def goal(text, ok, detail):
     else:
         add(f"- **{'met' if ok else 'MISSED'}**: {text} — {detail}")
 
+mix_run, clearance_run, idle_run = occgeo("mix"), occgeo("mix_clearance"), occgeo("command_idle")
+if mix_run and get64:
+    goal("2 robots + 64 clients, default mix: queries/s at least redis GET's, 0 errors",
+         mix_run["queries_per_s"] >= get64 and mix_run["errors"] == 0,
+         f"{mix_run['queries_per_s']:,.0f} vs {get64:,.0f} = {mix_run['queries_per_s'] / get64:.2f}×, {mix_run['errors']} errors")
+else:
+    goal("2 robots + 64 clients, default mix: queries/s at least redis GET's, 0 errors", None, "a run failed")
+if clearance_run and get64:
+    goal("2 robots + 64 clients, clearance only: queries/s at least redis GET's, 0 errors",
+         clearance_run["queries_per_s"] >= get64 and clearance_run["errors"] == 0,
+         f"{clearance_run['queries_per_s']:,.0f} vs {get64:,.0f} = {clearance_run['queries_per_s'] / get64:.2f}×")
+else:
+    goal("2 robots + 64 clients, clearance only: queries/s at least redis GET's, 0 errors", None, "a run failed")
+if mix_run and idle_run and mix_run.get("command_p99_us") and idle_run.get("command_p99_us"):
+    p99, idle_p99 = mix_run["command_p99_us"] / 1000, idle_run["command_p99_us"] / 1000
+    goal("command p99 with 64 clients ≤ 5 ms and within 1.5× of no clients", p99 <= 5.0 and p99 <= 1.5 * idle_p99,
+         f"{p99:.2f} ms loaded, {idle_p99:.2f} ms without clients ({p99 / idle_p99:.2f}×)")
+else:
+    goal("command p99 with 64 clients ≤ 5 ms and within 1.5× of no clients", None, "a run failed")
 ours, qps, ping, get = figures["c1"]
 if qps and ping:
     rt_ours, rt_ping = 1e6 / qps, 1e6 / ping
