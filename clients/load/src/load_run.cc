@@ -687,10 +687,14 @@ struct ClientThread {
     for (auto& client : clients) client->start();
     for (auto& observer : observers) observer->start();
     std::optional<Clock::time_point> drain_deadline;
+    // Keeps run_for waiting out its 20 ms while the thread has nothing to do (no clients, or all waiting for timers):
+    // without it an empty io_context returns at once and the loop would spin a core the server needs.
+    auto keep_waiting = asio::make_work_guard(io);
     while (true) {
       io.run_for(milliseconds(20));
       if (io.stopped()) io.restart();
       if (shared.stopping.load()) {
+        keep_waiting.reset();
         if (!drain_deadline) drain_deadline = Clock::now() + kDrainLimit;
         if (idle()) break;
         if (Clock::now() > *drain_deadline) {
