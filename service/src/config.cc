@@ -179,6 +179,8 @@ std::pair<std::string, std::uint16_t> split_host_port(const std::string& text, c
 void ServerConfig::validate() const {
   split_host_port(listen, "listen");
   split_host_port(http.listen, "http.listen");
+  require(http.max_connections >= 1 && http.max_connections <= 100000, "http.max_connections",
+          "must be between 1 and 100000");
   try {
     log::parse_level(log_level);
   } catch (const std::invalid_argument& e) {
@@ -369,7 +371,11 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("snapshot_interval_s", config.durability.snapshot_interval_s);
                  })
         .section("http",
-                 [&](Section& s) { s.field("listen", config.http.listen).field("enabled", config.http.enabled); })
+                 [&](Section& s) {
+                   s.field("listen", config.http.listen)
+                       .field("enabled", config.http.enabled)
+                       .field("max_connections", config.http.max_connections);
+                 })
         .section("himm",
                  [&](Section& s) {
                    auto& h = config.himm;

@@ -14,9 +14,12 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <optional>
 #include <regex>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "../support/http_get.h"
 #include "../support/process.h"
@@ -462,5 +465,35 @@ TEST(HttpAccess, RequestsWithoutTheTokenAndForeignOriginsAreRefused) {
   EXPECT_EQ(upgrade_status("/ws?token=s3cret", "http://attacker.example"), 403U);
 }
 
+// The HTTP side's own connections are capped (http.max_connections): one beyond them is closed at once, and a place
+// comes back when a connection ends. Idle connections are what a careless or hostile client leaves open.
+TEST(HttpAccess, ConnectionsBeyondTheCapAreClosedAndAPlaceComesBackWhenOneEnds) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "http:\n  max_connections: 3\n";
+  ServerProcess server(dir.path(), {"--config", config.string(), "--http", "127.0.0.1:0"});
+  const std::uint16_t port = http_port(server);
+  boost::asio::io_context io;
+  std::vector<std::unique_ptr<boost::asio::ip::tcp::socket>> idle;
+  for (int i = 0; i < 3; ++i) {
+    idle.push_back(std::make_unique<boost::asio::ip::tcp::socket>(io));
+    idle.back()->connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  }
+  // Accepted in order: the request's connection comes after the three idle ones and finds no place.
+  EXPECT_THROW(http_get(port, "/metrics"), std::exception);
+  idle.front()->close();
+  std::optional<HttpResult> metrics;
+  for (int attempt = 0; attempt < 100 && !metrics; ++attempt) {
+    try {
+      metrics = http_get(port, "/metrics");
+    } catch (const std::exception&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  ASSERT_TRUE(metrics) << "no place came back after an idle connection closed";
+  EXPECT_EQ(metrics->status, 200U);
+  EXPECT_NE(metrics->body.find("occgeo_http_refused_total 1"), std::string::npos) << metrics->body.substr(0, 2000);
+  EXPECT_NE(server.log().find("http_connection_refused"), std::string::npos);
+}
 }  // namespace
 }  // namespace occgeo::testing

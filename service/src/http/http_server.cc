@@ -103,6 +103,10 @@ Response route(ServerCore& core, const Request& request) {
                        "no such page; the live view is at /, metrics at /metrics\n");
 }
 
+// One of the http.max_connections places, held by a connection (and by the WebSocket it upgrades to) while it is
+// open; the count drops when the last holder goes.
+using ConnectionSlot = std::shared_ptr<void>;
+
 // A message to write on a WebSocket.
 struct Outgoing {
   std::string bytes;
@@ -122,9 +126,10 @@ class WebSocketSession : public std::enable_shared_from_this<Derived> {
     if (accepted_) metrics::gauge("occgeo_web_clients").dec();
   }
 
-  // subprotocol: answered in Sec-WebSocket-Protocol when not empty.
-  void run(Request request, std::string_view subprotocol = {}) {
+  // subprotocol: answered in Sec-WebSocket-Protocol when not empty. slot: the connection's place, kept while open.
+  void run(Request request, ConnectionSlot slot, std::string_view subprotocol = {}) {
     request_ = std::move(request);
+    slot_ = std::move(slot);
     beast::get_lowest_layer(ws_).expires_never();
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     if (!subprotocol.empty()) {
@@ -194,6 +199,7 @@ class WebSocketSession : public std::enable_shared_from_this<Derived> {
 
   websocket::stream<beast::tcp_stream> ws_;
   asio::steady_timer timer_;
+  ConnectionSlot slot_;
   Request request_;
   beast::flat_buffer read_buffer_;
   Outgoing current_;
@@ -385,7 +391,8 @@ std::optional<std::string_view> query_token(std::string_view target) {
 // an upgrade asking for the foxglove.websocket.v1 subprotocol (on any path) to a FoxgloveSocket.
 class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
  public:
-  HttpConnection(ServerCore& core, tcp::socket socket) : core_(core), stream_(std::move(socket)) {}
+  HttpConnection(ServerCore& core, tcp::socket socket, ConnectionSlot slot)
+      : core_(core), stream_(std::move(socket)), slot_(std::move(slot)) {}
 
   void read() {
     parser_.emplace();
@@ -421,12 +428,12 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (websocket::is_upgrade(request) && wants_foxglove(request)) {
       metrics::counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
       std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())
-          ->run(std::move(request), foxglove::kSubprotocol);
+          ->run(std::move(request), slot_, foxglove::kSubprotocol);
       return;
     }
     if (websocket::is_upgrade(request) && path_of(target) == "/ws") {
       metrics::counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
-      std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request));
+      std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request), slot_);
       return;
     }
     auto response = std::make_shared<Response>(route(core_, request));
@@ -491,6 +498,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
 
   ServerCore& core_;
   beast::tcp_stream stream_;
+  ConnectionSlot slot_;
   beast::flat_buffer buffer_;
   std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
 };
@@ -505,13 +513,26 @@ struct HttpServer::Impl {
   tcp::acceptor acceptor{io};
   std::thread thread;
 
+  // Open connections; shared with the slots, which may outlive this (a session ending after stop()).
+  std::shared_ptr<std::atomic<std::size_t>> open_connections = std::make_shared<std::atomic<std::size_t>>(0);
+
   void accept() {
     acceptor.async_accept([this](const beast::error_code& error, tcp::socket socket) {
       if (error) {
         if (error == asio::error::operation_aborted) return;
         log::warn("http_accept_failed", {{"error", error.message()}});
+      } else if (open_connections->load() >= core.config().http.max_connections) {
+        static metrics::Counter& refused = metrics::counter(
+            "occgeo_http_refused_total", {}, "HTTP connections closed at once: http.max_connections were open");
+        refused.inc();
+        log::warn("http_connection_refused",
+                  {{"open", open_connections->load()}, {"max_connections", core.config().http.max_connections}});
+        beast::error_code ignored;
+        socket.close(ignored);
       } else {
-        std::make_shared<HttpConnection>(core, std::move(socket))->read();
+        ++*open_connections;
+        ConnectionSlot slot(nullptr, [open = open_connections](void*) { --*open; });
+        std::make_shared<HttpConnection>(core, std::move(socket), std::move(slot))->read();
       }
       accept();
     });

@@ -27,28 +27,28 @@ class ConfigError : public std::runtime_error {
 
 // Resource limits that protect the server from bad or slow clients.
 struct LimitsConfig {
-  std::size_t max_frame_bytes = std::size_t{4} << 20;          // larger frames close the connection
-  std::size_t max_send_queue_bytes = std::size_t{32} << 20;    // a client whose unread replies exceed this is dropped
-  std::size_t max_clients = 1024;                              // concurrent sessions of any role
-  std::size_t max_robots = 256;                                // registered robots
-  std::uint32_t max_beams = 100000;                            // beams per laser in a RobotSpec
-  double max_abs_coordinate_m = 1.0e5;                         // odometry and query poses beyond this are rejected
-  double max_sensor_range_m = 200.0;                           // a RobotSpec's range_max_m above this is rejected
-  double max_query_distance_m = 100.0;                         // clearance search radius limit
-  std::size_t max_grid_reply_cells = std::size_t{16} << 20;    // whole-grid replies larger than this are refused
-  std::size_t max_point_cloud_points = 200000;                 // larger point clouds are rejected (each is a ray)
-  std::size_t max_ptem_query_points = 100000;                  // points per PtemQuery
+  std::size_t max_frame_bytes = std::size_t{4} << 20;        // larger frames close the connection
+  std::size_t max_send_queue_bytes = std::size_t{32} << 20;  // a client whose unread replies exceed this is dropped
+  std::size_t max_clients = 1024;                            // concurrent sessions of any role
+  std::size_t max_robots = 256;                              // registered robots
+  std::uint32_t max_beams = 100000;                          // beams per laser in a RobotSpec
+  double max_abs_coordinate_m = 1.0e5;                       // odometry and query poses beyond this are rejected
+  double max_sensor_range_m = 200.0;                         // a RobotSpec's range_max_m above this is rejected
+  double max_query_distance_m = 100.0;                       // clearance search radius limit
+  std::size_t max_grid_reply_cells = std::size_t{16} << 20;  // whole-grid replies larger than this are refused
+  std::size_t max_point_cloud_points = 200000;               // larger point clouds are rejected (each is a ray)
+  std::size_t max_ptem_query_points = 100000;                // points per PtemQuery
   // Octree voxels one laser scan or point cloud may touch (scan_voxel_estimate): more is refused naming the limit.
   std::uint64_t max_scan_voxels = 25000000;
   std::size_t max_octree_reply_bytes = std::size_t{16} << 20;  // OctreeReply.bt larger than this (or than
                                                                // max_send_queue_bytes / 2) is refused
-  std::size_t max_batch_queries = 100000;  // entries (poses, rays, points) in one batch request
-  std::size_t max_pending_requests = 64;       // a session's queries in flight; beyond it the server stops reading it
+  std::size_t max_batch_queries = 100000;                      // entries (poses, rays, points) in one batch request
+  std::size_t max_pending_requests = 64;  // a session's queries in flight; beyond it the server stops reading it
   // Queries in flight across all sessions (admitted, not yet answered). A query or observer session's request beyond
   // it is answered ERROR_BUSY at once, so a query flood cannot queue work ahead of the robots'.
   std::size_t max_query_backlog = 256;
   std::size_t max_watch_queue_messages = 256;  // WatchEvents queued per session; a slow watcher loses its oldest
-  double hello_timeout_s = 5.0;  // a connection that has not completed its hello by then is closed
+  double hello_timeout_s = 5.0;                // a connection that has not completed its hello by then is closed
   // Connections from one address that have not said hello yet; a newer one evicts the oldest of them, so idle
   // connections can neither pile up nor keep a robot's driver out.
   std::size_t max_silent_per_address = 64;
@@ -118,6 +118,9 @@ struct QueryConfig {
 struct HttpConfig {
   std::string listen = "127.0.0.1:7701";  // host:port; port 0 picks a free one
   bool enabled = true;                    // false: no HTTP listener at all
+  // Open HTTP connections at most (pages, scrapes and WebSockets together); one more is closed at once, so browsers
+  // and scrapers cannot pile up connections. Each request is timed out after 30 s, a WebSocket by its pings.
+  std::size_t max_connections = 64;
 };
 
 // What one world's PTEM overrides of the `ptem:` section (`ptem.worlds.<name>`); unset fields take the section's.
@@ -198,8 +201,9 @@ struct ServerConfig {
   // The terrain rule (section `terrain:`): surfaces the octree shows a robot can drive on (a ramp) are not obstacles
   // to its behaviour, planner and guard; ground_band_m is the floor's height band for every model.
   mapping::TerrainParams terrain;
-  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m). max_distance_m defaults to queries.clearance_max_distance_m's default so that default
-  // clearance queries are answered from the field.
+  // Every world's distance field over its HIMM grid (section `distance_field:`: max_distance_m). max_distance_m
+  // defaults to queries.clearance_max_distance_m's default so that default clearance queries are answered from the
+  // field.
   mapping::DistanceFieldParams distance_field = default_distance_field_params();
   // Each sensor's reach into the maps unless its RobotSpec's SensorSpec.ranges says otherwise (section `sensors:`).
   mapping::BeamLimits sensors = default_sensor_beam_limits();
