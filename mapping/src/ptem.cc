@@ -1,4 +1,5 @@
 #include "occgeo/mapping/ptem.h"
+#include "occgeo/geometry/fnv1a.h"
 
 #include <CGAL/Min_sphere_of_spheres_d.h>
 #include <CGAL/Min_sphere_of_spheres_d_traits_2.h>
@@ -358,14 +359,7 @@ constexpr std::string_view kExtentlessStateMagic = "OCCGEOP1";
 
 static_assert(std::endian::native == std::endian::little, "PTEM state is written in the host's byte order");
 
-std::uint64_t fnv1a(std::string_view bytes) {
-  std::uint64_t hash = 14695981039346656037ULL;
-  for (const char c : bytes) {
-    hash ^= static_cast<unsigned char>(c);
-    hash *= 1099511628211ULL;
-  }
-  return hash;
-}
+using geometry::fnv1a;
 
 class StateWriter {
  public:
@@ -478,7 +472,8 @@ bool PtemModel::restore(std::string_view bytes) {
     cluster.first_seen_scan = in.get<std::uint64_t>("clusters.first_seen_scan");
     cluster.first_seen_stamp_s = in.get<double>("clusters.first_seen_stamp_s");
     const auto extent_count = in.get<std::uint64_t>("clusters.extent count");
-    if (extent_count > body.size() / 16) throw std::invalid_argument("PTEM state is damaged: an extent count is impossible");
+    if (extent_count > body.size() / 16)
+      throw std::invalid_argument("PTEM state is damaged: an extent count is impossible");
     cluster.extent_W.resize(static_cast<std::size_t>(extent_count));
     for (Eigen::Vector2d& p_W : cluster.extent_W) {
       p_W.x() = in.get<double>("clusters.extent_W");

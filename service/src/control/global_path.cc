@@ -1,4 +1,5 @@
 #include "occgeo/service/control/global_path.h"
+#include "occgeo/geometry/pose.h"
 
 #include <algorithm>
 #include <cmath>
@@ -22,11 +23,7 @@ constexpr double kSqrt2 = std::numbers::sqrt2;
 // Cells this far from the origin are refused, as everywhere else in the grid code (2^30).
 constexpr double kMaxCellIndex = 1073741824.0;
 
-double wrap_angle(double angle_rad) {
-  double wrapped = std::remainder(angle_rad, 2.0 * std::numbers::pi);
-  if (wrapped <= -std::numbers::pi) wrapped += 2.0 * std::numbers::pi;
-  return wrapped;
-}
+using geometry::wrap_angle;
 
 // A cell of the window as (column, row).
 struct Local {

@@ -1,4 +1,5 @@
 #include "occgeo/service/control/loop_detector.h"
+#include "occgeo/geometry/pose.h"
 
 #include <cmath>
 #include <functional>
@@ -16,11 +17,7 @@ using detail::require_positive;
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-double wrap_angle(double angle_rad) {
-  double wrapped = std::remainder(angle_rad, 2.0 * std::numbers::pi);
-  if (wrapped <= -std::numbers::pi) wrapped += 2.0 * std::numbers::pi;
-  return wrapped;
-}
+using geometry::wrap_angle;
 
 // 0 is reserved for "no state", so a state hashing to 0 is moved to 1.
 std::uint64_t state_hash(const std::optional<std::string_view>& state) {

@@ -1,4 +1,5 @@
 #include "occgeo/service/control/pointbug.h"
+#include "occgeo/geometry/pose.h"
 
 #include <algorithm>
 #include <cmath>
@@ -24,11 +25,7 @@ constexpr double kReaimFactor = 4.0;
 // step_to_goal -> turn_to_sudden_point -> drive_to_sudden_point.
 constexpr int kMaxTransitionsPerDecision = 8;
 
-double wrap_angle(double angle_rad) {
-  double wrapped = std::remainder(angle_rad, 2.0 * std::numbers::pi);
-  if (wrapped <= -std::numbers::pi) wrapped += 2.0 * std::numbers::pi;
-  return wrapped;
-}
+using geometry::wrap_angle;
 
 void check_sweep(const Sweep& sweep) {
   require_positive("Sweep.range_max_m", sweep.range_max_m);

@@ -1,4 +1,5 @@
 #include "occgeo/service/control/ptem_guidance.h"
+#include "occgeo/geometry/pose.h"
 
 #include <algorithm>
 #include <cmath>
@@ -19,11 +20,7 @@ using detail::require_positive;
 constexpr double kPi = std::numbers::pi;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-double wrap_angle(double angle_rad) {
-  double wrapped = std::remainder(angle_rad, 2.0 * kPi);
-  if (wrapped <= -kPi) wrapped += 2.0 * kPi;
-  return wrapped;
-}
+using geometry::wrap_angle;
 
 Eigen::Vector2d unit(double angle_rad) { return {std::cos(angle_rad), std::sin(angle_rad)}; }
 

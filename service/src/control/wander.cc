@@ -1,4 +1,5 @@
 #include "occgeo/service/control/wander.h"
+#include "occgeo/geometry/pose.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,11 +16,7 @@ using detail::require_non_negative;
 using detail::require_positive;
 
 // Bearings are compared wrapped into (-pi, pi], so a ring given in [0, 2 pi) works too.
-double wrap_angle(double angle_rad) {
-  double wrapped = std::remainder(angle_rad, 2.0 * std::numbers::pi);
-  if (wrapped <= -std::numbers::pi) wrapped += 2.0 * std::numbers::pi;
-  return wrapped;
-}
+using geometry::wrap_angle;
 
 }  // namespace
 

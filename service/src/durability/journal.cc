@@ -14,6 +14,7 @@
 #include <iterator>
 
 #include "../metrics.h"
+#include "occgeo/geometry/fnv1a.h"
 
 namespace occgeo::service::durability {
 
@@ -89,17 +90,7 @@ bool decode_payload(std::string_view in, JournalRecord& record) {
 }  // namespace
 
 std::uint64_t message_fingerprint(std::string_view kind, std::string_view serialized) {
-  std::uint64_t hash = 14695981039346656037ULL;
-  const auto mix = [&](std::string_view bytes) {
-    for (const char c : bytes) {
-      hash ^= static_cast<unsigned char>(c);
-      hash *= 1099511628211ULL;
-    }
-  };
-  mix(kind);
-  mix(std::string_view("\0", 1));
-  mix(serialized);
-  return hash;
+  return geometry::fnv1a(serialized, geometry::fnv1a(std::string_view("\0", 1), geometry::fnv1a(kind)));
 }
 
 std::optional<SyncPolicy> parse_sync_policy(const std::string& name) {

@@ -8,6 +8,7 @@
 
 #include "../handlers/robot_control.h"
 #include "../validation.h"
+#include "occgeo/geometry/fnv1a.h"
 #include "occgeo/service/log.h"
 
 namespace occgeo::service::http {
@@ -55,12 +56,6 @@ void append_points(std::string& out, const std::vector<Point>& points) {
 
 void append_number(std::string& out, std::uint64_t value) { out += std::to_string(value); }
 void append_number(std::string& out, std::int64_t value) { out += std::to_string(value); }
-
-std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes) {
-  std::uint64_t hash = 14695981039346656037ULL;
-  for (const std::uint8_t b : bytes) hash = (hash ^ b) * 1099511628211ULL;
-  return hash;
-}
 
 std::uint64_t tile_key(std::int32_t tx, std::int32_t ty) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(tx)) << 32) | static_cast<std::uint32_t>(ty);
@@ -303,7 +298,7 @@ std::string LiveViewState::next_frame() {
       for (std::int32_t ty = ty0; ty <= ty1 && complete; ++ty) {
         for (std::int32_t tx = tx0; tx <= tx1; ++tx) {
           const auto cells = grid.window({tx * tile_cells, ty * tile_cells}, tile_cells, tile_cells);
-          const std::uint64_t hash = fnv1a(cells);
+          const std::uint64_t hash = geometry::fnv1a(std::span<const std::uint8_t>(cells));
           const std::uint64_t key = tile_key(tx, ty);
           const auto known = sent_tile_hashes_.find(key);
           if (known == sent_tile_hashes_.end()) {

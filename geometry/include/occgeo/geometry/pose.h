@@ -2,14 +2,17 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <numbers>
 
 namespace occgeo::geometry {
 
-// Wraps an angle in radians to [-pi, pi).
+// Wraps an angle in radians to (-pi, pi]: the one convention for headings and bearings everywhere (+pi, not -pi, for
+// straight behind).
 inline double wrap_angle(double a) {
-  a = std::fmod(a + M_PI, 2.0 * M_PI);
-  if (a < 0) a += 2.0 * M_PI;
-  return a - M_PI;
+  double wrapped = std::fmod(a + std::numbers::pi, 2.0 * std::numbers::pi);
+  if (wrapped < 0) wrapped += 2.0 * std::numbers::pi;
+  wrapped -= std::numbers::pi;
+  return wrapped <= -std::numbers::pi ? std::numbers::pi : wrapped;
 }
 
 // A planar pose: position in metres, heading in radians counter-clockwise from +x. Names of
