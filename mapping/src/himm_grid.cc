@@ -161,6 +161,25 @@ std::uint8_t HimmGrid::cell_value(const geometry::CellIndex& c) const {
   return tile == nullptr ? kUnobserved : tile->cells[static_cast<std::size_t>(layout_.offset_in_tile(c))];
 }
 
+void HimmGrid::set_certainty(const geometry::CellIndex& c, std::uint8_t certainty) {
+  if (certainty > params_.max_certainty) {
+    throw std::invalid_argument("set_certainty: certainty " + std::to_string(certainty) + " is above max_certainty " +
+                                std::to_string(params_.max_certainty));
+  }
+  const std::uint8_t before = cell_value(c);
+  if (before == certainty) return;
+  ++version_;
+  Tile& tile = writable_tile(layout_.tile_of(c));
+  tile.cells[static_cast<std::size_t>(layout_.offset_in_tile(c))] = certainty;
+  const bool was_occupied = before != kUnobserved && before >= params_.occupied_threshold;
+  const bool now_occupied = certainty >= params_.occupied_threshold;
+  if (was_occupied == now_occupied) return;
+  const int delta = now_occupied ? 1 : -1;
+  tile.occupied_cells += delta;
+  occupied_cells_ = static_cast<std::size_t>(static_cast<std::int64_t>(occupied_cells_) + delta);
+  note_occupancy_change(c);
+}
+
 Tile& HimmGrid::writable_tile(TileIndex t) {
   auto it = tiles_.find(t);
   if (it == tiles_.end()) {

@@ -6,6 +6,7 @@
 #include <octomap/OcTree.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -81,7 +82,29 @@ struct OctoMapSnapshot::Impl {
   std::size_t nodes_above_tiles = 0;
   // Nodes of the model's live tree at publication (OcTree::size, kept by the tree as it changes).
   std::size_t live_tree_nodes = 0;
+  // See OctoMapSnapshot::changed_columns.
+  std::optional<std::vector<OctoColumnRange>> changed_columns;
+  std::uint64_t changed_since_version = 0;
 };
+
+// The x-y columns of the tiles ids, once per x-y (ids in any order).
+template <typename Ids>
+std::vector<OctoColumnRange> columns_of_tiles(const Ids& ids) {
+  std::vector<std::uint32_t> xy;
+  for (const OctoTileId id : ids) xy.push_back(id & 0xFFFFU);
+  std::sort(xy.begin(), xy.end());
+  xy.erase(std::unique(xy.begin(), xy.end()), xy.end());
+  std::vector<OctoColumnRange> out;
+  out.reserve(xy.size());
+  constexpr std::int32_t kSide = std::int32_t{1} << kTileKeyBits;
+  for (const std::uint32_t packed : xy) {
+    // A key k is the voxel [(k - 32768) r, (k - 32767) r).
+    const std::int32_t x0 = static_cast<std::int32_t>(packed & 0xFFU) * kSide - 32768;
+    const std::int32_t y0 = static_cast<std::int32_t>(packed >> 8U) * kSide - 32768;
+    out.push_back({{x0, y0}, {x0 + kSide - 1, y0 + kSide - 1}});
+  }
+  return out;
+}
 
 // Runs the PCL filters params enables over points_W (all finite), in that order: voxel grid, then statistical outlier
 // removal; defined in octomap_filters.cc.

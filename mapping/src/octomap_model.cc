@@ -245,6 +245,19 @@ constexpr std::size_t heap_chunk(std::size_t size) { return std::max<std::size_t
 
 }  // namespace
 
+const std::optional<std::vector<OctoColumnRange>>& OctoMapSnapshot::changed_columns() const {
+  return impl_->changed_columns;
+}
+
+std::uint64_t OctoMapSnapshot::changed_since_version() const { return impl_->changed_since_version; }
+
+std::vector<OctoColumnRange> OctoMapSnapshot::all_columns() const {
+  std::vector<OctoTileId> ids;
+  ids.reserve(impl_->tiles.size());
+  for (const auto& [id, tile] : impl_->tiles) ids.push_back(id);
+  return columns_of_tiles(ids);
+}
+
 std::size_t OctoMapSnapshot::memory_bytes() const {
   const std::size_t node_bytes = heap_chunk(sizeof(octomap::OcTreeNode));
   const std::size_t children_bytes = heap_chunk(8 * sizeof(octomap::AbstractOcTreeNode*));
@@ -880,6 +893,10 @@ void OctoMapModel::load_bt(const std::filesystem::path& path) {
 }
 
 std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
+  // What this publish rebuilds, for projections kept in step (changed_columns); the first snapshot, and the first
+  // after a load, rebuild everything.
+  std::optional<std::vector<OctoColumnRange>> changed_columns;
+  if (!impl_->all_tiles_dirty && impl_->empty_tile) changed_columns = columns_of_tiles(impl_->dirty_tiles);
   impl_->update_tiles(params_);
   if (!impl_->empty_tile) {
     auto empty_tree = std::make_shared<octomap::OcTree>(params_.resolution_m);
@@ -900,6 +917,8 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   }
   snapshot_impl->nodes_above_tiles = above.size();
   snapshot_impl->live_tree_nodes = impl_->tree->size();
+  snapshot_impl->changed_columns = std::move(changed_columns);
+  snapshot_impl->changed_since_version = published_version_;
   std::shared_ptr<const OctoMapSnapshot> snapshot{
       new OctoMapSnapshot(std::move(snapshot_impl), version_, params_.terrain)};
   {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <boost/asio/post.hpp>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <future>
@@ -35,6 +36,7 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
       octomap_params_(params.octomap),
       octomap_(params.octomap),
       distance_field_(params.distance_field),
+      distance_field_params_(params.distance_field),
       strand_(std::move(strand)),
       // Published every message or every N messages (lockstep runs), the octree stays on the ingest strand.
       octree_lane_(params.octomap_publish_every_messages == 0 && params.octomap.min_publish_interval_s > 0.0
@@ -45,7 +47,12 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
   auto grid_snapshot = grid_.snapshot();
   static_cast<void>(grid_.take_occupancy_changes());  // the field starts from the whole grid
   distance_field_.update(grid_snapshot);
-  snapshot_ = {std::move(grid_snapshot), ptem_.snapshot(), distance_field_.snapshot(), octomap_.publish()};
+  snapshot_ = {std::move(grid_snapshot),
+               ptem_.snapshot(),
+               distance_field_.snapshot(),
+               octomap_.publish(),
+               std::make_shared<const std::vector<OctreeBandSnapshot>>(),
+               octree_band_requests_};
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
@@ -94,9 +101,7 @@ void World::apply_octree_work_here(const std::vector<OctreeWork>& work) {
     return;
   }
   if (octomap_.maybe_publish()) {
-    const std::lock_guard lock(snapshot_mutex_);
-    snapshot_.octomap = octomap_.snapshot();
-    snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
+    store_octomap_snapshot_here(octomap_.snapshot());
   } else if (octomap_.version() != octomap_.snapshot()->version() && !octomap_timer_armed_) {
     // The tree changed but its last snapshot is too recent: publish it once the interval has passed.
     octomap_timer_armed_ = true;
@@ -112,10 +117,24 @@ void World::apply_octree_work_here(const std::vector<OctreeWork>& work) {
   }
 }
 
-void World::publish_octomap_here() {
-  auto octomap = octomap_.publish();
+void World::publish_octomap_here() { store_octomap_snapshot_here(octomap_.publish()); }
+
+void World::store_octomap_snapshot_here(std::shared_ptr<const mapping::OctoMapSnapshot> octomap) {
+  for (const double top_m : octree_band_requests_->take()) {
+    const bool known = std::any_of(octree_bands_.begin(), octree_bands_.end(),
+                                   [&](const auto& band) { return band->top_m() == top_m; });
+    if (!known && octree_bands_.size() < kMaxOctreeBands && std::isfinite(top_m) && top_m > 0.0) {
+      octree_bands_.push_back(std::make_unique<OctreeBandField>(top_m, distance_field_params_));
+    }
+  }
+  auto bands = std::make_shared<std::vector<OctreeBandSnapshot>>();
+  for (const auto& band : octree_bands_) {
+    band->update(*octomap);
+    bands->push_back(band->snapshot());
+  }
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_.octomap = std::move(octomap);
+  snapshot_.octree_bands = std::move(bands);
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 

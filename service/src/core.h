@@ -28,6 +28,7 @@
 #include "occgeo/service/control/behaviour.h"
 #include "occgeo/v1/control.pb.h"
 #include "occgeo/v1/robot.pb.h"
+#include "octree_band_field.h"
 
 namespace occgeo::service::durability {
 class WorldJournal;
@@ -49,6 +50,10 @@ struct WorldSnapshot {
   std::shared_ptr<const mapping::PtemSnapshot> ptem;
   std::shared_ptr<const mapping::DistanceFieldSnapshot> distance;  // matches grid (same version)
   std::shared_ptr<const mapping::OctoMapSnapshot> octomap;
+  // The octree's clearance fields (one per footprint height asked for), of octomap's version; where a query's height
+  // has none it asks octree_band_requests for one and walks the octree meanwhile.
+  std::shared_ptr<const std::vector<OctreeBandSnapshot>> octree_bands;
+  std::shared_ptr<OctreeBandRequests> octree_band_requests;
 };
 
 // Heap bytes a world's models take, counted from their latest snapshots (see each snapshot's memory_bytes). The
@@ -157,6 +162,7 @@ class World : public std::enable_shared_from_this<World> {
   mapping::OctoMapParams octomap_params_;
   mapping::OctoMapModel octomap_;
   mapping::DistanceField distance_field_;
+  mapping::DistanceFieldParams distance_field_params_;  // also the octree band fields'
   IngestStrand strand_;
   std::optional<IngestStrand> octree_lane_;  // set when the octree's work runs off the ingest strand
   std::atomic<int> octree_backlog_{0};       // messages handed to the lane and not yet applied
@@ -167,6 +173,12 @@ class World : public std::enable_shared_from_this<World> {
   // Where the octree's work and publishing run: the lane or the ingest strand. Both only from there.
   void apply_octree_work_here(const std::vector<OctreeWork>& work);
   void publish_octomap_here();
+  // Brings the octree's clearance fields to octomap (making those queries asked for, kMaxOctreeBands at most) and
+  // swaps both in for readers: every octree publish ends here.
+  void store_octomap_snapshot_here(std::shared_ptr<const mapping::OctoMapSnapshot> octomap);
+  static constexpr std::size_t kMaxOctreeBands = 4;
+  std::vector<std::unique_ptr<OctreeBandField>> octree_bands_;
+  std::shared_ptr<OctreeBandRequests> octree_band_requests_ = std::make_shared<OctreeBandRequests>();
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
   // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).

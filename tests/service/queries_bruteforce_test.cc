@@ -18,6 +18,7 @@
 #include "occgeo/mapping/himm_grid.h"
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
+#include "octree_band_field.h"
 
 namespace occgeo::service {
 namespace {
@@ -89,7 +90,7 @@ RandomWorld make_world(std::mt19937& rng, int width, int height, int boxes, int 
   scan.max_range_m = 100.0;
   scan.points_W = points;
   ptem.insert_scan(scan);
-  world.snapshot = {grid, ptem.snapshot(), field.snapshot(), octomap.publish()};
+  world.snapshot = {grid, ptem.snapshot(), field.snapshot(), octomap.publish(), nullptr, nullptr};
   return world;
 }
 
@@ -771,7 +772,8 @@ TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpd
   int cases = 0, found = 0;
   // Answers the poses on snapshot against its occupied columns; returns what it answered.
   const auto check = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap, int poses) {
-    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap};
+    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, nullptr,
+                        nullptr};
     std::vector<Case> answered;
     for (int i = 0; i < poses; ++i, ++cases) {
       Case c{random_tall_footprint(rng), {}, false, 0.0};
@@ -802,7 +804,8 @@ TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpd
   };
   const auto answer_again = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap,
                                 const std::vector<Case>& before) {
-    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap};
+    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, nullptr,
+                        nullptr};
     for (const Case& c : before) {
       v1::ClearanceReply reply;
       answer_clearance(world, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
@@ -829,6 +832,122 @@ TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpd
   // The first snapshot still answers as it did.
   answer_again(first, first_answers);
   EXPECT_GE(cases, 1000);
+  EXPECT_GT(found, cases / 3);
+}
+
+// The octree's clearance from its maintained band fields (OctreeBandField, one per footprint height, updated snapshot
+// by snapshot from the tiles each publish rebuilt) against the voxels' columns: within a voxel, over two clusters of
+// boxes in different tiles (30 m apart) while only one of them changes per publish, voxels added and cleared, and an
+// older snapshot with its fields answering as it did.
+TEST(QueriesBruteForce, OctomapClearanceFromTheBandFieldsIsWithinAVoxelAcrossTilesAndUpdates) {
+  std::mt19937 rng(33);
+  const std::vector<v1::Model> octomap_only = {v1::MODEL_OCTOMAP};
+  constexpr int kWidth = 50, kHeight = 40, kFarX = 300;  // the second cluster starts 30 m away: another tile
+  constexpr double kMaxDistance = 1.5;
+  static constexpr std::array<double, 2> kHeights = {0.65, 1.45};
+  mapping::OctoMapParams params;
+  params.resolution_m = kCell;
+  mapping::OctoMapModel model(params);
+  std::vector<VoxelIndex> voxels;
+  std::uniform_int_distribution<int> x_of(0, kWidth - 1), y_of(0, kHeight - 1), z_of(0, 15), side(1, 5);
+  const auto add_boxes = [&](int boxes, int x_offset) {
+    for (int b = 0; b < boxes; ++b) {
+      const int x0 = x_of(rng), y0 = y_of(rng), w = side(rng), h = side(rng), z0 = z_of(rng), z1 = z0 + side(rng);
+      for (int x = x0; x < std::min(x0 + w, kWidth); ++x) {
+        for (int y = y0; y < std::min(y0 + h, kHeight); ++y) {
+          for (int z = z0; z < z1; ++z) {
+            voxels.push_back({x + x_offset, y, z});
+            mark_voxel(model, voxels.back());
+          }
+        }
+      }
+    }
+  };
+  mapping::DistanceFieldParams field_params;
+  field_params.max_distance_m = 1.0;  // below the queries' reach: the exact fallback is exercised too
+  std::vector<OctreeBandField> bands;
+  for (const double height : kHeights) bands.emplace_back(height, field_params);
+  const auto world_of = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap) {
+    auto snapshots = std::make_shared<std::vector<OctreeBandSnapshot>>();
+    for (OctreeBandField& band : bands) {
+      band.update(*octomap);
+      snapshots->push_back(band.snapshot());
+    }
+    return WorldSnapshot{
+        nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, std::move(snapshots), nullptr};
+  };
+  struct Case {
+    geometry::Footprint footprint;
+    geometry::Pose2 pose;
+    bool found;
+    double clearance_m;
+  };
+  int cases = 0, found = 0;
+  const auto check = [&](const WorldSnapshot& world, int poses) {
+    std::vector<Case> answered;
+    for (int i = 0; i < poses; ++i, ++cases) {
+      Case c{random_footprint(rng), {}, false, 0.0};
+      const double height = kHeights[std::uniform_int_distribution<std::size_t>(0, kHeights.size() - 1)(rng)];
+      std::visit([&](auto& shape) { shape.height = height; }, c.footprint);
+      if (find_octree_band(world.octree_bands.get(), height) == nullptr) {
+        ADD_FAILURE() << "no band for height " << height;
+        continue;
+      }
+      const double x_offset = (i % 2 == 0) ? 0.0 : kFarX * kCell;
+      c.pose = {x_offset + std::uniform_real_distribution<double>(-0.5, kWidth * kCell + 0.5)(rng),
+                std::uniform_real_distribution<double>(-0.5, kHeight * kCell + 0.5)(rng),
+                std::uniform_real_distribution<double>(-M_PI, M_PI)(rng)};
+      v1::ClearanceReply reply;
+      answer_clearance(world, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
+      const double exact =
+          brute_clearance(occupied_columns(*world.octomap, voxels, height), outline_of(c.footprint, c.pose));
+      c.found = reply.found();
+      c.clearance_m = reply.clearance_m();
+      answered.push_back(c);
+      if (exact > kMaxDistance + kCell) {
+        EXPECT_FALSE(reply.found()) << "case " << cases;
+        continue;
+      }
+      if (exact < kMaxDistance - kCell) {
+        EXPECT_TRUE(reply.found()) << "case " << cases << " exact " << exact;
+      }
+      if (!reply.found()) continue;
+      ++found;
+      EXPECT_GE(reply.clearance_m(), exact - 1e-9) << "case " << cases;
+      EXPECT_LE(reply.clearance_m(), exact + kCell + 1e-9) << "case " << cases;
+    }
+    return answered;
+  };
+
+  add_boxes(12, 0);
+  add_boxes(12, kFarX);
+  const WorldSnapshot first = world_of(model.publish());
+  const std::vector<Case> first_answers = check(first, 400);
+  // Only the near cluster changes: boxes added, every 7th voxel cleared.
+  add_boxes(8, 0);
+  for (std::size_t i = 0; i < voxels.size(); i += 7) {
+    if (voxels[i].x < kFarX) clear_voxel(model, voxels[i]);
+  }
+  const WorldSnapshot second = world_of(model.publish());
+  ASSERT_TRUE(second.octomap->changed_columns().has_value());
+  EXPECT_EQ(second.octomap->changed_columns()->size(), 1U) << "one tile's columns changed";
+  check(second, 400);
+  // Then only the far one.
+  add_boxes(8, kFarX);
+  for (std::size_t i = 3; i < voxels.size(); i += 5) {
+    if (voxels[i].x >= kFarX) clear_voxel(model, voxels[i]);
+  }
+  check(world_of(model.publish()), 400);
+  // The first snapshot and its fields still answer as they did.
+  for (const Case& c : first_answers) {
+    v1::ClearanceReply reply;
+    answer_clearance(first, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
+    ASSERT_EQ(reply.found(), c.found);
+    if (c.found) {
+      EXPECT_EQ(reply.clearance_m(), c.clearance_m);
+    }
+  }
+  EXPECT_GE(cases, 1200);
   EXPECT_GT(found, cases / 3);
 }
 

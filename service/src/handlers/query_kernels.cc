@@ -66,7 +66,15 @@ ModelClearance model_clearance(const WorldSnapshot& snapshot, v1::Model model,
     return {r.found, r.clearance_m, r.nearest_point_W, r.nearest_cell};
   }
   if (model == v1::MODEL_OCTOMAP) {
-    const OctoMapColumns columns(*snapshot.octomap, footprint_height(request.footprint));
+    const double top_m = footprint_height(request.footprint);
+    if (const OctreeBandSnapshot* band = find_octree_band(snapshot.octree_bands.get(), top_m)) {
+      // The band's field: within one voxel of the walk below (exactly it where the query reaches beyond the field).
+      const geometry::ClearanceResult r = band->field->compute_clearance(request);
+      return {r.found, r.clearance_m, r.nearest_point_W, r.nearest_cell};
+    }
+    // No field for this height yet: ask the octree's lane for one (made at its next publish) and walk meanwhile.
+    if (snapshot.octree_band_requests) snapshot.octree_band_requests->want(top_m);
+    const OctoMapColumns columns(*snapshot.octomap, top_m);
     const geometry::ClearanceResult r = geometry::compute_clearance(request, columns);
     return {r.found, r.clearance_m, r.nearest_point_W, r.nearest_cell};
   }
@@ -382,6 +390,22 @@ SweptClearance swept_clearance(const WorldSnapshot& snapshot, const geometry::Fo
       const geometry::ClearanceResult exact = geometry::compute_clearance(request, *snapshot.grid);
       if (exact.found) offer(exact.clearance_m, std::pair{model, exact.nearest_point_W});
       continue;
+    }
+    if (model == v1::MODEL_OCTOMAP) {
+      // As for the grid: the band's field gives an upper bound at most a voxel above the walk's answer.
+      const double top_m = footprint_height(footprint);
+      if (const OctreeBandSnapshot* band = find_octree_band(snapshot.octree_bands.get(), top_m)) {
+        const geometry::ClearanceResult upper = band->field->compute_clearance(request);
+        const double lower = (upper.found ? upper.clearance_m : max_distance_m) - snapshot.octomap->resolution();
+        if (lower > kSweptContact_m) {
+          offer(lower, std::nullopt);
+          continue;
+        }
+        const OctoMapColumns columns(*snapshot.octomap, top_m);
+        const geometry::ClearanceResult exact = geometry::compute_clearance(request, columns);
+        if (exact.found) offer(exact.clearance_m, std::pair{model, exact.nearest_point_W});
+        continue;
+      }
     }
     const ModelClearance r = model_clearance(snapshot, model, request);
     if (r.found) offer(r.clearance_m, std::pair{model, r.point_W});

@@ -46,6 +46,10 @@ class HimmGrid {
 
   // Certainty of cell c; 0 when c was never observed.
   [[nodiscard]] std::uint8_t certainty(const geometry::CellIndex& c) const;
+  // Sets cell c's certainty outright (in [0, max_certainty]), for grids that mirror another model rather than
+  // integrate readings (the octree's height-band projection). Logs an occupancy change like insert_ray does and
+  // counts as one insert for version(). Throws std::invalid_argument for a certainty above max_certainty.
+  void set_certainty(const geometry::CellIndex& c, std::uint8_t certainty);
   // True when a reading has updated cell c.
   [[nodiscard]] bool observed(const geometry::CellIndex& c) const;
   // True when the certainty of cell c is at least params().occupied_threshold.

@@ -12,6 +12,7 @@
 #include <span>
 #include <vector>
 
+#include "occgeo/geometry/cell.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/pose.h"
 #include "occgeo/mapping/beam_limits.h"
@@ -87,6 +88,13 @@ struct OctoVoxel {
   double probability = 0.0;
 };
 
+// A range of x-y columns of the tree: cell indices at the octree's resolution (cell i spans [i r, (i + 1) r) metres,
+// as the voxel keys do), both corners included.
+struct OctoColumnRange {
+  geometry::CellIndex min;
+  geometry::CellIndex max;
+};
+
 // Result of OctoMapSnapshot::cast_ray.
 struct OctoRayHit {
   // Centre of the first occupied voxel along the ray, world frame, metres.
@@ -154,6 +162,14 @@ class OctoMapSnapshot {
   // child pointers is an allocation of its own): the snapshot's tiles (trees and column summaries) plus the live tree
   // the model inserts into, whose node count publish records.
   [[nodiscard]] std::size_t memory_bytes() const;
+  // The columns of the tiles this snapshot rebuilt since the model's previous snapshot (each tile's x-y extent, once
+  // per x-y), or nullopt when it rebuilt every tile (the model's first snapshot, or after a load): what a projection
+  // of the tree kept in step from snapshot to snapshot must look at again.
+  [[nodiscard]] const std::optional<std::vector<OctoColumnRange>>& changed_columns() const;
+  // The version of the model's previous snapshot, which changed_columns is relative to.
+  [[nodiscard]] std::uint64_t changed_since_version() const;
+  // The columns of every tile of the snapshot, once per x-y: where a projection built from scratch must look.
+  [[nodiscard]] std::vector<OctoColumnRange> all_columns() const;
 
  private:
   friend class OctoMapModel;
