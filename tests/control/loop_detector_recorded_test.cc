@@ -32,7 +32,7 @@ std::vector<TracePose> read_trace(const std::string& name) {
     std::replace(line.begin(), line.end(), ',', ' ');
     std::istringstream fields(line);
     TracePose row;
-    if (fields >> row.t_s >> row.pose.x_m >> row.pose.y_m >> row.pose.yaw_rad) rows.push_back(row);
+    if (fields >> row.t_s >> row.pose.x >> row.pose.y >> row.pose.theta) rows.push_back(row);
   }
   return rows;
 }
@@ -57,8 +57,8 @@ Verdicts replay(const std::vector<TracePose>& trace, const Eigen::Vector2d& goal
   Verdicts verdicts;
   for (std::size_t i = 0; i < trace.size(); ++i) {
     const Pose2& pose = trace[i].pose;
-    if (i > 0) verdicts.driven_m += std::hypot(pose.x_m - trace[i - 1].pose.x_m, pose.y_m - trace[i - 1].pose.y_m);
-    if ((Eigen::Vector2d(pose.x_m, pose.y_m) - goal_W).norm() <= 0.3) {
+    if (i > 0) verdicts.driven_m += std::hypot(pose.x - trace[i - 1].pose.x, pose.y - trace[i - 1].pose.y);
+    if ((Eigen::Vector2d(pose.x, pose.y) - goal_W).norm() <= 0.3) {
       verdicts.reached_s = trace[i].t_s;
       break;
     }

@@ -461,9 +461,9 @@ TEST(GlobalPath, MatchesBruteForceDijkstraOnRandomGrids) {
 Pose2 drive(Pose2 pose, double linear_mps, double angular_radps, double duration_s) {
   constexpr double kStep_s = 0.01;
   for (double t = 0.0; t < duration_s - 1e-12; t += kStep_s) {
-    pose.x_m += linear_mps * std::cos(pose.yaw_rad) * kStep_s;
-    pose.y_m += linear_mps * std::sin(pose.yaw_rad) * kStep_s;
-    pose.yaw_rad += angular_radps * kStep_s;
+    pose.x += linear_mps * std::cos(pose.theta) * kStep_s;
+    pose.y += linear_mps * std::sin(pose.theta) * kStep_s;
+    pose.theta += angular_radps * kStep_s;
   }
   return pose;
 }
@@ -487,7 +487,7 @@ TEST(PurePursuit, FollowsThePlannedPathOutOfTheTrap) {
     for (std::size_t i = 0; i + 1 < plan.waypoints_W.size(); ++i) {
       const Eigen::Vector2d a = plan.waypoints_W[i];
       const Eigen::Vector2d along = plan.waypoints_W[i + 1] - a;
-      const Eigen::Vector2d p(pose.x_m, pose.y_m);
+      const Eigen::Vector2d p(pose.x, pose.y);
       const double s = std::clamp((p - a).dot(along) / along.squaredNorm(), 0.0, 1.0);
       off_m = std::min(off_m, (a + s * along - p).norm());
     }

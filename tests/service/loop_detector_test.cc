@@ -116,7 +116,7 @@ TEST(LoopDetector, PointBugStyleCycleOfLegsIsALoop) {
     const double t = i * kDt_s;
     const Pose2 pose = pose_at(t);
     // The state: driving to the sudden point on legs toward +x, stepping toward the goal otherwise.
-    const std::string_view state = std::cos(pose.yaw_rad) > 0.0 ? "drive_to_sudden_point" : "step_to_goal";
+    const std::string_view state = std::cos(pose.theta) > 0.0 ? "drive_to_sudden_point" : "step_to_goal";
     loop = detector.update({pose, t, Eigen::Vector2d(4.0, 4.0), state}).loop;
   }
   EXPECT_TRUE(loop);
@@ -160,7 +160,7 @@ TEST(LoopDetector, SpiralClosingInOnTheGoalIsNotALoop) {
   const double lap_s = 2.0 * std::numbers::pi / kSpeed_mps;
   const auto spiral = [&](double t) {
     const Pose2 on_circle = circling(0.0, 0.0, 1.0)(t);
-    return Pose2{on_circle.x_m + 0.5 * t / lap_s, on_circle.y_m, on_circle.yaw_rad};
+    return Pose2{on_circle.x + 0.5 * t / lap_s, on_circle.y, on_circle.theta};
   };
   const Outcome outcome = run(detector, 5.0 * lap_s, spiral, Eigen::Vector2d(20.0, 0.0));
   EXPECT_FALSE(outcome.loop_time_s.has_value());
@@ -238,7 +238,7 @@ TEST(LoopDetector, RejectsBadInputNamingTheField) {
     detector.update({Pose2{std::nan(""), 0.0, 0.0}, 6.0, std::nullopt, std::nullopt});
     ADD_FAILURE() << "a NaN pose was accepted";
   } catch (const std::invalid_argument& error) {
-    EXPECT_NE(std::string(error.what()).find("pose.x_m"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("pose.x"), std::string::npos) << error.what();
   }
   EXPECT_EQ(detector.sample_count(), 1U);  // the rejected observations changed nothing
 }

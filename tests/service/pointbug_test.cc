@@ -48,10 +48,10 @@ double ray_distance(double ox, double oy, double dx, double dy, const Segment& s
 // The sweep seen from a pose among walls (the sensor at the wheel axle centre, as the listing assumes).
 std::vector<SweepReading> cast(const Pose2& pose, const std::vector<Segment>& walls) {
   return sweep_of([&](int degree) {
-    const double angle = pose.yaw_rad + radians(degree);
+    const double angle = pose.theta + radians(degree);
     double range = kLidarMax_m;
     for (const Segment& wall : walls) {
-      range = std::min(range, ray_distance(pose.x_m, pose.y_m, std::cos(angle), std::sin(angle), wall));
+      range = std::min(range, ray_distance(pose.x, pose.y, std::cos(angle), std::sin(angle), wall));
     }
     return range;
   });
@@ -77,9 +77,9 @@ DrivenRun run_to_goal(Pose2 pose, double goal_x, double goal_y, const std::vecto
       run.final_state = std::string(decision.state);
       break;
     }
-    pose.yaw_rad += decision.target.turn_rad;
-    pose.x_m += decision.target.distance_m * std::cos(pose.yaw_rad);
-    pose.y_m += decision.target.distance_m * std::sin(pose.yaw_rad);
+    pose.theta += decision.target.turn_rad;
+    pose.x += decision.target.distance_m * std::cos(pose.theta);
+    pose.y += decision.target.distance_m * std::sin(pose.theta);
   }
   run.final_pose = pose;
   return run;
@@ -90,7 +90,7 @@ TEST(PointBugTest, ClearPathGoesStraightToTheGoalAndReportsReached) {
   EXPECT_EQ(run.final_state, "reached");
   EXPECT_EQ(run.states, (std::vector<std::string>{"aim_at_goal", "step_to_goal", "reached"}));
   EXPECT_TRUE(run.sudden_points.empty());
-  EXPECT_LE(std::hypot(run.final_pose.x_m - 0.3, run.final_pose.y_m - 0.4), PointBugParams{}.goal_tolerance_m);
+  EXPECT_LE(std::hypot(run.final_pose.x - 0.3, run.final_pose.y - 0.4), PointBugParams{}.goal_tolerance_m);
 }
 
 TEST(PointBugTest, SteppingCommandsBodyVelocityAndADriveGotoStep) {
@@ -246,7 +246,7 @@ TEST(PointBugTest, WholeRunAroundAWallReachesTheGoalThroughTheSuddenPoint) {
   // appears when a server follows the body velocity instead.
   EXPECT_EQ(run.states, (std::vector<std::string>{"step_to_goal", "turn_to_sudden_point", "aim_at_goal", "step_to_goal",
                                                   "reached"}));
-  EXPECT_LE(std::hypot(run.final_pose.x_m - 1.0, run.final_pose.y_m), PointBugParams{}.goal_tolerance_m);
+  EXPECT_LE(std::hypot(run.final_pose.x - 1.0, run.final_pose.y), PointBugParams{}.goal_tolerance_m);
 }
 
 TEST(PointBugTest, ValidationErrorsNameTheField) {
@@ -284,7 +284,7 @@ TEST(PointBugTest, ValidationErrorsNameTheField) {
             std::string::npos);
   EXPECT_NE(invalid_argument_message([&] {
               (void)behaviour.decide(Pose2{std::nan(""), 0.0, 0.0}, Sweep{negative, 1.0});
-            }).find("Pose2.x_m"),
+            }).find("Pose2.x"),
             std::string::npos);
 }
 

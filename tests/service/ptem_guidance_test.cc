@@ -68,9 +68,9 @@ std::vector<Eigen::Vector2d> scan_points(const Pose2& sensor, const std::vector<
   constexpr double kFieldOfView = 240.0 * kPi / 180.0;
   constexpr double kMaxRange = 4.0;
   std::vector<Eigen::Vector2d> points;
-  const Eigen::Vector2d origin(sensor.x_m, sensor.y_m);
+  const Eigen::Vector2d origin(sensor.x, sensor.y);
   for (int i = 0; i < kBeams; ++i) {
-    const double angle = sensor.yaw_rad - kFieldOfView / 2.0 + kFieldOfView * i / (kBeams - 1);
+    const double angle = sensor.theta - kFieldOfView / 2.0 + kFieldOfView * i / (kBeams - 1);
     const Eigen::Vector2d direction(std::cos(angle), std::sin(angle));
     double nearest = std::numeric_limits<double>::infinity();
     for (const Disc& disc : discs) {
@@ -91,8 +91,8 @@ void insert_scan(mapping::PtemModel& model, const Pose2& sensor, double stamp_s,
   const std::vector<Eigen::Vector2d> points = scan_points(sensor, discs);
   mapping::PtemScan scan;
   scan.stamp_s = stamp_s;
-  scan.p_WS = Eigen::Vector2d(sensor.x_m, sensor.y_m);
-  scan.yaw_WS = sensor.yaw_rad;
+  scan.p_WS = Eigen::Vector2d(sensor.x, sensor.y);
+  scan.yaw_WS = sensor.theta;
   scan.field_of_view_rad = 240.0 * kPi / 180.0;
   scan.max_range_m = 4.0;
   scan.points_W = points;
@@ -103,16 +103,16 @@ void insert_scan(mapping::PtemModel& model, const Pose2& sensor, double stamp_s,
 Pose2 drive(Pose2 pose, double linear_mps, double angular_radps, double duration_s) {
   constexpr double kStep_s = 0.01;
   for (double t = 0.0; t < duration_s - 1e-12; t += kStep_s) {
-    pose.x_m += linear_mps * std::cos(pose.yaw_rad) * kStep_s;
-    pose.y_m += linear_mps * std::sin(pose.yaw_rad) * kStep_s;
-    pose.yaw_rad += angular_radps * kStep_s;
+    pose.x += linear_mps * std::cos(pose.theta) * kStep_s;
+    pose.y += linear_mps * std::sin(pose.theta) * kStep_s;
+    pose.theta += angular_radps * kStep_s;
   }
   return pose;
 }
 
 // Whether some point of the vehicle's disc (its centre and 32 points on its rim) is restricted.
 bool body_restricted(const mapping::PtemSnapshot& snapshot, const Pose2& pose, double body_radius_m) {
-  const Eigen::Vector2d p(pose.x_m, pose.y_m);
+  const Eigen::Vector2d p(pose.x, pose.y);
   if (snapshot.restricted(p)) return true;
   for (int i = 0; i < 32 && body_radius_m > 0.0; ++i) {
     const double angle = 2.0 * kPi * i / 32.0;
@@ -147,7 +147,7 @@ RunResult run_closed_loop(PtemGuidance& guidance, const std::function<std::vecto
     for (const Disc& disc : discs) {
       run.min_obstacle_gap_m =
           std::min(run.min_obstacle_gap_m,
-                   (Eigen::Vector2d(pose.x_m, pose.y_m) - disc.centre_W).norm() - disc.radius_m - body_radius_m);
+                   (Eigen::Vector2d(pose.x, pose.y) - disc.centre_W).norm() - disc.radius_m - body_radius_m);
     }
     const PtemGuidanceDecision decision = guidance.decide(pose, t, *snapshot);
     run.poses.push_back(pose);
@@ -193,11 +193,11 @@ TEST(PtemGuidance, TracksWaypointsInTheOpen) {
   legs.insert(legs.end(), waypoints.begin(), waypoints.end());
   double worst_m = 0.0;
   for (const Pose2& pose : run.poses) {
-    worst_m = std::max(worst_m, distance_to_polyline({pose.x_m, pose.y_m}, legs));
+    worst_m = std::max(worst_m, distance_to_polyline({pose.x, pose.y}, legs));
   }
   EXPECT_LT(worst_m, guidance.params().proximity_radius_m);
   const Pose2& last = run.poses.back();
-  EXPECT_LE((Eigen::Vector2d(last.x_m, last.y_m) - waypoints.back()).norm(), guidance.params().arrival_tolerance_m);
+  EXPECT_LE((Eigen::Vector2d(last.x, last.y) - waypoints.back()).norm(), guidance.params().arrival_tolerance_m);
 }
 
 TEST(PtemGuidance, VirtualTargetWaitsAtEachWaypoint) {
@@ -246,7 +246,7 @@ TEST(PtemGuidance, TargetPausesWhenTooFarAhead) {
 // A guidance one second after starting at pose, the target heading along desired_rad: its decision.
 PtemGuidanceDecision decide_with_desired(const PtemGuidanceParams& params, const Pose2& pose, double desired_rad,
                                          const ThreatField& field) {
-  const Eigen::Vector2d p(pose.x_m, pose.y_m);
+  const Eigen::Vector2d p(pose.x, pose.y);
   PtemGuidance guidance(params, {p + 5.0 * Eigen::Vector2d(std::cos(desired_rad), std::sin(desired_rad))});
   guidance.decide(pose, 0.0, field);
   return guidance.decide(pose, 1.0, field);
@@ -267,7 +267,7 @@ TEST(PtemGuidance, CommandsTheAdmissibleHeadingClosestToTheDesiredOne) {
     ASSERT_NEAR(decision.desired_heading_rad, desired_rad, 1e-9);
     EXPECT_NEAR(decision.admissible_centre_rad, 0.0, 1e-12);  // straight away from the threat
     EXPECT_NEAR(decision.admissible_half_width_rad, kPi / 2.0, 1e-12);
-    const mapping::PtemThreat threat = field.threat_and_gradient({pose.x_m, pose.y_m});
+    const mapping::PtemThreat threat = field.threat_and_gradient({pose.x, pose.y});
     const Eigen::Vector2d commanded(std::cos(decision.commanded_heading_rad), std::sin(decision.commanded_heading_rad));
     EXPECT_LE(threat.gradient_W.dot(commanded), 1e-12) << "desired " << k << " deg";
     const double deviation = std::abs(wrap(decision.commanded_heading_rad - desired_rad));
@@ -326,7 +326,7 @@ TEST(PtemGuidance, AvoidsAFixedClusterOnTheLineAndReachesTheWaypoint) {
   EXPECT_GT(run.avoid_decisions, 0);
   // It went round: some pose well off the line.
   double widest_m = 0.0;
-  for (const Pose2& pose : run.poses) widest_m = std::max(widest_m, std::abs(pose.y_m));
+  for (const Pose2& pose : run.poses) widest_m = std::max(widest_m, std::abs(pose.y));
   EXPECT_GT(widest_m, 0.3);
 }
 
@@ -407,7 +407,7 @@ TEST(PtemGuidance, RejectsBadInputNamingTheField) {
     guidance.decide(Pose2{0.0, std::numeric_limits<double>::infinity(), 0.0}, 2.0, field);
     ADD_FAILURE() << "accepted";
   } catch (const std::invalid_argument& error) {
-    EXPECT_NE(std::string(error.what()).find("pose.y_m"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("pose.y"), std::string::npos) << error.what();
   }
 }
 

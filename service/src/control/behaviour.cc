@@ -255,7 +255,7 @@ class ServoGotoAdapter final : public Behaviour {
       return command;
     }
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
-    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
+    position_W_ = Eigen::Vector2d(pose.x, pose.y);
     const ServoSweepLimits& limits = assembler_.limits();
     if (std::abs(input.servo->servo_angle_rad + servo_yaw_rad_) <= 0.5 * limits.servo_step_rad) {
       const double range =
@@ -278,11 +278,11 @@ class ServoGotoAdapter final : public Behaviour {
     double ahead_m = 0.0;
     const bool ahead_known =
         ahead_ &&
-        std::abs(geometry::wrap_angle(ahead_->pose.yaw_rad - pose.yaw_rad)) <=
+        std::abs(geometry::wrap_angle(ahead_->pose.theta - pose.theta)) <=
             std::max(kAheadHeadingTolerance_rad, kReaimHeadingTolerances * behaviour_.params().heading_tolerance_rad);
     if (ahead_known) {
-      const double driven_m = (pose.x_m - ahead_->pose.x_m) * std::cos(pose.yaw_rad) +
-                              (pose.y_m - ahead_->pose.y_m) * std::sin(pose.yaw_rad);
+      const double driven_m =
+          (pose.x - ahead_->pose.x) * std::cos(pose.theta) + (pose.y - ahead_->pose.y) * std::sin(pose.theta);
       ahead_m = std::max(0.0, ahead_->range_m - std::max(0.0, driven_m));
     }
     const std::array<SweepReading, 1> forward{SweepReading{0.0, ahead_m}};
@@ -421,7 +421,7 @@ class EscapeWrapper final : public Behaviour {
     const std::optional<Eigen::Vector2d> goal = inner_->current_goal();
     if (!goal || !input.X_WB) return inner_->decide(input);
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
-    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
+    position_W_ = Eigen::Vector2d(pose.x, pose.y);
     if (!path_.empty()) return follow(input, pose, *goal);
     // PointBug only sees what its sweep shows now; the map remembers more. When the straight way to the goal runs
     // into something remembered (the U of seed 000 Fig 5.3 seen from outside, the cup of seed 003 Fig 2.10), follow
@@ -429,8 +429,8 @@ class EscapeWrapper final : public Behaviour {
     if (inner_->name() == "goto" && input.grid != nullptr && input.stamp_s >= next_look_ahead_s_) {
       next_look_ahead_s_ = input.stamp_s + 0.5;
       const auto band = height_band(input);  // what the laser plane misses: a kerb, an overhang
-      if (!segment_clear(*input.grid, {pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m) ||
-          (band && !band->segment_clear({pose.x_m, pose.y_m}, *goal, planner_.footprint_radius_m))) {
+      if (!segment_clear(*input.grid, {pose.x, pose.y}, *goal, planner_.footprint_radius_m) ||
+          (band && !band->segment_clear({pose.x, pose.y}, *goal, planner_.footprint_radius_m))) {
         trigger_ = "blocked";
         if (plan(input, pose, *goal)) return follow(input, pose, *goal);
       }
@@ -464,7 +464,7 @@ class EscapeWrapper final : public Behaviour {
     if (input.grid == nullptr) return false;
     const auto band = height_band(input);
     const GlobalPathResult result =
-        plan_global_path(*input.grid, band ? &*band : nullptr, {pose.x_m, pose.y_m}, goal, planner_);
+        plan_global_path(*input.grid, band ? &*band : nullptr, {pose.x, pose.y}, goal, planner_);
     if (result.status != GlobalPathStatus::kFound || result.waypoints_W.size() < 2) return false;
     path_ = result.waypoints_W;
     segment_ = 0;
@@ -552,7 +552,7 @@ class MapEscapeWrapper final : public Behaviour {
   BehaviourCommand decide(const BehaviourInput& input) override {
     if (!input.X_WB) return inner_->decide(input);
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
-    position_W_ = Eigen::Vector2d(pose.x_m, pose.y_m);
+    position_W_ = Eigen::Vector2d(pose.x, pose.y);
     if (!path_.empty()) {
       BehaviourCommand command = follow(input, pose);
       if (!command.state.empty()) return command;
@@ -618,9 +618,8 @@ class MapEscapeWrapper final : public Behaviour {
       }
     }
     if (input.grid == nullptr) return input.ring.has_value();
-    const Eigen::Vector2d here(pose.x_m, pose.y_m);
-    const Eigen::Vector2d back =
-        here - (reverse_m + 0.1) * Eigen::Vector2d(std::cos(pose.yaw_rad), std::sin(pose.yaw_rad));
+    const Eigen::Vector2d here(pose.x, pose.y);
+    const Eigen::Vector2d back = here - (reverse_m + 0.1) * Eigen::Vector2d(std::cos(pose.theta), std::sin(pose.theta));
     return segment_clear(*input.grid, here, back, clearance_m_);
   }
 
@@ -634,7 +633,7 @@ class MapEscapeWrapper final : public Behaviour {
     if (input.grid == nullptr) return false;
     std::optional<HeightBandLayer> band;
     if (input.octomap != nullptr) band.emplace(*input.octomap, height_m_);
-    const Eigen::Vector2d here(pose.x_m, pose.y_m);
+    const Eigen::Vector2d here(pose.x, pose.y);
     // Behind first, then ever closer to straight ahead, alternating sides; the side to try first alternates between
     // escapes so two traps in a row do not send the robot back and forth along the same line.
     constexpr std::array<double, 8> kOffsets_deg{180.0, 135.0, -135.0, 90.0, -90.0, 45.0, -45.0, 0.0};
@@ -645,7 +644,7 @@ class MapEscapeWrapper final : public Behaviour {
     // A cycle plans at most kMaxPlansPerCycle candidates; the next one carries on where this one stopped.
     for (std::size_t k = next_candidate_; k < kCandidates; ++k) {
       const double radius_m = kRadii_m[k / kOffsets_deg.size()];
-      const double bearing = pose.yaw_rad + side * kOffsets_deg[k % kOffsets_deg.size()] * kDeg;
+      const double bearing = pose.theta + side * kOffsets_deg[k % kOffsets_deg.size()] * kDeg;
       const Eigen::Vector2d target = here + radius_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
       // Only to ground the map has seen free: an unseen cell may be the far side of a wall no beam came back from
       // (a sonar's echo is specular).
@@ -724,7 +723,6 @@ class MapEscapeWrapper final : public Behaviour {
   double height_m_;
 };
 
-
 // Yields to moving obstacles around whatever the inner behaviour commands (make_yield).
 class YieldWrapper final : public Behaviour {
  public:
@@ -780,14 +778,15 @@ class YieldWrapper final : public Behaviour {
     aside_ = std::nullopt;
     if (command.stop || (command.linear_mps == 0.0 && command.angular_radps == 0.0)) return command;
 
-    const std::optional<double> contact_s = predicted_contact_s(
-        moving, robot_.footprint, X_WB, command.linear_mps, command.angular_radps, horizon_s, margin_m);
+    const std::optional<double> contact_s = predicted_contact_s(moving, robot_.footprint, X_WB, command.linear_mps,
+                                                                command.angular_radps, horizon_s, margin_m);
     if (!contact_s) return command;
     if (*contact_s > horizon_s / 2.0) {
       // Far yet: arrive later, when the obstacle may have passed.
       command.linear_mps *= kYieldSlowRatio;
       command.angular_radps *= kYieldSlowRatio;
-      if (command.wheels) command.wheels = {command.wheels->left_mps * kYieldSlowRatio, command.wheels->right_mps * kYieldSlowRatio};
+      if (command.wheels)
+        command.wheels = {command.wheels->left_mps * kYieldSlowRatio, command.wheels->right_mps * kYieldSlowRatio};
       command.leg_m.reset();
       command.state = "yield_slow";
       return command;

@@ -620,14 +620,14 @@ bool segment_clear(const mapping::GridSnapshot& grid, const Eigen::Vector2d& a_W
 PurePursuitCommand pure_pursuit(const Pose2& pose, std::span<const Eigen::Vector2d> path_W,
                                 const PurePursuitParams& params, std::size_t from_segment) {
   params.validate();
-  require(std::isfinite(pose.x_m), "pose.x_m", "must be finite", pose.x_m);
-  require(std::isfinite(pose.y_m), "pose.y_m", "must be finite", pose.y_m);
-  require(std::isfinite(pose.yaw_rad), "pose.yaw_rad", "must be finite", pose.yaw_rad);
+  require(std::isfinite(pose.x), "pose.x", "must be finite", pose.x);
+  require(std::isfinite(pose.y), "pose.y", "must be finite", pose.y);
+  require(std::isfinite(pose.theta), "pose.theta", "must be finite", pose.theta);
   require(!path_W.empty(), "path_W", "must not be empty", 0.0);
   for (std::size_t i = 0; i < path_W.size(); ++i) {
     if (!path_W[i].allFinite()) throw std::invalid_argument("path_W[" + std::to_string(i) + "] must be finite");
   }
-  const Eigen::Vector2d p_W(pose.x_m, pose.y_m);
+  const Eigen::Vector2d p_W(pose.x, pose.y);
   PurePursuitCommand command;
   const std::size_t segments = path_W.size() - 1;
   const Eigen::Vector2d& end_W = path_W.back();
@@ -679,7 +679,7 @@ PurePursuitCommand pure_pursuit(const Pose2& pose, std::span<const Eigen::Vector
   command.aim_W = aim_W;
 
   const Eigen::Vector2d to_aim = aim_W - p_W;
-  const double heading_error_rad = wrap_angle(std::atan2(to_aim.y(), to_aim.x()) - pose.yaw_rad);
+  const double heading_error_rad = wrap_angle(std::atan2(to_aim.y(), to_aim.x()) - pose.theta);
   if (std::abs(heading_error_rad) > params.rotate_in_place_rad) {
     command.angular_radps = std::copysign(params.max_angular_radps, heading_error_rad);
     return command;

@@ -67,7 +67,7 @@ int LoopDetector::count_passes(const Sample& now) const {
     const bool matches = now.time_s - earlier.time_s >= params_.min_revisit_interval_s &&
                          now.path_length_m - earlier.path_length_m >= params_.min_loop_length_m &&
                          (now.p_W - earlier.p_W).norm() <= params_.revisit_radius_m &&
-                         std::abs(wrap_angle(now.yaw_rad - earlier.yaw_rad)) <= params_.heading_tolerance_rad &&
+                         std::abs(wrap_angle(now.theta - earlier.theta)) <= params_.heading_tolerance_rad &&
                          earlier.state_hash == now.state_hash &&
                          // The excursion since then brought no new record closeness to the goal.
                          now.best_goal_distance_m >= earlier.best_goal_distance_m - params_.progress_epsilon_m;
@@ -79,9 +79,9 @@ int LoopDetector::count_passes(const Sample& now) const {
 
 LoopStatus LoopDetector::update(const LoopObservation& observation) {
   const Pose2& pose = observation.pose;
-  require(std::isfinite(pose.x_m), "pose.x_m", "must be finite", pose.x_m);
-  require(std::isfinite(pose.y_m), "pose.y_m", "must be finite", pose.y_m);
-  require(std::isfinite(pose.yaw_rad), "pose.yaw_rad", "must be finite", pose.yaw_rad);
+  require(std::isfinite(pose.x), "pose.x", "must be finite", pose.x);
+  require(std::isfinite(pose.y), "pose.y", "must be finite", pose.y);
+  require(std::isfinite(pose.theta), "pose.theta", "must be finite", pose.theta);
   require(std::isfinite(observation.time_s), "time_s", "must be finite", observation.time_s);
   if (last_time_s_.has_value()) {
     require(observation.time_s >= *last_time_s_, "time_s", "must not go backwards", observation.time_s);
@@ -91,7 +91,7 @@ LoopStatus LoopDetector::update(const LoopObservation& observation) {
     require(std::isfinite(observation.goal_W->y()), "goal_W.y", "must be finite", observation.goal_W->y());
   }
 
-  const Eigen::Vector2d p_W(pose.x_m, pose.y_m);
+  const Eigen::Vector2d p_W(pose.x, pose.y);
   const bool first = !last_time_s_.has_value();
   if (observation.goal_W != goal_W_) {
     // A new goal: the old distances say nothing about progress toward it.
@@ -130,11 +130,10 @@ LoopStatus LoopDetector::update(const LoopObservation& observation) {
   }
 
   const Sample now{
-      p_W, pose.yaw_rad, observation.time_s, path_length_m_, best_goal_distance_m, state_hash(observation.state)};
-  const bool store =
-      samples_.empty() || (p_W - samples_.back().p_W).norm() >= params_.sample_spacing_m ||
-      std::abs(wrap_angle(pose.yaw_rad - samples_.back().yaw_rad)) >= params_.heading_tolerance_rad / 4.0 ||
-      now.state_hash != samples_.back().state_hash;
+      p_W, pose.theta, observation.time_s, path_length_m_, best_goal_distance_m, state_hash(observation.state)};
+  const bool store = samples_.empty() || (p_W - samples_.back().p_W).norm() >= params_.sample_spacing_m ||
+                     std::abs(wrap_angle(pose.theta - samples_.back().theta)) >= params_.heading_tolerance_rad / 4.0 ||
+                     now.state_hash != samples_.back().state_hash;
   if (store) {
     status_.passes = count_passes(now);
     if (!status_.loop && status_.passes >= params_.revisit_count) {

@@ -132,16 +132,16 @@ PointBugBehaviour::PointBugBehaviour(const PointBugParams& params, double goal_x
 }
 
 PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep) {
-  require(std::isfinite(pose.x_m), "Pose2.x_m", "must be finite", pose.x_m);
-  require(std::isfinite(pose.y_m), "Pose2.y_m", "must be finite", pose.y_m);
-  require(std::isfinite(pose.yaw_rad), "Pose2.yaw_rad", "must be finite", pose.yaw_rad);
+  require(std::isfinite(pose.x), "Pose2.x", "must be finite", pose.x);
+  require(std::isfinite(pose.y), "Pose2.y", "must be finite", pose.y);
+  require(std::isfinite(pose.theta), "Pose2.theta", "must be finite", pose.theta);
   check_sweep(sweep);
 
   PointBugDecision decision;
-  const double goal_dx = goal_x_m_ - pose.x_m;
-  const double goal_dy = goal_y_m_ - pose.y_m;
+  const double goal_dx = goal_x_m_ - pose.x;
+  const double goal_dy = goal_y_m_ - pose.y;
   decision.goal_distance_m = std::hypot(goal_dx, goal_dy);
-  const double goal_error_rad = wrap_angle(std::atan2(goal_dy, goal_dx) - pose.yaw_rad);
+  const double goal_error_rad = wrap_angle(std::atan2(goal_dy, goal_dx) - pose.theta);
   const auto turn_by = [&](double error_rad) {
     decision.angular_radps = std::copysign(params_.turn_speed_radps, error_rad);
   };
@@ -187,9 +187,9 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
           const bool go_right =
               decision.right && (!decision.left || decision.right->turn_deg < decision.left->turn_deg);
           SuddenPoint chosen = go_right ? *decision.right : *decision.left;
-          target_yaw_rad_ = wrap_angle(pose.yaw_rad + chosen.turn_rad);
-          chosen.world_x_m = pose.x_m + chosen.distance_m * std::cos(target_yaw_rad_);
-          chosen.world_y_m = pose.y_m + chosen.distance_m * std::sin(target_yaw_rad_);
+          target_yaw_rad_ = wrap_angle(pose.theta + chosen.turn_rad);
+          chosen.world_x_m = pose.x + chosen.distance_m * std::cos(target_yaw_rad_);
+          chosen.world_y_m = pose.y + chosen.distance_m * std::sin(target_yaw_rad_);
           target_ = chosen;
           state_ = State::kTurnToSuddenPoint;
           continue;
@@ -201,13 +201,13 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
       }
 
       case State::kTurnToSuddenPoint: {
-        const double error_rad = wrap_angle(target_yaw_rad_ - pose.yaw_rad);
+        const double error_rad = wrap_angle(target_yaw_rad_ - pose.theta);
         if (std::abs(error_rad) <= params_.heading_tolerance_rad) {
           state_ = State::kDriveToSuddenPoint;
           continue;
         }
-        const double remaining_m = (target_->world_x_m - pose.x_m) * std::cos(target_yaw_rad_) +
-                                   (target_->world_y_m - pose.y_m) * std::sin(target_yaw_rad_);
+        const double remaining_m = (target_->world_x_m - pose.x) * std::cos(target_yaw_rad_) +
+                                   (target_->world_y_m - pose.y) * std::sin(target_yaw_rad_);
         decision.state = "turn_to_sudden_point";
         turn_by(error_rad);
         decision.target = MotionTarget{error_rad, std::max(remaining_m, 0.0)};
@@ -217,8 +217,8 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
 
       case State::kDriveToSuddenPoint: {
         // Progress is measured along the heading to the point, so sideways odometry drift does not stall it.
-        const double remaining_m = (target_->world_x_m - pose.x_m) * std::cos(target_yaw_rad_) +
-                                   (target_->world_y_m - pose.y_m) * std::sin(target_yaw_rad_);
+        const double remaining_m = (target_->world_x_m - pose.x) * std::cos(target_yaw_rad_) +
+                                   (target_->world_y_m - pose.y) * std::sin(target_yaw_rad_);
         if (remaining_m <= params_.goal_tolerance_m) {
           // The listing re-aims at the goal on arrival (angturned) and then steps again.
           target_.reset();

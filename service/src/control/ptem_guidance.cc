@@ -162,13 +162,13 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
 }
 
 PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, const ThreatField& field) {
-  require(std::isfinite(pose.x_m), "pose.x_m", "must be finite", pose.x_m);
-  require(std::isfinite(pose.y_m), "pose.y_m", "must be finite", pose.y_m);
-  require(std::isfinite(pose.yaw_rad), "pose.yaw_rad", "must be finite", pose.yaw_rad);
+  require(std::isfinite(pose.x), "pose.x", "must be finite", pose.x);
+  require(std::isfinite(pose.y), "pose.y", "must be finite", pose.y);
+  require(std::isfinite(pose.theta), "pose.theta", "must be finite", pose.theta);
   require(std::isfinite(time_s), "time_s", "must be finite", time_s);
   if (started_) require(time_s >= last_time_s_, "time_s", "must not go backwards", time_s);
 
-  const Eigen::Vector2d p_W(pose.x_m, pose.y_m);
+  const Eigen::Vector2d p_W(pose.x, pose.y);
   if (!started_) {
     started_ = true;
     target_W_ = p_W;
@@ -184,7 +184,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
   decision.target_distance_m = (target_W_ - p_W).norm();
   decision.target_waiting = decision.target_waiting || reached_;
 
-  const ThreatView threat = view_threat(field, p_W, pose.yaw_rad, params_.body_radius_m);
+  const ThreatView threat = view_threat(field, p_W, pose.theta, params_.body_radius_m);
   decision.threat = threat.value;
   decision.clearance_m = threat.clearance_m;
 
@@ -193,7 +193,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
     decision.state = "reached";
     decision.stop = true;
     decision.reached = true;
-    decision.desired_heading_rad = wrap_angle(pose.yaw_rad);
+    decision.desired_heading_rad = wrap_angle(pose.theta);
     decision.commanded_heading_rad = decision.desired_heading_rad;
     return decision;
   }
@@ -202,8 +202,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
   // standing one is approached (it moves on, or the last waypoint is reached, once the vehicle is close).
   const Eigen::Vector2d to_target = target_W_ - p_W;
   const double distance_m = decision.target_distance_m;
-  decision.desired_heading_rad =
-      distance_m > 1e-9 ? std::atan2(to_target.y(), to_target.x()) : wrap_angle(pose.yaw_rad);
+  decision.desired_heading_rad = distance_m > 1e-9 ? std::atan2(to_target.y(), to_target.x()) : wrap_angle(pose.theta);
   if (decision.target_waiting) {
     decision.desired_speed_mps = std::min(params_.max_speed_mps, params_.speed_gain_per_s * distance_m);
   } else {
@@ -246,7 +245,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
         } else if (right < left) {
           side = -1;
         } else {
-          side = wrap_angle(pose.yaw_rad - threat.away_rad) >= 0.0 ? 1 : -1;
+          side = wrap_angle(pose.theta - threat.away_rad) >= 0.0 ? 1 : -1;
         }
       }
       avoid_side_ = side;
@@ -261,7 +260,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
   // Speed: along the current heading the body must not reach the restricted region within speed_horizon_s.
   double max_speed_mps = params_.max_speed_mps;
   if (threat.present) {
-    const double approach = -std::cos(pose.yaw_rad - threat.away_rad);  // cos of the angle to the gradient
+    const double approach = -std::cos(pose.theta - threat.away_rad);  // cos of the angle to the gradient
     if (approach > 0.0) {
       max_speed_mps = threat.clearance_m <= 0.0
                           ? 0.0
@@ -270,7 +269,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
   }
   decision.max_admissible_speed_mps = max_speed_mps;
 
-  const double heading_error_rad = wrap_angle(commanded_rad - pose.yaw_rad);
+  const double heading_error_rad = wrap_angle(commanded_rad - pose.theta);
   decision.angular_radps = std::clamp(params_.heading_gain_per_s * heading_error_rad, -params_.max_turn_rate_radps,
                                       params_.max_turn_rate_radps);
   // Far off the commanded heading the vehicle slows and turns first, so it does not sweep a wide arc.

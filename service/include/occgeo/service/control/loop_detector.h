@@ -70,7 +70,7 @@ class LoopDetector {
  private:
   struct Sample {
     Eigen::Vector2d p_W;
-    double yaw_rad;
+    double theta;
     double time_s;
     double path_length_m;         // driven since reset, at this sample
     double best_goal_distance_m;  // best goal distance up to this sample (+inf without a goal)

@@ -5,6 +5,8 @@
 #include <span>
 #include <string_view>
 
+#include "occgeo/geometry/pose.h"
+
 // The modified PointBug go-to-goal behaviour of seed 003 (§2.2, §4.1–4.4 and its Propeller C listing) for an
 // ActivityBot with a servo-swept single-beam LIDAR: step toward the goal; on an obstacle within 30 cm sweep both
 // sides for a sudden point (a range increase of more than 200 mm between consecutive 1 degree readings) followed by
@@ -12,12 +14,8 @@
 // to the corrected point and re-aim at the goal.
 namespace occgeo::service::control {
 
-// A planar pose in the world frame: metres and radians (yaw counter-clockwise from +x).
-struct Pose2 {
-  double x_m = 0.0;
-  double y_m = 0.0;
-  double yaw_rad = 0.0;
-};
+// Poses are geometry's (x, y in metres, theta in radians counter-clockwise from +x; world frame here).
+using geometry::Pose2;
 
 // One single-beam reading of the swept sensor: the servo angle from straight ahead (radians, counter-clockwise
 // positive, so left is positive and the seed's right side is negative) and the range (metres, +inf = no return).
