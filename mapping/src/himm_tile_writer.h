@@ -131,8 +131,7 @@ class HimmGrid::TileWriter {
     std::uint8_t& value = cell(c);
     const int raised = std::min(params.max_certainty, certainty_of(value) + params.increment);
     const double grown = params.growth_center_weight * raised + params.growth_neighbour_weight * neighbour_sum(c);
-    store(c, value,
-          static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
+    store(c, value, static_cast<std::uint8_t>(std::floor(std::min(grown, static_cast<double>(params.max_certainty)))));
   }
 
   // Cell c, after moving the cursor to its tile.

@@ -47,12 +47,9 @@ int main(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    const std::map<std::string, std::string*> options = {{"--config", &flags.config},
-                                                         {"--listen", &flags.listen},
-                                                         {"--data-dir", &flags.data_dir},
-                                                         {"--log-level", &flags.log_level},
-                                                         {"--port-file", &flags.port_file},
-                                                         {"--http", &flags.http}};
+    const std::map<std::string, std::string*> options = {
+        {"--config", &flags.config},       {"--listen", &flags.listen},       {"--data-dir", &flags.data_dir},
+        {"--log-level", &flags.log_level}, {"--port-file", &flags.port_file}, {"--http", &flags.http}};
     const auto option = options.find(arg);
     if (option == options.end()) return usage_error("unknown option '" + arg + "'");
     std::string* target = option->second;

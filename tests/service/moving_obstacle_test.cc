@@ -29,8 +29,10 @@ struct Box {
 };
 
 // The corridor: walls y in [1.4, 1.6] and [-1.6, -1.4] from x = -1 to 9, each with a 1 m door at x 2.5-3.5.
-const std::vector<Box> kWalls = {{{-1.0, 1.4}, {2.5, 1.6}},   {{3.5, 1.4}, {9.0, 1.6}},
-                                 {{-1.0, -1.6}, {2.5, -1.4}}, {{3.5, -1.6}, {9.0, -1.4}},
+const std::vector<Box> kWalls = {{{-1.0, 1.4}, {2.5, 1.6}},
+                                 {{3.5, 1.4}, {9.0, 1.6}},
+                                 {{-1.0, -1.6}, {2.5, -1.4}},
+                                 {{3.5, -1.6}, {9.0, -1.4}},
                                  {{9.0, -1.6}, {9.2, 1.6}}};
 constexpr double kPersonRadius = 0.25;
 constexpr double kTrackX = 3.0;
@@ -92,8 +94,8 @@ struct Leftovers {
 };
 
 // The person's position per scan (10 Hz): in through the lower door, across at 0.5 m/s, standing 3 s in the middle
-// (long enough to saturate every model), on at a brisk 1.2 m/s and out through the upper door beyond the laser's 4 m; the UGV stands at
-// the origin facing along the corridor.
+// (long enough to saturate every model), on at a brisk 1.2 m/s and out through the upper door beyond the laser's 4 m;
+// the UGV stands at the origin facing along the corridor.
 Leftovers cross_the_corridor(const ServerConfig& config) {
   ServerCore core(config);
   auto driver = testing::driver_session(core, "ugv-1", sim::make_robot_spec(ugv()));

@@ -139,7 +139,8 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
 }
 
 TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
-  const geometry::Footprint bearcat = geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
+  const geometry::Footprint bearcat =
+      geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
   // A person 1.2 m ahead of the front, 1.4 m to the right, walking left at 0.7 m/s: crosses 2 s from now.
   TrackedObstacle person;
   person.centre_W = {1.7, -1.4};
@@ -191,7 +192,8 @@ struct DriveRun {
   std::vector<std::string> state_per_step;
 };
 
-DriveRun drive(const World& world, Behaviour& behaviour, const RobotShape& robot, geometry::Pose2 pose, double seconds) {
+DriveRun drive(const World& world, Behaviour& behaviour, const RobotShape& robot, geometry::Pose2 pose,
+               double seconds) {
   mapping::PtemModel model(mapping::PtemParams{});
   std::vector<Eigen::Vector2d> points;
   std::vector<float> ranges;
@@ -199,7 +201,8 @@ DriveRun drive(const World& world, Behaviour& behaviour, const RobotShape& robot
   const int steps = static_cast<int>(seconds / kScanPeriod_s);
   for (int k = 0; k < steps; ++k) {
     const double t = k * kScanPeriod_s;
-    const Eigen::Vector2d p_WS = pose.position() + robot.laser_x_m * Eigen::Vector2d(std::cos(pose.theta), std::sin(pose.theta));
+    const Eigen::Vector2d p_WS =
+        pose.position() + robot.laser_x_m * Eigen::Vector2d(std::cos(pose.theta), std::sin(pose.theta));
     insert(model, world, p_WS, pose.theta, t, points, ranges);
     const auto snapshot = model.snapshot();
     BehaviourInput input;

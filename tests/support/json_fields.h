@@ -3,8 +3,8 @@
 // Fields of the flat one-object JSON summaries the programs print (occgeo-sim --json, occgeo --json).
 
 #include <regex>
-#include <stdexcept>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 

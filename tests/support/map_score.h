@@ -22,12 +22,12 @@ CellSet read_visible_cells(const std::filesystem::path& file, const WorldTruth& 
 bool marked_within_one_cell(const CellSet& marked, const std::pair<int, int>& cell);
 
 struct MapScore {
-  std::size_t visible = 0;        // obstacle cells some noise-free beam reached
-  std::size_t found = 0;          // of those, marked occupied within one cell
-  std::size_t false_marks = 0;    // free cells of the world marked occupied
+  std::size_t visible = 0;                      // obstacle cells some noise-free beam reached
+  std::size_t found = 0;                        // of those, marked occupied within one cell
+  std::size_t false_marks = 0;                  // free cells of the world marked occupied
   std::size_t false_marks_beyond_one_cell = 0;  // of those, not next to any obstacle cell
-  std::size_t free_cells = 0;     // free cells of the world
-  std::size_t observed_free = 0;  // free cells of the world the map observed (free or occupied)
+  std::size_t free_cells = 0;                   // free cells of the world
+  std::size_t observed_free = 0;                // free cells of the world the map observed (free or occupied)
 
   [[nodiscard]] double recall() const { return visible == 0 ? 0.0 : double(found) / double(visible); }
   [[nodiscard]] double false_rate() const { return free_cells == 0 ? 0.0 : double(false_marks) / double(free_cells); }

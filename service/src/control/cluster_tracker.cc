@@ -51,7 +51,8 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
     const double reach_m = (seen[i]->centre_W - p_WS).norm() + seen[i]->radius_m;
     if (reach_m > max_range_m - params_.range_margin_m) may_move[i] = false;
     for (std::size_t j = i + 1; j < seen.size(); ++j) {
-      const double centre_gap_m = (seen[i]->centre_W - seen[j]->centre_W).norm() - seen[i]->radius_m - seen[j]->radius_m;
+      const double centre_gap_m =
+          (seen[i]->centre_W - seen[j]->centre_W).norm() - seen[i]->radius_m - seen[j]->radius_m;
       if (centre_gap_m > params_.attached_gap_m) continue;
       if (gap_between(*seen[i], *seen[j]) <= params_.attached_gap_m) may_move[i] = may_move[j] = false;
     }
@@ -99,7 +100,8 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
         const Eigen::Vector2d raw = (mean_W - previous_state.mean_W) / dt_s;
         if (raw.norm() <= params_.max_speed_mps) {
           // The first velocity is taken whole: smoothing it from zero would hide a walker for several scans.
-          track.velocity_W = state.updates == 0 ? raw : previous.velocity_W + params_.smoothing * (raw - previous.velocity_W);
+          track.velocity_W =
+              state.updates == 0 ? raw : previous.velocity_W + params_.smoothing * (raw - previous.velocity_W);
           ++state.updates;
         }
       }

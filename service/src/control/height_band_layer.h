@@ -14,8 +14,8 @@
 // the laser reads as walls (a ramp; seed 000 Fig 5.1). The octree's occupied voxels in the robot's height band are
 // projected onto the ground: over the floor the band runs from just above it (octomap_ground_band_m: a depth
 // sensor's floor returns are voxels below it) to the robot's top; over a drivable surface of the terrain estimate
-// (mapping::TerrainMap under the octree's terrain rule) it is measured from that surface, so the surface is no obstacle and
-// what stands on it is. The goto look-ahead and the global path read them beside the HIMM grid.
+// (mapping::TerrainMap under the octree's terrain rule) it is measured from that surface, so the surface is no obstacle
+// and what stands on it is. The goto look-ahead and the global path read them beside the HIMM grid.
 namespace occgeo::service::control {
 
 class HeightBandLayer {

@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <type_traits>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "model_geometry.h"
 
@@ -312,9 +312,8 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
   if (params.predict_horizon_s > 0.0 && !moving.empty()) {
     // Only a motion that runs into a moving obstacle's predicted position where standing still would not: stopping
     // a robot that is stepping out of the way would leave it in the obstacle's path.
-    const std::optional<double> moving_s = predicted_contact_s(moving, footprint, X_WB, linear_mps,
-                                                               angular_radps, params.predict_horizon_s,
-                                                               params.predict_margin_m);
+    const std::optional<double> moving_s = predicted_contact_s(moving, footprint, X_WB, linear_mps, angular_radps,
+                                                               params.predict_horizon_s, params.predict_margin_m);
     if (moving_s && !predicted_contact_s(moving, footprint, X_WB, 0.0, 0.0, *moving_s, params.predict_margin_m)) {
       const double distance_m = sweep_rate_mps * *moving_s;
       if (*moving_s <= params.stop_time_s + params.predict_horizon_s / 3.0 || distance_m <= params.stop_distance_m) {

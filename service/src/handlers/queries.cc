@@ -124,8 +124,7 @@ std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std
   PoseQuery out{std::move(*target), {}, {}, 0.0, {}};
   if constexpr (kBatch) {
     if (!check_count(session, static_cast<std::size_t>(query.poses_size()),
-                     session->core().config().limits.max_batch_queries, kind + ".poses",
-                     request_id)) {
+                     session->core().config().limits.max_batch_queries, kind + ".poses", request_id)) {
       return std::nullopt;
     }
     out.poses.reserve(static_cast<std::size_t>(query.poses_size()));

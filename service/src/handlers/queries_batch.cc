@@ -16,8 +16,7 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
   auto world = resolve_world(session, "raycast", request_id, query.world());
   if (!world) return;
   if (!check_count(session, static_cast<std::size_t>(query.rays_size()),
-                   session->core().config().limits.max_batch_queries, "raycast.rays",
-                   request_id)) {
+                   session->core().config().limits.max_batch_queries, "raycast.rays", request_id)) {
     return;
   }
   std::vector<geometry::Pose2> rays;
@@ -67,8 +66,7 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
   auto world = resolve_world(session, "occupancy", request_id, query.world());
   if (!world) return;
   if (!check_count(session, static_cast<std::size_t>(query.points_size()),
-                   session->core().config().limits.max_batch_queries, "occupancy.points",
-                   request_id)) {
+                   session->core().config().limits.max_batch_queries, "occupancy.points", request_id)) {
     return;
   }
   const double limit = session->core().config().limits.max_abs_coordinate_m;

@@ -166,8 +166,7 @@ std::unique_ptr<control::Behaviour> make_plain_behaviour(const std::string& name
     v1::DriveRequest plain = request;
     plain.set_escape(false);
     return control::make_escape(
-        [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); },
-                                shape);
+        [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); }, shape);
   }
   if (name == "waypoints") {
     std::vector<Eigen::Vector2d> waypoints_W;
@@ -286,8 +285,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
             : robot.active_behaviour_on_strand()->moving_obstacles();
     const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
     const control::GuardDecision decision = control::guard_command(
-        models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard,
-                                                                    moving);
+        models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard, moving);
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);

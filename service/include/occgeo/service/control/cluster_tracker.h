@@ -26,14 +26,14 @@ struct TrackedObstacle {
 };
 
 struct ClusterTrackerParams {
-  double gate_m = 0.6;               // a cluster continues the track whose predicted centre is nearest, within this
-  double smoothing = 0.3;            // weight of the newest scan's velocity in the smoothed one, (0, 1]
-  double moving_speed_mps = 0.15;    // a track is moving when its smoothed speed stays above this ...
-  int moving_after_scans = 3;        // ... for this many scans in a row
-  double attached_gap_m = 0.4;       // a cluster this close to another is part of a wall or shelf: never moving
-  double range_margin_m = 0.5;       // a cluster this close to the laser's range limit is never moving (see .cc)
-  double lost_after_s = 0.5;         // a track unseen this long is dropped
-  double max_speed_mps = 1.5;        // an association implying more than this starts a new track instead
+  double gate_m = 0.6;             // a cluster continues the track whose predicted centre is nearest, within this
+  double smoothing = 0.3;          // weight of the newest scan's velocity in the smoothed one, (0, 1]
+  double moving_speed_mps = 0.15;  // a track is moving when its smoothed speed stays above this ...
+  int moving_after_scans = 3;      // ... for this many scans in a row
+  double attached_gap_m = 0.4;     // a cluster this close to another is part of a wall or shelf: never moving
+  double range_margin_m = 0.5;     // a cluster this close to the laser's range limit is never moving (see .cc)
+  double lost_after_s = 0.5;       // a track unseen this long is dropped
+  double max_speed_mps = 1.5;      // an association implying more than this starts a new track instead
 };
 
 class ClusterTracker {
@@ -52,9 +52,10 @@ class ClusterTracker {
 
  private:
   struct State {
-    Eigen::Vector2d mean_W = Eigen::Vector2d::Zero();  // mean of the cluster's returns: steadier than its circle's centre
-    int fast_scans = 0;  // consecutive scans with the smoothed speed above moving_speed_mps
-    int updates = 0;     // how many velocity updates the track has had
+    Eigen::Vector2d mean_W =
+        Eigen::Vector2d::Zero();  // mean of the cluster's returns: steadier than its circle's centre
+    int fast_scans = 0;           // consecutive scans with the smoothed speed above moving_speed_mps
+    int updates = 0;              // how many velocity updates the track has had
   };
   ClusterTrackerParams params_;
   std::vector<TrackedObstacle> tracks_;
