@@ -95,20 +95,24 @@ occgeo_load mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
 occgeo_load command_idle --robots 2 --clients 0
 # The same mix on a larger map: a server that replayed the Intel log first (its map several times the seeded open
 # field's), with the robots and clients added to that world.
-large_map_load() {
-  local dir="$work/large_map"
+# Starts occgeod in DIR (data, log, port file) on free loopback ports at LOG_LEVEL; sets server_pid and server.
+start_server() {  # DIR LOG_LEVEL
+  local dir=$1
   mkdir -p "$dir"
   "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" \
-    --http 127.0.0.1:0 --log-level warn >"$dir/server.log" 2>&1 &
-  local pid=$!
+    --http 127.0.0.1:0 --log-level "$2" >"$dir/server.log" 2>&1 &
+  server_pid=$!
   for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
-  local server="127.0.0.1:$(cat "$dir/port")"
+  server="127.0.0.1:$(cat "$dir/port")"
+}
+large_map_load() {
+  start_server "$work/large_map" warn
   "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --format carmen \
     "$DATASETS/carmen-intel/intel-corrected.log.gz" >/dev/null 2>&1 || true
   "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/large_map.status.json" 2>/dev/null || true
-  occgeo_load mix_large --server "$server" --server-pid "$pid" --robots 2 --clients 64 --depth 1
-  kill "$pid" 2>/dev/null || true
-  wait "$pid" 2>/dev/null || true
+  occgeo_load mix_large --server "$server" --server-pid "$server_pid" --robots 2 --clients 64 --depth 1
+  kill "$server_pid" 2>/dev/null || true
+  wait "$server_pid" 2>/dev/null || true
 }
 DATASETS=${DATASETS:-../shared/datasets}
 [ -f "$DATASETS/carmen-intel/intel-corrected.log.gz" ] && large_map_load
@@ -141,12 +145,8 @@ replay_log() {  # NAME, then the replay's arguments
   local name=$1
   shift
   local dir="$work/replay_$name"
-  mkdir -p "$dir"
-  "$BUILD_DIR/service/occgeod" --listen 127.0.0.1:0 --port-file "$dir/port" --data-dir "$dir/data" \
-    --http 127.0.0.1:0 --log-level info >"$dir/server.log" 2>&1 &
-  local pid=$!
-  for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
-  local server="127.0.0.1:$(cat "$dir/port")"
+  start_server "$dir" info
+  local pid=$server_pid
   "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --json "$@" >"$work/replay_$name.json" 2>/dev/null || true
   local http_port
   http_port=$(grep -o '"event":"http_listening".*"port":[0-9]*' "$dir/server.log" | grep -o '[0-9]*$' | head -n 1)

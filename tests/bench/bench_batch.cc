@@ -206,9 +206,8 @@ void BM_CollisionBatchReply(benchmark::State& state) {
 }
 
 // One clearance lookup over the grid, the octree (the same walls and furniture as 0.05 m voxels up to 1 m) and the
-// PTEM, as ClearanceQuery answers it with all models.
-void BM_ClearanceAllModels(benchmark::State& state) {
-  const WorldSnapshot& world = bench_world_all_models();
+// PTEM, as ClearanceQuery answers it with all models, on world.
+void clearance_all_models(benchmark::State& state, const WorldSnapshot& world) {
   const auto& poses = bench_poses();
   std::size_t next = 0;
   for (auto _ : state) {
@@ -218,24 +217,17 @@ void BM_ClearanceAllModels(benchmark::State& state) {
     next = (next + 1) & (poses.size() - 1);
   }
   report(state, 1.0);
+}
+// With the octree's band field, as a server answers once queries asked for the Bearcat's height.
+void BM_ClearanceAllModels(benchmark::State& state) { clearance_all_models(state, bench_world_all_models()); }
+// With the octree walked (no band field): the cost the field saves.
+void BM_ClearanceAllModelsOctreeWalk(benchmark::State& state) {
+  clearance_all_models(state, bench_world_all_models_walk());
 }
 
 BENCHMARK(BM_CollisionSingle);
 BENCHMARK(BM_ClearanceSingle);
 BENCHMARK(BM_ClearanceAllModels);
-// BM_ClearanceAllModels with the octree walked (no band field): the cost the field saves.
-void BM_ClearanceAllModelsOctreeWalk(benchmark::State& state) {
-  const WorldSnapshot& world = bench_world_all_models_walk();
-  const auto& poses = bench_poses();
-  std::size_t next = 0;
-  for (auto _ : state) {
-    v1::ClearanceReply reply;
-    answer_clearance(world, kBearcat, poses[next], 1.0, kAllModels, reply);
-    benchmark::DoNotOptimize(reply);
-    next = (next + 1) & (poses.size() - 1);
-  }
-  report(state, 1.0);
-}
 BENCHMARK(BM_ClearanceAllModelsOctreeWalk);
 BENCHMARK(BM_CollisionBatchKernel)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CollisionBatchReply)->Unit(benchmark::kMillisecond);
