@@ -65,15 +65,14 @@ class OctreeBandField {
   [[nodiscard]] OctreeBandSnapshot snapshot() const { return published_; }
 
  private:
-  void project(const mapping::OctoMapSnapshot& octree, const mapping::OctoColumnRange& range,
-               std::vector<geometry::CellIndex>& changed);
+  // Writes the band's columns in range into the projection.
+  void project(const mapping::OctoMapSnapshot& octree, const mapping::OctoColumnRange& range);
 
   double top_m_;
   mapping::DistanceFieldParams params_;
-  std::unique_ptr<mapping::HimmGrid> projection_;  // made at the octree's resolution on the first update
+  std::unique_ptr<mapping::HimmGrid> projection_;  // at the octree's resolution, made anew by a full update
   std::unique_ptr<mapping::DistanceField> field_;
-  std::uint64_t octree_version_ = 0;
-  bool built_ = false;
+  std::uint64_t octree_version_ = 0;   // of the snapshot published_ was made from
   std::vector<std::uint8_t> scratch_;  // one tile's columns, occupied or not
   OctreeBandSnapshot published_;
 };
