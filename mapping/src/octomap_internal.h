@@ -52,14 +52,30 @@ OctoCollision collide_footprint(const FclOctreeView& view, const OccupiedColumns
 // A snapshot is cut into tiles: cubes of 2^kTileKeyBits voxels a side (the subtrees at depth 16 - kTileKeyBits), each
 // in a tree of its own with its FCL view and column summary. A publish rebuilds only the tiles whose voxels changed
 // and shares the others with the previous snapshot, so its cost follows what the scans changed, not the map's size.
-inline constexpr int kTileKeyBits = 8;
+// 64 voxels (3.2 m at the default 0.05 m): a scan's changes are copied in tiles about as wide as a robot's
+// neighbourhood, not in 12.8 m blocks holding several rooms.
+inline constexpr int kTileKeyBits = 6;
 inline constexpr int kTileDepth = 16 - kTileKeyBits;
+// Bits of a tile index per axis, and their mask.
+inline constexpr unsigned kTileAxisBits = 16U - kTileKeyBits;
+inline constexpr std::uint32_t kTileAxisMask = (std::uint32_t{1} << kTileAxisBits) - 1U;
+static_assert(3 * kTileAxisBits <= 32, "a tile index must pack into 32 bits");
 
-// A tile's index: each key component's top (16 - kTileKeyBits) bits, packed x | y << 8 | z << 16.
+// A tile's index: each key component's top kTileAxisBits bits, packed x | y << kTileAxisBits | z << 2 kTileAxisBits.
 using OctoTileId = std::uint32_t;
+constexpr OctoTileId pack_tile(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  return x | y << kTileAxisBits | z << (2U * kTileAxisBits);
+}
+// Component axis (0 x, 1 y, 2 z) of a packed tile index, or of a prefix packed the same way.
+constexpr std::uint32_t tile_axis(OctoTileId id, unsigned axis) {
+  return (id >> (kTileAxisBits * axis)) & kTileAxisMask;
+}
+// The tile's ancestor `shift` levels up, packed the same way.
+constexpr OctoTileId tile_prefix(OctoTileId id, unsigned shift) {
+  return pack_tile(tile_axis(id, 0) >> shift, tile_axis(id, 1) >> shift, tile_axis(id, 2) >> shift);
+}
 inline OctoTileId tile_id_of(const octomap::OcTreeKey& key) {
-  return static_cast<OctoTileId>(key[0] >> kTileKeyBits) | static_cast<OctoTileId>(key[1] >> kTileKeyBits) << 8U |
-         static_cast<OctoTileId>(key[2] >> kTileKeyBits) << 16U;
+  return pack_tile(key[0] >> kTileKeyBits, key[1] >> kTileKeyBits, key[2] >> kTileKeyBits);
 }
 
 // One tile of a snapshot: a full-depth tree holding only this tile's voxels (the same key space as the model's tree),
@@ -91,7 +107,7 @@ struct OctoMapSnapshot::Impl {
 template <typename Ids>
 std::vector<OctoColumnRange> columns_of_tiles(const Ids& ids) {
   std::vector<std::uint32_t> xy;
-  for (const OctoTileId id : ids) xy.push_back(id & 0xFFFFU);
+  for (const OctoTileId id : ids) xy.push_back(id & (kTileAxisMask | kTileAxisMask << kTileAxisBits));
   std::sort(xy.begin(), xy.end());
   xy.erase(std::unique(xy.begin(), xy.end()), xy.end());
   std::vector<OctoColumnRange> out;
@@ -99,8 +115,8 @@ std::vector<OctoColumnRange> columns_of_tiles(const Ids& ids) {
   constexpr std::int32_t kSide = std::int32_t{1} << kTileKeyBits;
   for (const std::uint32_t packed : xy) {
     // A key k is the voxel [(k - 32768) r, (k - 32767) r).
-    const std::int32_t x0 = static_cast<std::int32_t>(packed & 0xFFU) * kSide - 32768;
-    const std::int32_t y0 = static_cast<std::int32_t>(packed >> 8U) * kSide - 32768;
+    const std::int32_t x0 = static_cast<std::int32_t>(tile_axis(packed, 0)) * kSide - 32768;
+    const std::int32_t y0 = static_cast<std::int32_t>(tile_axis(packed, 1)) * kSide - 32768;
     out.push_back({{x0, y0}, {x0 + kSide - 1, y0 + kSide - 1}});
   }
   return out;

@@ -78,7 +78,7 @@ template <typename Visit>
 void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi,
                        Visit&& visit) {
   const OctoTileId first = tile_id_of(lo), last = tile_id_of(hi);
-  const auto part = [](OctoTileId id, unsigned axis) { return (id >> (8U * axis)) & 0xFFU; };
+  const auto part = tile_axis;
   const std::uint64_t span = std::uint64_t{part(last, 0) - part(first, 0) + 1} * (part(last, 1) - part(first, 1) + 1) *
                              (part(last, 2) - part(first, 2) + 1);
   if (span > tiles.size()) {
@@ -94,7 +94,7 @@ void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, con
   for (OctoTileId z = part(first, 2); z <= part(last, 2); ++z) {
     for (OctoTileId y = part(first, 1); y <= part(last, 1); ++y) {
       for (OctoTileId x = part(first, 0); x <= part(last, 0); ++x) {
-        const auto it = tiles.find(x | y << 8U | z << 16U);
+        const auto it = tiles.find(pack_tile(x, y, z));
         if (it != tiles.end() && !visit(*it->second)) return;
       }
     }
@@ -574,8 +574,7 @@ struct OctoMapModel::Impl {
     for (const OctoTileId id : dirty_tiles) {
       for (int depth = kTileDepth; depth >= 0; --depth) {
         const unsigned shift = static_cast<unsigned>(kTileDepth - depth);
-        const OctoTileId prefix =
-            ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U | (((id >> 16U) & 0xFFU) >> shift) << 16U;
+        const OctoTileId prefix = tile_prefix(id, shift);
         if (!prefixes[static_cast<std::size_t>(depth)].insert(prefix).second) break;
       }
     }
@@ -594,7 +593,7 @@ struct OctoMapModel::Impl {
     for (unsigned i = 0; i < 8; ++i) {
       if (!t.nodeChildExists(node, i)) continue;
       const OctoTileId cx = x << 1U | (i & 1U), cy = y << 1U | ((i >> 1U) & 1U), cz = z << 1U | ((i >> 2U) & 1U);
-      if (prefixes[static_cast<std::size_t>(depth) + 1].contains(cx | cy << 8U | cz << 16U)) {
+      if (prefixes[static_cast<std::size_t>(depth) + 1].contains(pack_tile(cx, cy, cz))) {
         refresh_above(t.getNodeChild(node, i), depth + 1, cx, cy, cz, prefixes);
       }
     }
@@ -646,7 +645,8 @@ struct OctoMapModel::Impl {
     if (node == nullptr) return nullptr;
     const auto child_index = [id](int depth) {
       const unsigned shift = static_cast<unsigned>(kTileDepth - 1 - depth);
-      return ((id >> shift) & 1U) | ((id >> (8U + shift)) & 1U) << 1U | ((id >> (16U + shift)) & 1U) << 2U;
+      return ((tile_axis(id, 0) >> shift) & 1U) | ((tile_axis(id, 1) >> shift) & 1U) << 1U |
+             ((tile_axis(id, 2) >> shift) & 1U) << 2U;
     };
     for (int depth = 0; depth < kTileDepth && t.nodeHasChildren(node); ++depth) {
       const unsigned pos = child_index(depth);
@@ -685,7 +685,7 @@ struct OctoMapModel::Impl {
                         std::vector<OctoTileId>& ids) const {
     const octomap::OcTree& t = *tree;
     if (depth == kTileDepth) {
-      ids.push_back(x | y << 8U | z << 16U);
+      ids.push_back(pack_tile(x, y, z));
       return;
     }
     const bool leaf = !t.nodeHasChildren(node);
@@ -906,12 +906,11 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
   snapshot_impl->empty = impl_->empty_tile;
   snapshot_impl->tiles = impl_->tiles;
-  std::unordered_set<OctoTileId> above;
+  std::unordered_set<std::uint64_t> above;
   for (const auto& [id, tile] : impl_->tiles) {
     for (unsigned shift = 1; shift <= kTileDepth; ++shift) {
       // Depth kTileDepth - shift, tagged with it so that prefixes of different depths stay apart.
-      const OctoTileId prefix = ((id & 0xFFU) >> shift) | (((id >> 8U) & 0xFFU) >> shift) << 8U |
-                                (((id >> 16U) & 0xFFU) >> shift) << 16U | shift << 24U;
+      const std::uint64_t prefix = tile_prefix(id, shift) | std::uint64_t{shift} << 32U;
       if (!above.insert(prefix).second) break;
     }
   }

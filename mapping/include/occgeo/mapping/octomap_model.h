@@ -234,11 +234,11 @@ class OctoMapModel {
   // updated). Throws std::runtime_error, changing nothing, when the file cannot be read.
   void load_bt(const std::filesystem::path& path);
 
-  // Brings the inner nodes of the changed tiles (12.8 m cubes of 256 voxels a side) and of their ancestors up to date,
-  // prunes them, copies each changed tile into a tree of its own (with its FCL view and the occupied-column summary
-  // collide uses), and makes a snapshot of those and the unchanged tiles of the previous one, the one snapshot()
-  // returns. Costs O(nodes of the changed tiles), ~50-100 ns per node: after a load, or on the first publish, the
-  // whole tree; after a scan, the tiles its rays changed (clamped voxels do not change).
+  // Brings the inner nodes of the changed tiles (3.2 m cubes of 64 voxels a side at the default resolution) and of
+  // their ancestors up to date, prunes them, copies each changed tile into a tree of its own (with its FCL view and the
+  // occupied-column summary collide uses), and makes a snapshot of those and the unchanged tiles of the previous one,
+  // the one snapshot() returns. Costs O(nodes of the changed tiles), ~50-100 ns per node: after a load, or on the first
+  // publish, the whole tree; after a scan, the tiles its rays changed (clamped voxels do not change).
   std::shared_ptr<const OctoMapSnapshot> publish();
   // Publishes when the latest snapshot is older than params.min_publish_interval_s (by now) and the tree changed
   // since; returns whether it did.
