@@ -132,6 +132,9 @@ class World : public std::enable_shared_from_this<World> {
   // Once the octree pool has been joined (ServerCore::drain), the octree's work runs on the caller, e.g. the final
   // snapshot at shutdown. Call only when no thread uses the world's strands.
   void retire_octree_lane() { octree_lane_.reset(); }
+  // True when the octree's work runs on a lane of its own (published on a timer); false when it runs on the strand,
+  // inline and in step with the grid (octomap_publish_every_messages, as lockstep runs and tests use).
+  [[nodiscard]] bool octree_has_lane() const { return octree_lane_.has_value(); }
   // How many messages' octree work the lane may hold before the ingest strand waits for it.
   static constexpr int kOctreeBacklogMessages = 32;
   // What the models take as of their latest snapshots; safe from any thread, costs a walk over the snapshots' tiles

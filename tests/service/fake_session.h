@@ -1,5 +1,6 @@
 #pragma once
 
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
@@ -37,6 +38,20 @@ class FakeSession final : public SessionContext {
       if (message->body_case() == kind) return message;
     }
     return std::nullopt;
+  }
+  // The first message of the given kind, waiting up to 5 s for it; messages of other kinds stay queued, in order (a
+  // scan's ScanAck and the MotionCommand answering it may leave in either order: the ack waits for its fsync).
+  std::optional<v1::ServerMessage> take_first_of(v1::ServerMessage::BodyCase kind) {
+    std::unique_lock lock(mutex_);
+    std::optional<v1::ServerMessage> found;
+    arrived_.wait_for(lock, std::chrono::seconds(5), [&] {
+      const auto it = std::find_if(sent_.begin(), sent_.end(), [&](const auto& m) { return m.body_case() == kind; });
+      if (it == sent_.end()) return false;
+      found = std::move(*it);
+      sent_.erase(it);
+      return true;
+    });
+    return found;
   }
   // Everything sent so far and not yet taken, without waiting (call after ServerCore::drain).
   std::vector<v1::ServerMessage> take_all() {

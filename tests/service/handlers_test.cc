@@ -147,10 +147,10 @@ TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {
   // Robot at (1, 2) facing +y; the laser sits 0.45 m ahead of base_link, at (1, 2.45).
   handle_odometry(session, odometry(1.0, 2.0, M_PI / 2, 0.0));
   handle_laser_scan(session, scan(7, 0.1, 2.5F));
-  const auto ack = session->next_of(v1::ServerMessage::kScanAck);
+  const auto ack = session->take_first_of(v1::ServerMessage::kScanAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->scan_ack().seq(), 7U);
-  const auto command = session->next_of(v1::ServerMessage::kMotionCommand);
+  const auto command = session->take_first_of(v1::ServerMessage::kMotionCommand);
   ASSERT_TRUE(command);
   EXPECT_EQ(command->motion_command().answers_scan_seq(), 7U);
   EXPECT_EQ(command->motion_command().behaviour(), "bearcat");

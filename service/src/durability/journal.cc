@@ -185,7 +185,9 @@ WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::c
                                     "Size of the world's journal file (emptied by each snapshot)")),
       sync_seconds_(metrics::histogram("occgeo_journal_sync_seconds", world_label(file_),
                                        "Time one fdatasync of the world's journal took")) {
-  if (policy_ == SyncPolicy::kBatch) batch_thread_ = std::thread([this] { batch_loop(); });
+  // The fsyncs run on a thread of their own: the world's strand, which appends, also computes the robots' commands, and
+  // must not wait for the disk (an fdatasync takes from a few hundred microseconds to tens of milliseconds).
+  if (policy_ != SyncPolicy::kNone) batch_thread_ = std::thread([this] { batch_loop(); });
 }
 
 WorldJournal::~WorldJournal() {
@@ -271,6 +273,13 @@ WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_
                                                        const google::protobuf::MessageLite& robot_spec,
                                                        const geometry::Pose2& X_WB, const std::string& kind,
                                                        const google::protobuf::MessageLite& message) {
+  {
+    std::vector<std::function<void(const std::string*)>> finished;
+    {
+      const std::lock_guard lock(mutex_);
+      finished.swap(finished_callbacks_);
+    }
+  }  // destroyed here, on the appending thread, outside the lock
   const std::lock_guard lock(mutex_);
   if (!failed_.empty()) return {0, failed_};
   if (fd_ < 0) {
@@ -304,27 +313,13 @@ WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_
   const std::uint64_t fingerprint = message_fingerprint(kind, std::string_view(payload).substr(message_offset));
   frames += frame_of(payload);
 
-  const std::uint64_t end_before = end_;
   if (auto failure = write_locked(frames); !failure.empty()) return {0, failure};
-  if (policy_ == SyncPolicy::kEvery) {
-    if (auto failure = sync_locked_fd(fd_); !failure.empty()) {
-      // After a failed fsync the kernel may have dropped the dirty pages: what is on disk is unknown, so nothing is
-      // acknowledged any more (the start after a restart reads what really is there).
-      failed_ = failure + "; no further data is acknowledged until the server restarts";
-      if (::ftruncate(fd_, static_cast<off_t>(end_before)) == 0) end_ = end_before;
-      return {0, failure};
-    }
-    durable_lsn_ = lsn;
-  }
   if (write_spec) robots_in_file_[robot_id] = robot_spec_identity;
   next_lsn_ = lsn + 1;
   written_lsn_ = lsn;
   if (policy_ == SyncPolicy::kNone) durable_lsn_ = lsn;
-  if (policy_ == SyncPolicy::kEvery) {
-    note_synced_locked(lsn, end_);
-  } else {
-    update_lag_metrics_locked();
-  }
+  update_lag_metrics_locked();
+  if (policy_ == SyncPolicy::kEvery) wake_.notify_all();
   return {lsn, {}, fingerprint};
 }
 
@@ -355,15 +350,21 @@ void WorldJournal::complete(std::uint64_t up_to_lsn, const std::string* error) {
     waiting_.erase(it, waiting_.end());
   }
   for (auto& done : ready) done(error);
+  const std::lock_guard lock(mutex_);
+  for (auto& done : ready) finished_callbacks_.push_back(std::move(done));
 }
 
 void WorldJournal::batch_loop() {
   std::unique_lock lock(mutex_);
+  const bool every = policy_ == SyncPolicy::kEvery;
   while (true) {
-    wake_.wait(lock, [&] { return stopping_ || !waiting_.empty(); });
-    if (waiting_.empty() && stopping_) return;
-    // Group commit: let the batch window gather more records, then one fsync makes them all durable.
-    if (!stopping_) wake_.wait_for(lock, batch_interval_, [&] { return stopping_; });
+    // `every` syncs whatever was written as soon as it was (records written during one fsync share the next);
+    // `batch` waits for a record someone awaits, then lets the batch window gather more.
+    // After a failed fsync nothing more is synced (every waiter is answered with the failure at once).
+    const auto unsynced = [&] { return every && failed_.empty() && written_lsn_ > synced_lsn_; };
+    wake_.wait(lock, [&] { return stopping_ || !waiting_.empty() || unsynced(); });
+    if (stopping_ && waiting_.empty() && !unsynced()) return;
+    if (!every && !stopping_) wake_.wait_for(lock, batch_interval_, [&] { return stopping_; });
     const std::uint64_t target = written_lsn_;
     const std::uint64_t target_end = end_;
     const int fd = fd_;

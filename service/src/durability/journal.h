@@ -46,7 +46,7 @@ namespace occgeo::service::durability {
 
 // When an accepted message counts as durable, hence may be acknowledged.
 enum class SyncPolicy {
-  kEvery,  // fdatasync after each record, before the ack
+  kEvery,  // fdatasync of each record before its ack, by the journal's sync thread as soon as the record is written
   kBatch,  // group commit: acks wait for the fsync that ends the batch window
   kNone,   // acknowledged once written to the OS; a power loss may lose what the OS had not written
 };
@@ -177,6 +177,9 @@ class WorldJournal {
   std::map<std::string, std::shared_ptr<const void>> robots_in_file_;
   Delivered delivered_;
   std::vector<std::pair<std::uint64_t, std::function<void(const std::string*)>>> waiting_;
+  // Callbacks the sync thread has run, destroyed by the next append (or with the journal) rather than on that thread:
+  // one may hold the last reference to what owns this journal, whose destructor joins that thread.
+  std::vector<std::function<void(const std::string*)>> finished_callbacks_;
   bool stopping_ = false;
   // /metrics, labelled with the world: how far the file runs ahead of what an fsync made durable, and fsync times.
   metrics::Gauge& unsynced_records_;

@@ -130,12 +130,14 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
   const RobotModel& model = robot->model();
   const LaserModel& laser = *model.find_laser(scan.sensor());
   std::optional<geometry::Pose2> placed_at_W;
-  const bool accepted =
-      ingest_sensor_message_on_strand(session, *robot, {"laser_scan", scan.seq(), scan.stamp_s(), &scan},
-                                      [&](const geometry::Pose2& X_WB, IngestTarget& target) {
-                                        placed_at_W = X_WB;
-                                        insert_laser_scan(robot->world(), target, X_WB, laser, scan);
-                                      });
+  WorkAfterCommand after_command(robot->world());
+  const bool accepted = ingest_sensor_message_on_strand(
+      session, *robot, {"laser_scan", scan.seq(), scan.stamp_s(), &scan},
+      [&](const geometry::Pose2& X_WB, IngestTarget& target) {
+        placed_at_W = X_WB;
+        insert_laser_scan(robot->world(), target, X_WB, laser, scan);
+      },
+      &after_command);
   if (!accepted) return;
 
   // The behaviour steers from the robot's first laser; other lasers and the other sensor kinds

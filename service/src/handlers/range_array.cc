@@ -55,9 +55,11 @@ void handle_range_array(const SessionPtr& session, v1::RangeArray message) {
     run_guarded(session, "range_array", 0, [&] {
       const RobotModel& model = robot->model();
       const RangeArrayModel& array = *model.find_range_array(message.sensor());
+      WorkAfterCommand after_command(robot->world());
       const bool accepted = ingest_sensor_message_on_strand(
           session, *robot, {"range_array", message.seq(), message.stamp_s(), &message},
-          [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_range_array(target, X_WB, array, message); });
+          [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_range_array(target, X_WB, array, message); },
+          &after_command);
       // A robot without a laser steers by its first range array: every firing is answered with a command, once the
       // robot is meant to be steered (its spec names a default behaviour, or a lease holder set one); a driver that
       // declared neither keeps deciding how it moves, as before range arrays could steer.

@@ -55,7 +55,8 @@ void publish_accepted(const SessionPtr& session, World& world, const SensorMessa
 
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
-    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert) {
+    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert,
+    WorkAfterCommand* after_command) {
   const RobotState before = robot.state();
   const std::string kind(header.kind);
   World& world_of_robot = robot.world();
@@ -137,7 +138,13 @@ bool ingest_sensor_message_on_strand(
   }
   IngestTarget target{world.grid_on_strand(), world.octomap_params(), std::nullopt, {}};
   insert(*before.X_WB, target);
-  world.apply_octree_work_on_strand(std::move(target.octree_work));
+  // Without a lane the octree is updated here, in step with the grid, as lockstep runs expect.
+  const bool defer_to_after_command = after_command && world.octree_has_lane();
+  if (defer_to_after_command) {
+    after_command->hold_octree_work(std::move(target.octree_work));
+  } else {
+    world.apply_octree_work_on_strand(std::move(target.octree_work));
+  }
   world.publish_on_strand(target.touched);
   if (header.message && session->data_watched()) publish_accepted(session, world, header, *before.X_WB, target.touched);
 
@@ -159,15 +166,22 @@ bool ingest_sensor_message_on_strand(
     session->send(ack);
     return true;
   }
-  journal->when_durable(lsn, [session, ack = std::move(ack), seq = header.seq](const std::string* error) mutable {
-    if (!error) {
-      session->send(ack);
-      return;
-    }
-    session->send_error(v1::ERROR_INTERNAL, "durability",
-                        *error + "; the message is in the live map but was not made durable, so it is not acknowledged",
-                        0, seq);
-  });
+  auto acknowledge = [journal, lsn, session, ack = std::move(ack), seq = header.seq]() mutable {
+    journal->when_durable(lsn, [session, ack = std::move(ack), seq](const std::string* error) mutable {
+      if (!error) {
+        session->send(ack);
+        return;
+      }
+      session->send_error(
+          v1::ERROR_INTERNAL, "durability",
+          *error + "; the message is in the live map but was not made durable, so it is not acknowledged", 0, seq);
+    });
+  };
+  if (defer_to_after_command) {
+    after_command->hold_ack(std::move(acknowledge));
+  } else {
+    acknowledge();
+  }
   return true;
 }
 

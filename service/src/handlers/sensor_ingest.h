@@ -18,6 +18,28 @@ struct SensorMessageHeader {
   const google::protobuf::MessageLite* message = nullptr;
 };
 
+// A sensor message's octree work and its ack, held back until the strand task that ingested the message has sent the
+// robot's command. On destruction (still within the same strand turn) the work goes to the world's octree lane
+// (World::apply_octree_work_on_strand), in journal order, and only then is the ack released: a client that saw the ack
+// and then reads the octree finds the message applied, as in every other model. Declare it before ingesting.
+class WorkAfterCommand {
+ public:
+  explicit WorkAfterCommand(World& world) : world_(world) {}
+  ~WorkAfterCommand() {
+    if (!octree_work_.empty()) world_.apply_octree_work_on_strand(std::move(octree_work_));
+    if (acknowledge_) acknowledge_();
+  }
+  WorkAfterCommand(const WorkAfterCommand&) = delete;
+  WorkAfterCommand& operator=(const WorkAfterCommand&) = delete;
+  void hold_octree_work(std::vector<OctreeWork> work) { octree_work_ = std::move(work); }
+  void hold_ack(std::function<void()> acknowledge) { acknowledge_ = std::move(acknowledge); }
+
+ private:
+  World& world_;
+  std::vector<OctreeWork> octree_work_;
+  std::function<void()> acknowledge_;
+};
+
 // Answers a sensor message that failed validation: counts the rejection in the robot's status
 // and sends ERROR_INVALID_ARGUMENT naming the field. Nothing reaches the map.
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq);
@@ -49,9 +71,14 @@ struct IngestTarget {
 // goes out only once that record is durable under durability.policy. A journal that cannot be
 // written (disk full, I/O error) gets ERROR_INTERNAL with field "durability" instead, and the
 // message is not applied.
+//
+// With after_command and an octree lane, the message's octree work and its ack are handed to it: the caller computes
+// and sends the robot's command first (the command does not read this message's octree update, and waking the lane
+// first let it take the core from the strand), and the holder passes both on when it goes out of scope.
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
-    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert);
+    const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert,
+    WorkAfterCommand* after_command = nullptr);
 
 // What each sensor kind's ingest does to the maps once the message is placed at X_WB; replaying a
 // journal calls the same functions, so a restored map equals the one ingest built.

@@ -27,9 +27,11 @@ void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
     run_guarded(session, "servo_range", 0, [&] {
       const RobotModel& model = robot->model();
       const ServoRangeModel& servo = *model.find_servo_range(message.sensor());
+      WorkAfterCommand after_command(robot->world());
       const bool accepted = ingest_sensor_message_on_strand(
           session, *robot, {"servo_range", message.seq(), message.stamp_s(), &message},
-          [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_servo_range(target, X_WB, servo, message); });
+          [&](const geometry::Pose2& X_WB, IngestTarget& target) { insert_servo_range(target, X_WB, servo, message); },
+          &after_command);
       // A robot whose only range sensor is a servo-swept beam steers by its first one: every reading is answered with
       // a command once the robot is meant to be steered (its spec names a default behaviour, or a lease holder set
       // one), as for a range array.

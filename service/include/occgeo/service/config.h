@@ -89,8 +89,9 @@ struct TlsConfig {
 
 // How accepted sensor data is made durable (section `durability:`; docs/ARCHITECTURE.md, "Durability").
 struct DurabilityConfig {
-  // When a sensor message counts as durable, hence is acknowledged: "every" (fdatasync of its journal record before
-  // the ack), "batch" (acks wait for a group fsync at most batch_interval_s later) or "none" (written to the OS only).
+  // When a sensor message counts as durable, hence is acknowledged: "every" (an fdatasync covering its journal record,
+  // started at once by the journal's sync thread, before the ack), "batch" (acks wait for a group fsync at most
+  // batch_interval_s later) or "none" (written to the OS only).
   std::string policy = "every";
   double batch_interval_s = 0.005;  // batch: the group-commit window, seconds
   // A world whose journal grew is snapshotted (and its journal emptied) this often, seconds; 0: only on clean shutdown.
