@@ -187,7 +187,7 @@ WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::c
                                        "Time one fdatasync of the world's journal took")) {
   // The fsyncs run on a thread of their own: the world's strand, which appends, also computes the robots' commands, and
   // must not wait for the disk (an fdatasync takes from a few hundred microseconds to tens of milliseconds).
-  if (policy_ != SyncPolicy::kNone) batch_thread_ = std::thread([this] { batch_loop(); });
+  if (policy_ != SyncPolicy::kNone) sync_thread_ = std::thread([this] { sync_loop(); });
 }
 
 WorldJournal::~WorldJournal() {
@@ -196,7 +196,7 @@ WorldJournal::~WorldJournal() {
     stopping_ = true;
   }
   wake_.notify_all();
-  if (batch_thread_.joinable()) batch_thread_.join();
+  if (sync_thread_.joinable()) sync_thread_.join();
   if (fd_ >= 0) ::close(fd_);
 }
 
@@ -273,14 +273,10 @@ WorldJournal::AppendResult WorldJournal::append_sensor(const std::string& robot_
                                                        const google::protobuf::MessageLite& robot_spec,
                                                        const geometry::Pose2& X_WB, const std::string& kind,
                                                        const google::protobuf::MessageLite& message) {
-  {
-    std::vector<std::function<void(const std::string*)>> finished;
-    {
-      const std::lock_guard lock(mutex_);
-      finished.swap(finished_callbacks_);
-    }
-  }  // destroyed here, on the appending thread, outside the lock
+  // Declared before the lock, so destroyed after it is released: on the appending thread, outside the lock.
+  std::vector<std::function<void(const std::string*)>> finished;
   const std::lock_guard lock(mutex_);
+  finished.swap(finished_callbacks_);
   if (!failed_.empty()) return {0, failed_};
   if (fd_ < 0) {
     if (auto failure = open_locked(); !failure.empty()) return {0, failure};
@@ -349,12 +345,13 @@ void WorldJournal::complete(std::uint64_t up_to_lsn, const std::string* error) {
     for (auto moved = it; moved != waiting_.end(); ++moved) ready.push_back(std::move(moved->second));
     waiting_.erase(it, waiting_.end());
   }
+  if (ready.empty()) return;
   for (auto& done : ready) done(error);
   const std::lock_guard lock(mutex_);
-  for (auto& done : ready) finished_callbacks_.push_back(std::move(done));
+  std::move(ready.begin(), ready.end(), std::back_inserter(finished_callbacks_));
 }
 
-void WorldJournal::batch_loop() {
+void WorldJournal::sync_loop() {
   std::unique_lock lock(mutex_);
   const bool every = policy_ == SyncPolicy::kEvery;
   while (true) {

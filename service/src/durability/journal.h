@@ -153,7 +153,7 @@ class WorldJournal {
   // After an fsync that covered the file up to `end` and record `lsn`: the journal lag metrics.
   void note_synced_locked(std::uint64_t lsn, std::uint64_t end);
   void update_lag_metrics_locked();
-  void batch_loop();
+  void sync_loop();
   void complete(std::uint64_t up_to_lsn, const std::string* error);
 
   std::filesystem::path file_;
@@ -186,7 +186,7 @@ class WorldJournal {
   metrics::Gauge& unsynced_bytes_;
   metrics::Gauge& journal_bytes_;
   metrics::Histogram& sync_seconds_;
-  std::thread batch_thread_;
+  std::thread sync_thread_;
 };
 
 }  // namespace occgeo::service::durability

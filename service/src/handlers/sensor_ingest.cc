@@ -140,11 +140,7 @@ bool ingest_sensor_message_on_strand(
   insert(*before.X_WB, target);
   // Without a lane the octree is updated here, in step with the grid, as lockstep runs expect.
   const bool defer_to_after_command = after_command && world.octree_has_lane();
-  if (defer_to_after_command) {
-    after_command->hold_octree_work(std::move(target.octree_work));
-  } else {
-    world.apply_octree_work_on_strand(std::move(target.octree_work));
-  }
+  if (!defer_to_after_command) world.apply_octree_work_on_strand(std::move(target.octree_work));
   world.publish_on_strand(target.touched);
   if (header.message && session->data_watched()) publish_accepted(session, world, header, *before.X_WB, target.touched);
 
@@ -162,11 +158,11 @@ bool ingest_sensor_message_on_strand(
   v1::ServerMessage ack;
   ack.mutable_scan_ack()->set_seq(header.seq);
   ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-  if (!journal) {
-    session->send(ack);
-    return true;
-  }
   auto acknowledge = [journal, lsn, session, ack = std::move(ack), seq = header.seq]() mutable {
+    if (!journal) {
+      session->send(ack);
+      return;
+    }
     journal->when_durable(lsn, [session, ack = std::move(ack), seq](const std::string* error) mutable {
       if (!error) {
         session->send(ack);
@@ -178,7 +174,7 @@ bool ingest_sensor_message_on_strand(
     });
   };
   if (defer_to_after_command) {
-    after_command->hold_ack(std::move(acknowledge));
+    after_command->hold(std::move(target.octree_work), std::move(acknowledge));
   } else {
     acknowledge();
   }

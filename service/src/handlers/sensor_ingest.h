@@ -31,8 +31,10 @@ class WorkAfterCommand {
   }
   WorkAfterCommand(const WorkAfterCommand&) = delete;
   WorkAfterCommand& operator=(const WorkAfterCommand&) = delete;
-  void hold_octree_work(std::vector<OctreeWork> work) { octree_work_ = std::move(work); }
-  void hold_ack(std::function<void()> acknowledge) { acknowledge_ = std::move(acknowledge); }
+  void hold(std::vector<OctreeWork> octree_work, std::function<void()> acknowledge) {
+    octree_work_ = std::move(octree_work);
+    acknowledge_ = std::move(acknowledge);
+  }
 
  private:
   World& world_;
