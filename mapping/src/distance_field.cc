@@ -107,16 +107,18 @@ struct PlacedFootprint {
     return norm <= radius ? p_W : Eigen::Vector2d(center_W + offset * (radius / norm));
   }
 
-  // Distance from p_W to the footprint, metres; 0 inside.
-  [[nodiscard]] double distance_to_point(const Eigen::Vector2d& p_W) const {
-    if (is_polygon) return (geometry::closest_point_in_convex_polygon(vertices_W, p_W) - p_W).norm();
+  // Squared distance from p_W to the footprint, square metres; 0 inside. Squared, so that the test every cell of a
+  // clearance lookup goes through takes no square root.
+  [[nodiscard]] double squared_distance_to_point(const Eigen::Vector2d& p_W) const {
+    if (is_polygon) return (geometry::closest_point_in_convex_polygon(vertices_W, p_W) - p_W).squaredNorm();
     const Eigen::Vector2d offset = p_W - center_W;
     if (is_box) {
       const double out_x = std::max(std::abs(offset.dot(axis_x_W)) - half_extents.x(), 0.0);
       const double out_y = std::max(std::abs(offset.dot(axis_y_W)) - half_extents.y(), 0.0);
-      return std::hypot(out_x, out_y);
+      return out_x * out_x + out_y * out_y;
     }
-    return std::max(offset.norm() - radius, 0.0);
+    const double out = std::max(offset.norm() - radius, 0.0);
+    return out * out;
   }
 
   // Exact distance to the closed axis-aligned square (centre, half side), metres, and the square's point where it is
@@ -552,14 +554,17 @@ DistanceFieldSnapshot::DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot>
                                              RefDirectory refs, double max_distance_m)
     : grid_(std::move(grid)), bounds_(bounds), refs_(std::move(refs)), max_distance_m_(max_distance_m) {}
 
-std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
-  const std::int32_t i = (c.ix >> kBlockShift) - refs_.block_x0;
-  const std::int32_t j = (c.iy >> kBlockShift) - refs_.block_y0;
-  if (i < 0 || j < 0 || i >= refs_.blocks_x) return std::nullopt;
+const DistanceFieldSnapshot::RefBlock* DistanceFieldSnapshot::block_at(std::int32_t i, std::int32_t j) const {
+  if (i < 0 || j < 0 || i >= refs_.blocks_x) return nullptr;
   const std::size_t slot = static_cast<std::size_t>(j) * static_cast<std::size_t>(refs_.blocks_x) + i;
-  if (slot >= refs_.blocks.size() || !refs_.blocks[slot]) return std::nullopt;
-  const Ref& ref = refs_.blocks[slot]->refs[static_cast<std::size_t>(c.iy & (kBlockCells - 1)) * kBlockCells +
-                                            static_cast<std::size_t>(c.ix & (kBlockCells - 1))];
+  return slot < refs_.blocks.size() ? refs_.blocks[slot].get() : nullptr;
+}
+
+std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
+  const RefBlock* block = block_at((c.ix >> kBlockShift) - refs_.block_x0, (c.iy >> kBlockShift) - refs_.block_y0);
+  if (block == nullptr) return std::nullopt;
+  const Ref& ref = block->refs[static_cast<std::size_t>(c.iy & (kBlockCells - 1)) * kBlockCells +
+                               static_cast<std::size_t>(c.ix & (kBlockCells - 1))];
   if (ref.x == kNone) return std::nullopt;
   return CellIndex{c.ix + ref.x, c.iy + ref.y};
 }
@@ -606,35 +611,58 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
 
   const double half_cell = cell_size / 2.0;
   const double scale = cell_size / 2.0;
-  double lower = std::numeric_limits<double>::infinity();
+  const double squared_scale = scale * scale;
+  const double squared_half_diagonal = half_diagonal * half_diagonal;
+  // The smallest squared field distance (half cells) of the cells visited, and whether one had no occupied cell in
+  // range: the lower bound follows from them once the loop is done, with one square root instead of one per cell.
+  std::int32_t smallest_squared = kInfiniteSquared;
+  bool visited_cell_out_of_range = false;
   double upper = std::numeric_limits<double>::infinity();
+  // A cell whose squared field distance (square metres) is at least this cannot improve on `upper`: the footprint is
+  // within half a diagonal of its centre, so its referred cell is at least distance - half_diagonal away.
+  double squared_distance_to_beat = std::numeric_limits<double>::infinity();
   std::optional<CellIndex> best_cell;
   Eigen::Vector2d best_point = Eigen::Vector2d::Zero();
   std::optional<CellIndex> last_cell;
   for (std::int32_t iy = near.min.iy; iy <= near.max.iy; ++iy) {
+    const double center_y = (iy + 0.5) * cell_size;
+    // The reference block under the row's current cells, looked up again only when the row crosses into the next.
+    const RefBlock* block = nullptr;
+    std::int32_t block_column = std::numeric_limits<std::int32_t>::min();
+    const std::int32_t block_row = (iy >> kBlockShift) - refs_.block_y0;
+    const std::size_t row_in_block = static_cast<std::size_t>(iy & (kBlockCells - 1)) * kBlockCells;
     for (std::int32_t ix = near.min.ix; ix <= near.max.ix; ++ix) {
-      const Eigen::Vector2d center_W((ix + 0.5) * cell_size, (iy + 0.5) * cell_size);
-      if (placed.distance_to_point(center_W) > half_diagonal) continue;
-      const std::optional<CellIndex> nearest = nearest_occupied({ix, iy});
-      if (!nearest) {
-        lower = std::min(lower, max_distance_m_ - half_diagonal);
+      const Eigen::Vector2d center_W((ix + 0.5) * cell_size, center_y);
+      if (placed.squared_distance_to_point(center_W) > squared_half_diagonal) continue;
+      if ((ix >> kBlockShift) != block_column) {
+        block_column = ix >> kBlockShift;
+        block = block_at(block_column - refs_.block_x0, block_row);
+      }
+      const Ref ref = block == nullptr ? Ref{kNone, 0} : block->refs[row_in_block + (ix & (kBlockCells - 1))];
+      if (ref.x == kNone) {
+        visited_cell_out_of_range = true;
         continue;
       }
-      const double distance =
-          std::sqrt(static_cast<double>(squared_half_cells(ix - nearest->ix, iy - nearest->iy))) * scale;
-      lower = std::min(lower, distance - half_diagonal);
-      // The exact distance to a cell referred to from farther away than the best so far is unlikely to beat it.
-      if (distance - half_diagonal >= upper || nearest == last_cell) continue;
+      const std::int32_t squared = squared_half_cells(ref.x, ref.y);
+      smallest_squared = std::min(smallest_squared, squared);
+      const CellIndex nearest{ix + ref.x, iy + ref.y};
+      if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) continue;
       last_cell = nearest;
-      const Eigen::Vector2d square_W((nearest->ix + 0.5) * cell_size, (nearest->iy + 0.5) * cell_size);
+      const Eigen::Vector2d square_W((nearest.ix + 0.5) * cell_size, (nearest.iy + 0.5) * cell_size);
       const auto [exact_distance, point_W] = placed.distance_to_square(square_W, half_cell);
       if (exact_distance < upper) {
         upper = exact_distance;
+        squared_distance_to_beat = (upper + half_diagonal) * (upper + half_diagonal);
         best_cell = nearest;
         best_point = point_W;
       }
     }
   }
+  double lower = std::numeric_limits<double>::infinity();
+  if (smallest_squared != kInfiniteSquared) {
+    lower = std::sqrt(static_cast<double>(smallest_squared)) * scale - half_diagonal;
+  }
+  if (visited_cell_out_of_range) lower = std::min(lower, max_distance_m_ - half_diagonal);
   // The exact clearance, capped at limit, lies in [lower, upper] (both capped likewise).
   const double capped_lower = std::clamp(lower, 0.0, limit);
   const double capped_upper = std::min(upper, limit);

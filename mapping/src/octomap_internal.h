@@ -98,6 +98,11 @@ struct OctoMapSnapshot::Impl {
   std::size_t nodes_above_tiles = 0;
   // Nodes of the model's live tree at publication (OcTree::size, kept by the tree as it changes).
   std::size_t live_tree_nodes = 0;
+  // Sums over the tiles, taken once at publication so that a status request (node_count, leaf_count, memory_bytes)
+  // costs the same at any map size: nodes, leaves, and heap bytes of the tiles' trees, summaries and records.
+  std::size_t tile_nodes = 0;
+  std::size_t tile_leaves = 0;
+  std::size_t tile_bytes = 0;
   // See OctoMapSnapshot::changed_columns.
   std::optional<std::vector<OctoColumnRange>> changed_columns;
   std::uint64_t changed_since_version = 0;

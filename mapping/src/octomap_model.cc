@@ -258,35 +258,32 @@ std::vector<OctoColumnRange> OctoMapSnapshot::all_columns() const {
   return columns_of_tiles(ids);
 }
 
+namespace {
+
+std::size_t octree_node_bytes() { return heap_chunk(sizeof(octomap::OcTreeNode)); }
+std::size_t octree_children_bytes() { return heap_chunk(8 * sizeof(octomap::AbstractOcTreeNode*)); }
+
+// Heap bytes of one published tile: its tree's nodes and child arrays, its column summary and its records.
+std::size_t tile_heap_bytes(const OctoTile& tile) {
+  return tile.node_count * octree_node_bytes() + (tile.node_count - tile.leaf_count) * octree_children_bytes() +
+         (tile.columns.z_low.capacity() + tile.columns.z_high.capacity()) * sizeof(std::uint16_t) +
+         heap_chunk(sizeof(OctoTile)) + heap_chunk(sizeof(octomap::OcTree));
+}
+
+}  // namespace
+
 std::size_t OctoMapSnapshot::memory_bytes() const {
-  const std::size_t node_bytes = heap_chunk(sizeof(octomap::OcTreeNode));
-  const std::size_t children_bytes = heap_chunk(8 * sizeof(octomap::AbstractOcTreeNode*));
-  std::size_t bytes = 0;
-  std::size_t nodes = 0;
-  std::size_t leaves = 0;
-  for (const auto& [id, tile] : impl_->tiles) {
-    bytes += tile->node_count * node_bytes + (tile->node_count - tile->leaf_count) * children_bytes;
-    bytes += (tile->columns.z_low.capacity() + tile->columns.z_high.capacity()) * sizeof(std::uint16_t);
-    bytes += heap_chunk(sizeof(OctoTile)) + heap_chunk(sizeof(octomap::OcTree));
-    nodes += tile->node_count;
-    leaves += tile->leaf_count;
-  }
+  const std::size_t nodes = impl_->tile_nodes;
+  const std::size_t leaves = impl_->tile_leaves;
   // The live tree holds the same leaves; its inner nodes are taken in the snapshot's proportion.
   const std::size_t live = impl_->live_tree_nodes;
   const double inner_share = nodes == 0 ? 0.0 : static_cast<double>(nodes - leaves) / static_cast<double>(nodes);
-  bytes += live * node_bytes +
-           static_cast<std::size_t>(std::llround(static_cast<double>(live) * inner_share)) * children_bytes;
-  return bytes;
+  return impl_->tile_bytes + live * octree_node_bytes() +
+         static_cast<std::size_t>(std::llround(static_cast<double>(live) * inner_share)) * octree_children_bytes();
 }
-std::size_t OctoMapSnapshot::leaf_count() const {
-  std::size_t count = 0;
-  for (const auto& [id, tile] : impl_->tiles) count += tile->leaf_count;
-  return count;
-}
+std::size_t OctoMapSnapshot::leaf_count() const { return impl_->tile_leaves; }
 std::size_t OctoMapSnapshot::node_count() const {
-  std::size_t count = impl_->nodes_above_tiles;
-  for (const auto& [id, tile] : impl_->tiles) count += tile->node_count - kTileDepth;
-  return count;
+  return impl_->nodes_above_tiles + impl_->tile_nodes - impl_->tiles.size() * kTileDepth;
 }
 
 // ---------------------------------------------------------------------------------------------------------------------
@@ -908,6 +905,9 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   snapshot_impl->tiles = impl_->tiles;
   std::unordered_set<std::uint64_t> above;
   for (const auto& [id, tile] : impl_->tiles) {
+    snapshot_impl->tile_nodes += tile->node_count;
+    snapshot_impl->tile_leaves += tile->leaf_count;
+    snapshot_impl->tile_bytes += tile_heap_bytes(*tile);
     for (unsigned shift = 1; shift <= kTileDepth; ++shift) {
       // Depth kTileDepth - shift, tagged with it so that prefixes of different depths stay apart.
       const std::uint64_t prefix = tile_prefix(id, shift) | std::uint64_t{shift} << 32U;

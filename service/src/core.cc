@@ -199,19 +199,6 @@ std::optional<std::uint64_t> process_resident_bytes() {
   return resident_pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
-std::size_t World::octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const {
-  {
-    const std::lock_guard lock(leaf_count_mutex_);
-    if (leaf_count_of_ == &snapshot && leaf_count_version_ == snapshot.version()) return leaf_count_;
-  }
-  const std::size_t leaves = snapshot.leaf_count();  // outside the lock: other threads' statuses need not wait
-  const std::lock_guard lock(leaf_count_mutex_);
-  leaf_count_of_ = &snapshot;
-  leaf_count_version_ = snapshot.version();
-  leaf_count_ = leaves;
-  return leaves;
-}
-
 WorldSnapshot World::snapshots() const {
   const std::lock_guard lock(snapshot_mutex_);
   return snapshot_;
@@ -436,6 +423,22 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
 
 double ServerCore::uptime_s() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+}
+
+std::uint64_t ServerCore::recent_resident_bytes() const {
+  const std::int64_t now_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  std::int64_t read_at_ns = resident_read_at_ns_.load(std::memory_order_acquire);
+  const bool stale =
+      read_at_ns == 0 || now_ns - read_at_ns >= std::chrono::nanoseconds(kResidentRefreshInterval).count();
+  // One caller refreshes the value; the others meanwhile answer with the previous one (or read it themselves the
+  // first time, when there is none).
+  if (stale && resident_read_at_ns_.compare_exchange_strong(read_at_ns, now_ns, std::memory_order_acq_rel)) {
+    resident_bytes_.store(process_resident_bytes().value_or(0), std::memory_order_release);
+  } else if (read_at_ns == 0 || resident_bytes_.load(std::memory_order_acquire) == 0) {
+    return process_resident_bytes().value_or(0);
+  }
+  return resident_bytes_.load(std::memory_order_acquire);
 }
 
 }  // namespace occgeo::service

@@ -152,9 +152,6 @@ class World : public std::enable_shared_from_this<World> {
   // no lock is taken and no reference count touched (both are shared by every thread). The reference is valid until
   // this thread calls it again.
   [[nodiscard]] const WorldSnapshot& snapshots_for_this_thread() const;
-  // The leaf count of a published octree snapshot of this world. Counting walks the whole tree, so it is done once per
-  // snapshot (by the first status that asks) and kept; safe from any thread.
-  [[nodiscard]] std::size_t octomap_leaf_count(const mapping::OctoMapSnapshot& snapshot) const;
 
  private:
   std::string name_;
@@ -187,10 +184,6 @@ class World : public std::enable_shared_from_this<World> {
   // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).
   std::atomic<std::uint64_t> snapshot_generation_{0};
   std::shared_ptr<durability::WorldJournal> journal_;
-  mutable std::mutex leaf_count_mutex_;  // guards the two below
-  mutable const mapping::OctoMapSnapshot* leaf_count_of_ = nullptr;
-  mutable std::uint64_t leaf_count_version_ = 0;
-  mutable std::size_t leaf_count_ = 0;
 };
 
 // A planar laser as declared in a RobotSpec, converted to SI geometry types.
@@ -449,6 +442,10 @@ class ServerCore {
   std::atomic<std::size_t> queries_in_flight{0};
   std::atomic<std::uint64_t> next_session_id{1};
   [[nodiscard]] double uptime_s() const;
+  // The process's resident memory, bytes, read from /proc at most every kResidentRefreshInterval: a status request
+  // asks for it, and opening /proc/self/statm for each of them cost more than the rest of the reply.
+  [[nodiscard]] std::uint64_t recent_resident_bytes() const;
+  static constexpr std::chrono::milliseconds kResidentRefreshInterval{250};
 
   // Stops the robots' watchdog timers, then waits for queued ingest and query work to finish.
   void drain();
@@ -466,6 +463,9 @@ class ServerCore {
   // Changes with every change of robots_, unique across cores (see robot_for_this_thread).
   std::atomic<std::uint64_t> robots_generation_;
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  // recent_resident_bytes()'s value and when it was read (steady clock, ns since its epoch; 0: never).
+  mutable std::atomic<std::uint64_t> resident_bytes_{0};
+  mutable std::atomic<std::int64_t> resident_read_at_ns_{0};
 };
 
 }  // namespace occgeo::service

@@ -275,24 +275,34 @@ void print_summary(double seconds) {
     sink += geometry::check_collision({kBearcat, pose}, *world.grid).hit;
   });
   // Latency of single all-model clearance lookups (wall clock per call; other processes on the cores show as tail),
-  // the octree answered from its band field and, alternating in the same run, by walking its columns.
+  // the octree answered from its band field and, alternating in the same run, by walking its columns; then each model
+  // of the first on its own, to show which one the tail comes from.
   const auto& poses = bench_poses();
   const std::size_t samples = seconds < 0.5 ? 2000 : 20000;
-  std::array<std::vector<double>, 2> latencies_us;
-  const std::array<const WorldSnapshot*, 2> worlds = {&bench_world_all_models(), &bench_world_all_models_walk()};
+  struct Series {
+    const char* name;
+    const WorldSnapshot* world;
+    std::vector<v1::Model> models;
+    std::vector<double> latencies_us;
+  };
+  std::array<Series, 5> series = {{{"all models", &bench_world_all_models(), kAllModels, {}},
+                                   {"all models, octree walked", &bench_world_all_models_walk(), kAllModels, {}},
+                                   {"grid only", &bench_world_all_models(), {v1::MODEL_GRID}, {}},
+                                   {"octree only (band field)", &bench_world_all_models(), {v1::MODEL_OCTOMAP}, {}},
+                                   {"ptem only", &bench_world_all_models(), {v1::MODEL_PTEM}, {}}}};
   for (std::size_t i = 0; i < samples; ++i) {
-    for (std::size_t w = 0; w < worlds.size(); ++w) {
+    for (Series& run : series) {
       v1::ClearanceReply reply;
       const auto start = std::chrono::steady_clock::now();
-      answer_clearance(*worlds[w], kBearcat, poses[i & (poses.size() - 1)], 1.0, kAllModels, reply);
+      answer_clearance(*run.world, kBearcat, poses[i & (poses.size() - 1)], 1.0, run.models, reply);
       const auto stop = std::chrono::steady_clock::now();
       sink += reply.found();
-      latencies_us[w].push_back(std::chrono::duration<double, std::micro>(stop - start).count());
+      run.latencies_us.push_back(std::chrono::duration<double, std::micro>(stop - start).count());
     }
   }
-  for (auto& run : latencies_us) std::sort(run.begin(), run.end());
+  for (Series& run : series) std::sort(run.latencies_us.begin(), run.latencies_us.end());
   const auto percentile = [&](std::size_t w, double q) {
-    const auto& run = latencies_us[w];
+    const auto& run = series[w].latencies_us;
     return run[std::min(run.size() - 1, static_cast<std::size_t>(q * static_cast<double>(run.size())))];
   };
   benchmark::DoNotOptimize(sink);
@@ -302,6 +312,13 @@ void print_summary(double seconds) {
       samples, percentile(0, 0.50), percentile(0, 0.99));
   std::printf("  the same with the octree walked instead of its band field: p50 %.2f us  p99 %.2f us (%.1fx the p99)\n",
               percentile(1, 0.50), percentile(1, 0.99), percentile(1, 0.99) / percentile(0, 0.99));
+  for (std::size_t w = 2; w < series.size(); ++w) {
+    std::printf("  %s: p50 %.2f us  p99 %.2f us\n", series[w].name, percentile(w, 0.50), percentile(w, 0.99));
+  }
+  const WorldSnapshot& fields = bench_world_all_models();
+  std::printf("  lookups that needed the exact search near the footprint: grid field %llu, octree band field %llu\n",
+              static_cast<unsigned long long>(fields.distance->exact_fallback_count()),
+              static_cast<unsigned long long>(fields.octree_bands->front().field->exact_fallback_count()));
   std::printf(
       "in-process query kernels, per CPU second of one core, Bearcat box on a 40 x 40 m indoor map of 0.1 m cells\n");
   std::printf("  collision checks/s (CollisionQuery kernel): %12.0f  goal 1000000  ratio %.2f\n", single, single / 1e6);

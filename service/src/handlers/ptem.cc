@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "handlers.h"
+#include "queries_common.h"
 
 namespace occgeo::service {
 
@@ -42,46 +43,51 @@ void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query) {
     }
     points_W.emplace_back(point.x(), point.y());
   }
-  asio::post(session->core().query_pool(),
-             [session, world, request_id, points_W = std::move(points_W), include_clusters = query.include_clusters()] {
-               run_guarded(session, "ptem", request_id, [&] {
-                 // The grid and the PTEM of one publication: version names the sensor message both include.
-                 const WorldSnapshot snapshot = world->snapshots();
-                 const mapping::PtemSnapshot& ptem = *snapshot.ptem;
-                 v1::ServerMessage reply;
-                 auto* out = reply.mutable_ptem();
-                 out->set_request_id(request_id);
-                 out->set_world(world->name());
-                 out->set_version(snapshot.grid->version());
-                 out->set_threshold_f_r(ptem.restricted_threshold().value_or(0.0));
-                 out->set_construction(ptem_construction_name(world->ptem_params().construction));
-                 out->set_cluster_count(static_cast<std::uint32_t>(ptem.clusters().size()));
-                 out->set_scans(ptem.scan_count());
-                 out->set_latest_stamp_s(ptem.latest_stamp_s().value_or(0.0));
-                 out->mutable_samples()->Reserve(static_cast<int>(points_W.size()));
-                 for (const Eigen::Vector2d& p_W : points_W) {
-                   const mapping::PtemThreat threat = ptem.threat_and_gradient(p_W);
-                   auto* sample = out->add_samples();
-                   sample->set_threat(threat.value);
-                   sample->mutable_gradient()->set_x(threat.gradient_W.x());
-                   sample->mutable_gradient()->set_y(threat.gradient_W.y());
-                   sample->set_restricted(ptem.restricted(p_W));
-                 }
-                 if (include_clusters) {
-                   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-                     auto* c = out->add_clusters();
-                     c->mutable_center()->set_x(cluster.centre_W.x());
-                     c->mutable_center()->set_y(cluster.centre_W.y());
-                     c->set_radius_m(cluster.radius_m);
-                     c->set_sigma_m(cluster.sigma_m);
-                     c->set_age_scans(cluster.age_scans);
-                     c->set_age_s(cluster.age_s);
-                     c->set_threshold_reachable(cluster.threshold_reachable);
-                   }
-                 }
-                 session->send(reply);
-               });
-             });
+  // A few points' threats take microseconds, less than the hand-off to the query pool and back: those are answered on
+  // the network thread; many points, or the cluster list, go to the pool.
+  const bool answer_inline = points_W.size() <= kMaxInlinePtemPoints && !query.include_clusters();
+  run_query(session, "ptem", request_id, answer_inline,
+            [session, world, request_id, points_W = std::move(points_W), include_clusters = query.include_clusters(),
+             answer_inline] {
+              // The grid and the PTEM of one publication: version names the sensor message both include. Inline
+              // answers use the network thread's cached snapshot; the query pool's threads take their own copy.
+              WorldSnapshot own;
+              const WorldSnapshot& snapshot =
+                  answer_inline ? world->snapshots_for_this_thread() : (own = world->snapshots());
+              const mapping::PtemSnapshot& ptem = *snapshot.ptem;
+              v1::ServerMessage reply;
+              auto* out = reply.mutable_ptem();
+              out->set_request_id(request_id);
+              out->set_world(world->name());
+              out->set_version(snapshot.grid->version());
+              out->set_threshold_f_r(ptem.restricted_threshold().value_or(0.0));
+              out->set_construction(ptem_construction_name(world->ptem_params().construction));
+              out->set_cluster_count(static_cast<std::uint32_t>(ptem.clusters().size()));
+              out->set_scans(ptem.scan_count());
+              out->set_latest_stamp_s(ptem.latest_stamp_s().value_or(0.0));
+              out->mutable_samples()->Reserve(static_cast<int>(points_W.size()));
+              for (const Eigen::Vector2d& p_W : points_W) {
+                const mapping::PtemThreat threat = ptem.threat_and_gradient(p_W);
+                auto* sample = out->add_samples();
+                sample->set_threat(threat.value);
+                sample->mutable_gradient()->set_x(threat.gradient_W.x());
+                sample->mutable_gradient()->set_y(threat.gradient_W.y());
+                sample->set_restricted(ptem.restricted(p_W));
+              }
+              if (include_clusters) {
+                for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+                  auto* c = out->add_clusters();
+                  c->mutable_center()->set_x(cluster.centre_W.x());
+                  c->mutable_center()->set_y(cluster.centre_W.y());
+                  c->set_radius_m(cluster.radius_m);
+                  c->set_sigma_m(cluster.sigma_m);
+                  c->set_age_scans(cluster.age_scans);
+                  c->set_age_s(cluster.age_s);
+                  c->set_threshold_reachable(cluster.threshold_reachable);
+                }
+              }
+              session->send(reply);
+            });
 }
 
 }  // namespace occgeo::service

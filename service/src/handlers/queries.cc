@@ -273,7 +273,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
   status->set_server_version("occgeod 0.1.0");
   status->set_clients(core.sessions.load());
   status->set_uptime_s(core.uptime_s());
-  status->set_resident_bytes(process_resident_bytes().value_or(0));
+  status->set_resident_bytes(core.recent_resident_bytes());
   for (const auto& robot : core.robots()) {
     const RobotState state = robot->state();
     auto* out = status->add_robots();
@@ -333,7 +333,7 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
     out->set_ptem_scans(snapshots.ptem->scan_count());
     out->set_octomap_version(snapshots.octomap->version());
     out->set_octomap_nodes(snapshots.octomap->node_count());
-    out->set_octomap_leaves(world->octomap_leaf_count(*snapshots.octomap));
+    out->set_octomap_leaves(snapshots.octomap->leaf_count());
     out->set_octomap_resolution_m(snapshots.octomap->resolution());
     const WorldMemory memory = world->memory();
     out->set_grid_bytes(memory.grid_bytes);

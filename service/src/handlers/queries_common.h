@@ -75,6 +75,8 @@ std::optional<geometry::Pose2> resolve_pose(const SessionPtr& session, const v1:
 // footprint checks or lookups on an immutable published snapshot take microseconds, less than the two thread
 // hand-offs (to the query pool and back) would add. Larger batches, swept motions and windows go to the query pool.
 inline constexpr std::size_t kMaxInlineEntries = 8;
+// The same for a PtemQuery's points: a threat and its gradient at one point take well under a microsecond.
+inline constexpr std::size_t kMaxInlinePtemPoints = 32;
 
 // Runs a query's work (guarded and timed, see run_guarded): on the caller's thread when answer_inline, else on the
 // query pool.

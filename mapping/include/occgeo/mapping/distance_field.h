@@ -109,6 +109,8 @@ class DistanceFieldSnapshot {
 
   struct Answer;
   [[nodiscard]] Answer answer(const geometry::ClearanceRequest& request) const;
+  // The reference block at column i, row j of the directory; nullptr outside it or where none was written.
+  [[nodiscard]] const RefBlock* block_at(std::int32_t i, std::int32_t j) const;
 
   std::shared_ptr<const GridSnapshot> grid_;
   std::optional<CellBox> bounds_;
