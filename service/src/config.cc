@@ -279,6 +279,8 @@ void ServerConfig::validate() const {
   require(limits.max_scan_voxels > 0, "limits.max_scan_voxels", "must be positive");
   validate_block(octomap, "octomap");
   require(octomap_publish_every_messages <= 1000000, "octomap.publish_every_messages", "must be in [0, 1000000]");
+  require(octomap_lane_nice >= 0 && octomap_lane_nice <= 19, "octomap.lane_nice",
+          "must be between 0 and 19 (added to the octree lane thread's niceness)");
   validate_block(terrain, "terrain");
   validate_block(distance_field, "distance_field");
   require(std::isfinite(sensors.max_insert_range_m) && sensors.max_insert_range_m > 0, "sensors.max_insert_range_m",
@@ -440,7 +442,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("outlier_mean_k", o.outlier_mean_k)
                        .field("outlier_stddev_mul", o.outlier_stddev_mul)
                        .field("min_publish_interval_s", o.min_publish_interval_s)
-                       .field("publish_every_messages", config.octomap_publish_every_messages);
+                       .field("publish_every_messages", config.octomap_publish_every_messages)
+                       .field("lane_nice", config.octomap_lane_nice);
                  })
         .section("terrain",
                  [&](Section& s) {

@@ -280,28 +280,38 @@ control::BearcatParams bearcat_params_for(const RobotModel& model, control::Bear
   return configured;
 }
 
+namespace {
+
+// Adds `nice` to the niceness of each of a pool's `threads` threads. Each thread takes one of these tasks (they wait
+// for each other), so every thread is lowered. The latch is shared: a pool thread may still be inside arrive_and_wait
+// after this function's wait has returned.
+void lower_pool_priority(asio::thread_pool& pool, std::size_t threads, int nice, const char* warning) {
+  if (nice <= 0) return;
+  auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
+  for (std::size_t i = 0; i < threads; ++i) {
+    asio::post(pool, [lowered, nice, warning] {
+      const auto thread = static_cast<id_t>(gettid());
+      errno = 0;
+      const int current = getpriority(PRIO_PROCESS, thread);
+      if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+        log::warn(warning, {{"nice", nice}, {"error", std::strerror(errno)}});
+      }
+      lowered->arrive_and_wait();
+    });
+  }
+  lowered->wait();
+}
+
+}  // namespace
+
 ServerCore::ServerCore(ServerConfig config)
     : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
   // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
-  // strand, which maps the scans and computes the robots' commands, gets the CPU first. Each pool thread takes one
-  // of these tasks (they wait for each other), so every thread is lowered. The latch is shared: a pool thread may
-  // still be inside arrive_and_wait after the constructor's wait has returned.
-  const int nice = config_.queries.network_nice;
-  if (nice > 0) {
-    auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(kQueryThreads));
-    for (std::size_t i = 0; i < kQueryThreads; ++i) {
-      asio::post(query_pool_, [lowered, nice] {
-        const auto thread = static_cast<id_t>(gettid());
-        errno = 0;
-        const int current = getpriority(PRIO_PROCESS, thread);
-        if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
-          log::warn("query_pool_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
-        }
-        lowered->arrive_and_wait();
-      });
-    }
-    lowered->wait();
-  }
+  // strand, which maps the scans and computes the robots' commands, gets the CPU first.
+  lower_pool_priority(query_pool_, kQueryThreads, config_.queries.network_nice, "query_pool_nice_not_applied");
+  // The octree lane's work (milliseconds per scan) waits for nobody: readers see the octree up to an interval stale.
+  // Below the ingest strand, so that a scan's command does not share a core with the previous scan's octree work.
+  lower_pool_priority(octree_pool_, 1, config_.octomap_lane_nice, "octree_lane_nice_not_applied");
 }
 
 ServerCore::~ServerCore() { drain(); }

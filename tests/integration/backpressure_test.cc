@@ -409,12 +409,14 @@ std::vector<int> thread_niceness(pid_t pid) {
 // The network threads answer queries inline, and the query pool computes the larger ones, at queries.network_nice
 // below the process's priority; every other thread (ingest and control, journal) keeps the process's own, so a query
 // flood yields the CPU to the robot's data.
-TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriority) {
+TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriorityAndTheOctreeLaneAtItsOwn) {
   constexpr long kQueryPoolThreads = 2;
+  constexpr int kLaneNice = 2;
   const int own = getpriority(PRIO_PROCESS, 0);
   for (const int nice : {0, 7}) {
     TempDir dir;
-    auto server = start_server(dir, "queries:\n  network_threads: 3\n  network_nice: " + std::to_string(nice) + "\n");
+    auto server = start_server(dir, "queries:\n  network_threads: 3\n  network_nice: " + std::to_string(nice) +
+                                        "\noctomap:\n  lane_nice: " + std::to_string(kLaneNice) + "\n");
     // The network threads lower their own priority as they start serving, just after the server listens.
     std::vector<int> niceness;
     long lowered = 0;
@@ -426,11 +428,13 @@ TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriority) {
     }
     ASSERT_GT(niceness.size(), 4U);
     const auto kept = std::count(niceness.begin(), niceness.end(), own);
+    // The octree's lane thread: below the ingest strand, whatever the queries' niceness.
+    EXPECT_EQ(std::count(niceness.begin(), niceness.end(), std::min(own + kLaneNice, 19)), 1);
     if (nice == 0) {
-      EXPECT_EQ(kept, static_cast<long>(niceness.size()));
+      EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 1);
     } else {
       EXPECT_EQ(lowered, 3 + kQueryPoolThreads) << "one lowered thread per network thread and query pool thread";
-      EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 3 - kQueryPoolThreads);
+      EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 3 - kQueryPoolThreads - 1);
     }
   }
 }

@@ -199,6 +199,10 @@ struct ServerConfig {
   // octomap.publish_every_messages: > 0 publishes each world's octree after every N-th sensor message instead of at
   // most every min_publish_interval_s of wall time, so a lockstep simulation sees the same models on every run.
   std::uint32_t octomap_publish_every_messages = 0;
+  // octomap.lane_nice: niceness the octree's lane thread adds to its own (Linux, 0-19). Its work costs milliseconds per
+  // scan and nobody waits for it (readers see the octree up to min_publish_interval_s stale); below the ingest strand,
+  // a scan's command does not share a core with the previous scans' octree insertion.
+  int octomap_lane_nice = 3;
   // The terrain rule (section `terrain:`): surfaces the octree shows a robot can drive on (a ramp) are not obstacles
   // to its behaviour, planner and guard; ground_band_m is the floor's height band for every model.
   mapping::TerrainParams terrain;
