@@ -310,9 +310,10 @@ class DistanceField::Brushfire {
       auto refs = std::make_shared<DistanceFieldSnapshot::RefBlock>();
       const Block& block = *blocks_[b];
       for (std::size_t i = 0; i < block.cells.size(); ++i) refs->refs[i] = {block.cells[i].dx, block.cells[i].dy};
+      if (!published_[b]) ++published_blocks_;
       published_[b] = std::move(refs);
     }
-    return {block_x0_, block_y0_, blocks_x_, published_};
+    return {block_x0_, block_y0_, blocks_x_, published_, published_blocks_};
   }
 
  private:
@@ -460,6 +461,7 @@ class DistanceField::Brushfire {
   std::vector<std::unique_ptr<Block>> blocks_;  // The directory, row-major; nullptr: no cell written there.
   std::vector<std::uint8_t> dirty_;             // Per block: a reference changed since the last references().
   DistanceFieldSnapshot::RefBlocks published_;  // The blocks the last references() returned.
+  std::size_t published_blocks_ = 0;            // Of those, the ones written (not nullptr).
   // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32.
   std::vector<std::vector<std::uint64_t>> buckets_;
   std::size_t next_bucket_ = 0;

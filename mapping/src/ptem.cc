@@ -299,7 +299,17 @@ void PtemModel::insert_scan(const PtemScan& scan) {
     std::vector<PtemCluster> fresh;
     std::vector<bool> fresh_grown;
     cluster_points(scan.points_W, scan.stamp_s, fresh, fresh_grown);
+    // How far from the sensor a kept cluster can reach a fresh one or the sector: clusters beyond it are kept as they
+    // are without the per-fresh-cluster test, so the cost of this loop follows what the scan saw, not the map's size
+    // (a cluster's copy aside).
+    double reach_m = scan.max_range_m;
+    for (const PtemCluster& f : fresh) reach_m = std::max(reach_m, (f.centre_W - scan.p_WS).norm() + f.radius_m);
     for (const PtemCluster& cluster : clusters_) {
+      if ((cluster.centre_W - scan.p_WS).norm() - cluster.radius_m > reach_m) {
+        clusters.push_back(cluster);
+        grown.push_back(false);
+        continue;
+      }
       // Retained unless
       //  (a) its circle lies wholly inside the scanned sector: had the obstacle still been there the scan would have
       //      made it again, so a moving obstacle leaves no trail (§4.2.4, Fig 4.2); or

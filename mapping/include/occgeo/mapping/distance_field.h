@@ -69,11 +69,9 @@ class DistanceFieldSnapshot {
   // Heap bytes of the reference blocks this snapshot holds and their directory (blocks shared with the previous
   // snapshot counted once here, as the field keeps one copy of each between updates).
   [[nodiscard]] std::size_t memory_bytes() const {
-    std::size_t blocks = 0;
-    for (const auto& block : refs_.blocks) blocks += block != nullptr ? 1 : 0;
     constexpr std::size_t kControlBlockAndHeader = 32;
     return refs_.blocks.capacity() * sizeof(RefBlocks::value_type) +
-           blocks * (sizeof(RefBlock) + kControlBlockAndHeader);
+           refs_.written_blocks * (sizeof(RefBlock) + kControlBlockAndHeader);
   }
 
   // Number of compute_clearance and clearance_gradient calls so far that needed an exact check (local or global).
@@ -102,6 +100,7 @@ class DistanceFieldSnapshot {
     std::int32_t block_y0 = 0;
     std::int32_t blocks_x = 0;
     RefBlocks blocks;
+    std::size_t written_blocks = 0;  // blocks that are not nullptr, counted as they are written
   };
 
   DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> bounds, RefDirectory refs,
