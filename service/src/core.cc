@@ -191,6 +191,16 @@ WorldMemory World::memory() const {
   return memory;
 }
 
+void lower_this_threads_priority(int nice, const char* warning) {
+  if (nice == 0) return;
+  const auto thread = static_cast<id_t>(gettid());
+  errno = 0;
+  const int current = getpriority(PRIO_PROCESS, thread);
+  if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
+    log::warn(warning, {{"nice", nice}, {"error", std::strerror(errno)}});
+  }
+}
+
 std::optional<std::uint64_t> process_resident_bytes() {
   std::ifstream statm("/proc/self/statm");
   std::uint64_t size_pages = 0;
@@ -290,22 +300,25 @@ void lower_pool_priority(asio::thread_pool& pool, std::size_t threads, int nice,
   auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
   for (std::size_t i = 0; i < threads; ++i) {
     asio::post(pool, [lowered, nice, warning] {
-      const auto thread = static_cast<id_t>(gettid());
-      errno = 0;
-      const int current = getpriority(PRIO_PROCESS, thread);
-      if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
-        log::warn(warning, {{"nice", nice}, {"error", std::strerror(errno)}});
-      }
+      lower_this_threads_priority(nice, warning);
       lowered->arrive_and_wait();
     });
   }
   lowered->wait();
 }
 
+std::int64_t steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 }  // namespace
 
 ServerCore::ServerCore(ServerConfig config)
-    : config_(std::move(config)), robots_generation_(next_snapshot_generation()) {
+    : config_(std::move(config)),
+      robots_generation_(next_snapshot_generation()),
+      resident_bytes_(process_resident_bytes().value_or(0)),
+      resident_read_at_ns_(steady_now_ns()) {
   // The query pool runs at the network threads' lower priority (queries.network_nice): under a query flood the ingest
   // strand, which maps the scans and computes the robots' commands, gets the CPU first.
   lower_pool_priority(query_pool_, kQueryThreads, config_.queries.network_nice, "query_pool_nice_not_applied");
@@ -436,17 +449,12 @@ double ServerCore::uptime_s() const {
 }
 
 std::uint64_t ServerCore::recent_resident_bytes() const {
-  const std::int64_t now_ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const std::int64_t now_ns = steady_now_ns();
   std::int64_t read_at_ns = resident_read_at_ns_.load(std::memory_order_acquire);
-  const bool stale =
-      read_at_ns == 0 || now_ns - read_at_ns >= std::chrono::nanoseconds(kResidentRefreshInterval).count();
-  // One caller refreshes the value; the others meanwhile answer with the previous one (or read it themselves the
-  // first time, when there is none).
-  if (stale && resident_read_at_ns_.compare_exchange_strong(read_at_ns, now_ns, std::memory_order_acq_rel)) {
+  // One caller refreshes the value; the others meanwhile answer with the previous one.
+  if (now_ns - read_at_ns >= std::chrono::nanoseconds(kResidentRefreshInterval).count() &&
+      resident_read_at_ns_.compare_exchange_strong(read_at_ns, now_ns, std::memory_order_acq_rel)) {
     resident_bytes_.store(process_resident_bytes().value_or(0), std::memory_order_release);
-  } else if (read_at_ns == 0 || resident_bytes_.load(std::memory_order_acquire) == 0) {
-    return process_resident_bytes().value_or(0);
   }
   return resident_bytes_.load(std::memory_order_acquire);
 }

@@ -68,6 +68,10 @@ struct WorldMemory {
 // The process's resident memory (/proc/self/statm), bytes; nullopt where it cannot be read.
 std::optional<std::uint64_t> process_resident_bytes();
 
+// Adds `nice` to the calling thread's niceness (Linux: a thread's niceness is its own; raising it needs no privilege),
+// at most to 19; logs `warning` when it cannot.
+void lower_this_threads_priority(int nice, const char* warning);
+
 // The models a world keeps, and their parameters.
 struct WorldParams {
   mapping::PtemParams ptem;
@@ -463,7 +467,7 @@ class ServerCore {
   // Changes with every change of robots_, unique across cores (see robot_for_this_thread).
   std::atomic<std::uint64_t> robots_generation_;
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
-  // recent_resident_bytes()'s value and when it was read (steady clock, ns since its epoch; 0: never).
+  // recent_resident_bytes()'s value and when it was read (steady clock, ns since its epoch), first at construction.
   mutable std::atomic<std::uint64_t> resident_bytes_{0};
   mutable std::atomic<std::int64_t> resident_read_at_ns_{0};
 };

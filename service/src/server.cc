@@ -42,18 +42,6 @@ void restore_worlds(ServerCore& core) {
   durability::restore_worlds(core);
 }
 
-// Lowers the calling thread's priority by `nice` (queries.network_nice). On Linux a thread's niceness is its own, so
-// the ingest and control threads keep the process's. Raising niceness needs no privilege.
-void lower_this_threads_priority(int nice) {
-  if (nice == 0) return;
-  const auto thread = static_cast<id_t>(gettid());
-  errno = 0;
-  const int current = getpriority(PRIO_PROCESS, thread);
-  if ((current == -1 && errno != 0) || setpriority(PRIO_PROCESS, thread, std::min(current + nice, 19)) != 0) {
-    log::warn("network_nice_not_applied", {{"nice", nice}, {"error", std::strerror(errno)}});
-  }
-}
-
 // Runs one network thread's event loop until it stops or runs out of work, as io_context::run() does, but looks for
 // the next event for a short while before sleeping in epoll_wait. A client asking again as soon as it has its answer
 // (one sequential client) would otherwise find the thread asleep every time, and on a virtual machine an idle vCPU
@@ -300,7 +288,7 @@ void Server::run() {
   const int nice = impl_->core.config().queries.network_nice;
   for (auto& loop : impl_->more_loops) {
     more_network_threads.emplace_back([&loop, poll_us, nice] {
-      lower_this_threads_priority(nice);
+      lower_this_threads_priority(nice, "network_nice_not_applied");
       run_network_loop(*loop, poll_us);
     });
   }
@@ -310,7 +298,7 @@ void Server::run() {
     driver_thread = std::thread([loop = impl_->driver_loop.get(), poll_us] { run_network_loop(*loop, poll_us); });
   }
   // The calling thread serves `net` too. Threads it starts later inherit its niceness; every pool exists by now.
-  lower_this_threads_priority(nice);
+  lower_this_threads_priority(nice, "network_nice_not_applied");
   run_network_loop(impl_->net, poll_us);
   for (std::thread& thread : more_network_threads) thread.join();
   if (driver_thread.joinable()) driver_thread.join();
