@@ -10,7 +10,7 @@ packages=(
   libeigen3-dev libccd-dev libfcl-dev liboctomap-dev libdynamicedt3d-dev
   libcgal-dev libgmp-dev libmpfr-dev
   libpcl-dev
-  libyaml-cpp-dev zlib1g-dev libzstd-dev liblz4-dev
+  libyaml-cpp-dev zlib1g-dev libzstd-dev liblz4-dev libjemalloc-dev
   libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3

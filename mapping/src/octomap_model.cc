@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -75,7 +76,7 @@ namespace {
 
 // The tiles of snapshot whose cubes overlap the key box [lo, hi], in id order.
 template <typename Visit>
-void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi,
+void for_tiles_in_keys(const OctoTileTable& tiles, const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi,
                        Visit&& visit) {
   const OctoTileId first = tile_id_of(lo), last = tile_id_of(hi);
   const auto part = tile_axis;
@@ -83,19 +84,19 @@ void for_tiles_in_keys(const OctoTiles& tiles, const octomap::OcTreeKey& lo, con
                              (part(last, 2) - part(first, 2) + 1);
   if (span > tiles.size()) {
     // A box wider than the snapshot: walk the tiles rather than the box.
-    for (const auto& [id, tile] : tiles) {
+    tiles.visit_all([&](OctoTileId id, const OctoTile& tile) {
       bool inside = true;
       for (unsigned axis = 0; axis < 3; ++axis)
         inside = inside && part(id, axis) >= part(first, axis) && part(id, axis) <= part(last, axis);
-      if (inside && !visit(*tile)) return;
-    }
+      return !inside || visit(tile);
+    });
     return;
   }
   for (OctoTileId z = part(first, 2); z <= part(last, 2); ++z) {
     for (OctoTileId y = part(first, 1); y <= part(last, 1); ++y) {
       for (OctoTileId x = part(first, 0); x <= part(last, 0); ++x) {
-        const auto it = tiles.find(pack_tile(x, y, z));
-        if (it != tiles.end() && !visit(*it->second)) return;
+        const OctoTile* tile = tiles.find(pack_tile(x, y, z));
+        if (tile != nullptr && !visit(*tile)) return;
       }
     }
   }
@@ -114,9 +115,9 @@ std::optional<double> OctoMapSnapshot::occupancy(const Eigen::Vector3d& p_W) con
   const octomap::OcTree& keys = *impl_->empty->tree;
   octomap::OcTreeKey key;
   if (!p_W.allFinite() || !keys.coordToKeyChecked(to_octo(p_W), key)) return std::nullopt;
-  const auto it = impl_->tiles.find(tile_id_of(key));
-  if (it == impl_->tiles.end()) return std::nullopt;
-  const octomap::OcTreeNode* node = it->second->tree->search(key);
+  const OctoTile* tile = impl_->tiles.find(tile_id_of(key));
+  if (tile == nullptr) return std::nullopt;
+  const octomap::OcTreeNode* node = tile->tree->search(key);
   if (node == nullptr) return std::nullopt;
   return node->getOccupancy();
 }
@@ -155,10 +156,11 @@ std::vector<OctoVoxel> OctoMapSnapshot::occupied_in_box(const Eigen::Vector3d& m
 }
 
 void OctoMapSnapshot::for_each_leaf(const std::function<void(const OctoVoxel&)>& visit) const {
-  for (const auto& [id, tile] : impl_->tiles) {
-    const octomap::OcTree& tree = *tile->tree;
+  impl_->tiles.visit_all([&](OctoTileId /*id*/, const OctoTile& tile) {
+    const octomap::OcTree& tree = *tile.tree;
     for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) visit(voxel_of(it));
-  }
+    return true;
+  });
 }
 
 std::optional<OctoRayHit> OctoMapSnapshot::cast_ray(const Eigen::Vector3d& origin_W, const Eigen::Vector3d& direction_W,
@@ -176,13 +178,14 @@ std::optional<OctoRayHit> OctoMapSnapshot::cast_ray(const Eigen::Vector3d& origi
   // its tile: castRay with ignoreUnknown, across tiles.
   const Eigen::Vector3d end_W = origin_W + direction_W.normalized() * max_range_m;
   const auto [end_lo, end_hi] = clamped_box(keys, end_W, end_W);
-  octomap::KeyRay ray;
+  // A KeyRay holds 100,000 keys (600 KB, zeroed when made): one per thread, reused by every query.
+  thread_local octomap::KeyRay ray;
   if (!keys.computeRayKeys(to_octo(origin_W), end_lo, ray)) return std::nullopt;
   const auto occupied_voxel = [&](const octomap::OcTreeKey& key) {
-    const auto it = impl_->tiles.find(tile_id_of(key));
-    if (it == impl_->tiles.end()) return false;
-    const octomap::OcTreeNode* node = it->second->tree->search(key);
-    return node != nullptr && it->second->tree->isNodeOccupied(node);
+    const OctoTile* tile = impl_->tiles.find(tile_id_of(key));
+    if (tile == nullptr) return false;
+    const octomap::OcTreeNode* node = tile->tree->search(key);
+    return node != nullptr && tile->tree->isNodeOccupied(node);
   };
   std::optional<octomap::OcTreeKey> hit;
   for (const octomap::OcTreeKey& key : ray) {
@@ -204,7 +207,7 @@ namespace {
 
 // Collides footprint with every tile its bounding sphere (about base_link's origin, height included) reaches; the
 // first hit answers. With no tile in reach the empty tile answers, which still checks the footprint's dimensions.
-OctoCollision collide_tiles(const OctoTiles& tiles, const OctoTile& empty, const geometry::Footprint& footprint,
+OctoCollision collide_tiles(const OctoTileTable& tiles, const OctoTile& empty, const geometry::Footprint& footprint,
                             const geometry::Pose3& X_WB, bool with_columns) {
   const double height = std::visit([](const auto& f) { return f.height; }, footprint);
   const double radius = std::hypot(geometry::bounding_radius(footprint), height);
@@ -254,7 +257,10 @@ std::uint64_t OctoMapSnapshot::changed_since_version() const { return impl_->cha
 std::vector<OctoColumnRange> OctoMapSnapshot::all_columns() const {
   std::vector<OctoTileId> ids;
   ids.reserve(impl_->tiles.size());
-  for (const auto& [id, tile] : impl_->tiles) ids.push_back(id);
+  impl_->tiles.visit_all([&ids](OctoTileId id, const OctoTile& /*tile*/) {
+    ids.push_back(id);
+    return true;
+  });
   return columns_of_tiles(ids);
 }
 
@@ -611,7 +617,13 @@ struct OctoMapModel::Impl {
   // A tree that can be given a root (OcTree makes one only on the first update) and so be built node by node.
   class TileTree : public octomap::OcTree {
    public:
-    explicit TileTree(double resolution_m) : octomap::OcTree(resolution_m) {}
+    // OcTreeBaseImpl gives every tree a ray buffer of 100,000 keys (600 KB, zeroed) for inserting rays; a tile is
+    // never written through rays, so it drops it. Kept, it made each tile of a snapshot cost 600 KB, and every tile a
+    // publish replaced a 600 KB free, each of which made glibc consolidate its fast bins.
+    explicit TileTree(double resolution_m) : octomap::OcTree(resolution_m) {
+      keyrays.clear();
+      keyrays.shrink_to_fit();
+    }
     octomap::OcTreeNode* make_root() {
       if (root == nullptr) {
         root = new octomap::OcTreeNode();  // NOLINT(cppcoreguidelines-owning-memory): the tree owns and deletes it
@@ -672,6 +684,20 @@ struct OctoMapModel::Impl {
     return tile;
   }
 
+  // Counts (delta +1) or uncounts (-1) tile id under each of its ancestors above the tiles' depth; those with a tile
+  // under them are the tree's nodes above the tiles.
+  void count_tile_ancestors(OctoTileId id, int delta) {
+    for (unsigned shift = 1; shift <= kTileDepth; ++shift) {
+      // Depth kTileDepth - shift, tagged with it so that prefixes of different depths stay apart.
+      const std::uint64_t prefix = tile_prefix(id, shift) | std::uint64_t{shift} << 32U;
+      if (delta > 0) {
+        ++tiles_under[prefix];
+      } else if (const auto it = tiles_under.find(prefix); it != tiles_under.end() && --it->second == 0) {
+        tiles_under.erase(it);
+      }
+    }
+  }
+
   // Every tile the tree holds something in (after a load: all of them change).
   [[nodiscard]] std::vector<OctoTileId> all_tile_ids() const {
     std::vector<OctoTileId> ids;
@@ -693,23 +719,35 @@ struct OctoMapModel::Impl {
     }
   }
 
-  // Brings the published tiles in step with the tree: the changed ones rebuilt, the rest kept.
+  // Brings the published tiles in step with the tree: the changed ones rebuilt, the rest kept; and the sums over the
+  // tiles with them, so that a publish costs what changed.
   void update_tiles(const OctoMapParams& params) {
     refresh_changed_tiles();
+    std::vector<std::pair<OctoTileId, OctoTileTable::TilePtr>> changes;
     if (all_tiles_dirty) {
       tiles.clear();
+      sums = {};
+      tiles_under.clear();
       for (const OctoTileId id : all_tile_ids()) {
-        if (auto tile = build_tile(id, params)) tiles.emplace(id, std::move(tile));
+        if (auto tile = build_tile(id, params)) changes.emplace_back(id, std::move(tile));
       }
     } else {
-      for (const OctoTileId id : dirty_tiles) {
-        if (auto tile = build_tile(id, params)) {
-          tiles[id] = std::move(tile);
-        } else {
-          tiles.erase(id);
-        }
-      }
+      changes.reserve(dirty_tiles.size());
+      for (const OctoTileId id : dirty_tiles) changes.emplace_back(id, build_tile(id, params));
     }
+    tiles.apply(std::move(changes), [&](OctoTileId id, const OctoTile* before, const OctoTile* after) {
+      if (before != nullptr) {
+        sums.nodes -= before->node_count;
+        sums.leaves -= before->leaf_count;
+        sums.bytes -= tile_heap_bytes(*before);
+      }
+      if (after != nullptr) {
+        sums.nodes += after->node_count;
+        sums.leaves += after->leaf_count;
+        sums.bytes += tile_heap_bytes(*after);
+      }
+      if ((before == nullptr) != (after == nullptr)) count_tile_ancestors(id, after != nullptr ? 1 : -1);
+    });
     dirty_tiles.clear();
     last_dirty = kNoTile;
     all_tiles_dirty = false;
@@ -723,7 +761,15 @@ struct OctoMapModel::Impl {
   std::unordered_set<OctoTileId> dirty_tiles;
   OctoTileId last_dirty = kNoTile;
   bool all_tiles_dirty = false;
-  OctoTiles tiles;
+  OctoTileTable tiles;
+  // Sums over tiles, kept as tiles change (OctoMapSnapshot::Impl has the same).
+  struct TileSums {
+    std::size_t nodes = 0;
+    std::size_t leaves = 0;
+    std::size_t bytes = 0;
+  } sums;
+  // Tiles under each ancestor above the tiles' depth (count_tile_ancestors).
+  std::unordered_map<std::uint64_t, std::uint32_t> tiles_under;
   std::shared_ptr<const OctoTile> empty_tile;
   // Reused between batches so that they are allocated once.
   static constexpr std::uint64_t kMaxBitmapCells = std::uint64_t{1} << 27;  // 16 MiB per bitmap
@@ -902,19 +948,11 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   }
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
   snapshot_impl->empty = impl_->empty_tile;
-  snapshot_impl->tiles = impl_->tiles;
-  std::unordered_set<std::uint64_t> above;
-  for (const auto& [id, tile] : impl_->tiles) {
-    snapshot_impl->tile_nodes += tile->node_count;
-    snapshot_impl->tile_leaves += tile->leaf_count;
-    snapshot_impl->tile_bytes += tile_heap_bytes(*tile);
-    for (unsigned shift = 1; shift <= kTileDepth; ++shift) {
-      // Depth kTileDepth - shift, tagged with it so that prefixes of different depths stay apart.
-      const std::uint64_t prefix = tile_prefix(id, shift) | std::uint64_t{shift} << 32U;
-      if (!above.insert(prefix).second) break;
-    }
-  }
-  snapshot_impl->nodes_above_tiles = above.size();
+  snapshot_impl->tiles = impl_->tiles;  // the directory of chunks: the chunks and tiles are shared
+  snapshot_impl->tile_nodes = impl_->sums.nodes;
+  snapshot_impl->tile_leaves = impl_->sums.leaves;
+  snapshot_impl->tile_bytes = impl_->sums.bytes;
+  snapshot_impl->nodes_above_tiles = impl_->tiles_under.size();
   snapshot_impl->live_tree_nodes = impl_->tree->size();
   snapshot_impl->changed_columns = std::move(changed_columns);
   snapshot_impl->changed_since_version = published_version_;
