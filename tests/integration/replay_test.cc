@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "../clients/replay_excerpts.h"
@@ -100,6 +101,44 @@ TEST_F(Replay, DpslamLoop5ReplaysToTheEnd) {
   EXPECT_EQ(json_number(json, "scans_acked"), 551);
   EXPECT_EQ(json_number(json, "errors"), 0);
   std::cout << "dpslam scans_per_s " << json_number(json, "scans_per_s") << "\n";
+}
+
+// A replay keeps several scans ahead of their answers (--in-flight, default 8); the server holds it back through TCP
+// and drops nothing, so every scan is answered and the map is the one a lockstep replay of the same log builds.
+TEST_F(Replay, ScansAheadOfTheirAnswersBuildTheSameMapAsLockstep) {
+  require_datasets();
+  if (IsSkipped()) return;
+  const auto log = (datasets() / "dpslam-loop5/loop5.log").string();
+  const auto lockstep = dir_.path() / "lockstep";
+  const auto ahead = dir_.path() / "ahead";
+  const std::string lockstep_json = replay({"--format", "dpslam", log, "--max", "--json", "--in-flight", "1", "--world",
+                                            "lockstep", "--id", "lockstep", "--out", lockstep.string()});
+  const std::string ahead_json = replay({"--format", "dpslam", log, "--max", "--json", "--in-flight", "32", "--world",
+                                         "ahead", "--id", "ahead", "--out", ahead.string()});
+  for (const std::string& json : {lockstep_json, ahead_json}) {
+    EXPECT_EQ(json_number(json, "scans"), 551) << json;
+    EXPECT_EQ(json_number(json, "scans_acked"), 551) << json;
+    EXPECT_EQ(json_number(json, "errors"), 0) << json;
+  }
+  std::cout << "lockstep scans_per_s " << json_number(lockstep_json, "scans_per_s") << ", 32 in flight "
+            << json_number(ahead_json, "scans_per_s") << "\n";
+  const auto bytes = [](const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string lockstep_map = bytes(lockstep.string() + ".pgm");
+  ASSERT_GT(lockstep_map.size(), 1000U);
+  EXPECT_TRUE(lockstep_map == bytes(ahead.string() + ".pgm")) << "the two replays built different maps";
+}
+
+TEST_F(Replay, RefusesAnInFlightCountThatIsNotAWholePositiveNumber) {
+  for (const char* count : {"0", "2.5", "-1", "5000"}) {
+    const ProcessResult result = run_process(
+        {binary("clients/occgeo").string(), "replay", "--format", "carmen", "any.log", "--in-flight", count},
+        std::chrono::seconds(10));
+    EXPECT_EQ(result.exit_code, 2) << count;
+    EXPECT_NE(result.err.find("--in-flight"), std::string::npos) << count << ": " << result.err;
+  }
 }
 
 TEST_F(Replay, QuirkyLogIsPacedAndItsQuirksCountedWithoutServerErrors) {

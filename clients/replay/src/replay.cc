@@ -2,9 +2,11 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <iostream>
 #include <set>
 #include <sstream>
@@ -248,6 +250,7 @@ class Pass {
       progress.update(source->progress(), result_.scans, seconds_since(start));
     }
     send_clouds(*source, connection, index);
+    if (connection) await_answers(*connection, 0);
     result_.duration_s = seconds_since(start);
     progress.finish(result_.scans, result_.duration_s);
     result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
@@ -294,7 +297,8 @@ class Pass {
     const auto range_max = static_cast<float>(range_max_m_);
     for (const float r : scan.ranges_m) ranges.Add(r >= range_max ? range_max : r);  // +inf and far: no return
     connection.send(message);
-    await_answer(connection, seq);
+    unanswered_.push_back(seq);
+    await_answers(connection, options_.in_flight - 1);
   }
 
   // Sends the clouds the source read so far (full pass only: the consistency check is about scans). Each goes after
@@ -315,6 +319,7 @@ class Pass {
       odom.mutable_pose()->set_x(cloud.X_WB.x);
       odom.mutable_pose()->set_y(cloud.X_WB.y);
       odom.mutable_pose()->set_theta(cloud.X_WB.theta);
+      await_answers(*connection, 0);  // the scans' answers first, so that the counts below are the cloud's
       connection->send(odometry);
       v1::ClientMessage message;
       auto& points = *message.mutable_point_cloud();
@@ -325,7 +330,8 @@ class Pass {
       connection->send(message);
       ++result_.clouds;
       const std::uint64_t acked_before = result_.acked;
-      await_answer(*connection, seq);
+      unanswered_.push_back(seq);
+      await_answers(*connection, 0);
       if (result_.acked > acked_before) {
         --result_.acked;  // counted as a cloud, not a scan
         ++result_.clouds_acked;
@@ -333,23 +339,29 @@ class Pass {
     }
   }
 
-  // Lockstep: wait for the scan's ScanAck (or its Error) so the server is never flooded.
-  void await_answer(client::Connection& connection, std::uint64_t seq) {
-    const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                             std::chrono::duration<double>(options_.ack_timeout_s));
-    for (;;) {
+  // Reads the server's answers until at most `keep` messages are unanswered: a ScanAck answers its message, and so
+  // does an Error naming it (other than its odometry's); motion commands are read and dropped (a log cannot obey
+  // them). Gives up when no answer comes for ack_timeout_s.
+  void await_answers(client::Connection& connection, std::size_t keep) {
+    const auto timeout =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.ack_timeout_s));
+    auto deadline = Clock::now() + timeout;
+    while (unanswered_.size() > keep) {
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
       if (left.count() <= 0) {
-        throw std::runtime_error("no answer to scan " + std::to_string(seq) + " within " + fmt(options_.ack_timeout_s) +
-                                 " s");
+        throw std::runtime_error("no answer to scan " + std::to_string(unanswered_.front()) + " within " +
+                                 fmt(options_.ack_timeout_s) + " s");
       }
       const auto message = connection.receive(left);
       if (!message) continue;
-      if (message->has_scan_ack() && message->scan_ack().seq() == seq) {
-        ++result_.acked;
-        return;
+      if (message->has_scan_ack()) {
+        if (answer(message->scan_ack().seq())) {
+          ++result_.acked;
+          deadline = Clock::now() + timeout;
+        }
+        continue;
       }
-      if (!message->has_error()) continue;  // motion commands: a log cannot obey them
+      if (!message->has_error()) continue;
       const v1::Error& error = message->error();
       if (error.field().rfind("robot_spec", 0) == 0 || error.field().rfind("hello", 0) == 0) {
         throw std::runtime_error("the server refused the robot spec: " + client::describe(error));
@@ -357,8 +369,16 @@ class Pass {
       ++result_.errors;
       if (result_.errors <= 5) err_ << "occgeo replay: server error: " << client::describe(error) << "\n";
       if (result_.errors == 5) err_ << "occgeo replay: further server errors are counted but not printed\n";
-      if (error.seq() == seq && error.field().rfind("odometry", 0) != 0) return;  // the scan itself was rejected
+      if (error.field().rfind("odometry", 0) != 0 && answer(error.seq())) deadline = Clock::now() + timeout;
     }
+  }
+
+  // Removes seq from the unanswered messages; false when it was not one of them.
+  bool answer(std::uint64_t seq) {
+    const auto it = std::find(unanswered_.begin(), unanswered_.end(), seq);
+    if (it == unanswered_.end()) return false;
+    unanswered_.erase(it);
+    return true;
   }
 
   const ReplayOptions& options_;
@@ -370,8 +390,9 @@ class Pass {
   double range_max_m_;
   TimestampSanitizer stamps_;
   PassResult result_;
-  std::uint64_t clouds_sent_ = 0;  // clouds take seqs between the scans'
-  double last_stamp_ = 0.0;        // of the last scan sent
+  std::uint64_t clouds_sent_ = 0;         // clouds take seqs between the scans'
+  std::deque<std::uint64_t> unanswered_;  // seqs sent and not yet answered, oldest first
+  double last_stamp_ = 0.0;               // of the last scan sent
 };
 
 // Whether `file` is an occgeo recording (`occgeo record`): its first message is protobuf with an occgeo.v1 schema.

@@ -40,13 +40,14 @@ std::array<double, 6> six_numbers(const std::string& option, const std::string& 
 
 const char* const kReplayUsage = R"(usage: occgeo replay --format carmen|dpslam|urg|mcap FILE [options]
 Streams a recorded laser log (gzip or plain text, or a ROS 2 bag in MCAP) to occgeod as a driver: a RobotSpec
-matching the log's laser, then Odometry + LaserScan per scan, one scan at a time (each waits for its ScanAck).
+matching the log's laser, then Odometry + LaserScan per scan, at most --in-flight scans ahead of their ScanAcks.
 The robot asks for the "stop" behaviour: a log cannot be steered.
   --server HOST:PORT   server address (default 127.0.0.1:7700)
   --world W            world to map into (default "default")
   --id ROBOT           robot id (default "replay")
   --speed X            replay at X times the log's speed (default 1)
   --max                as fast as the server answers
+  --in-flight N        scans sent ahead of their ScanAck, at most (default 8; 1 waits for each scan's answer)
   --max-range M        readings at or beyond M metres are sent as "no return"
                        (default: carmen 30, dpslam 8, urg 5.6)
   --consistency        first map the even scans into world W-even (robot ROBOT-even), then report the fraction of
@@ -89,6 +90,13 @@ ReplayOptions parse_replay_args(const std::vector<std::string>& args) {
   app.add_option_function<std::string>(
       "--speed", [&options](const std::string& text) { options.speed = positive_number("--speed", text); });
   app.add_flag("--max", options.as_fast_as_possible);
+  app.add_option_function<std::string>("--in-flight", [&options](const std::string& text) {
+    const double count = positive_number("--in-flight", text);
+    if (count != std::floor(count) || count > 1024) {
+      throw client::UsageError("option '--in-flight' needs a whole number from 1 to 1024, got '" + text + "'");
+    }
+    options.in_flight = static_cast<std::size_t>(count);
+  });
   app.add_option_function<std::string>("--max-range", [&options](const std::string& text) {
     options.max_range_m = positive_number("--max-range", text);
   });

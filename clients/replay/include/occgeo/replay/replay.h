@@ -29,7 +29,10 @@ struct ReplayOptions {
   std::string out_prefix;             // empty: write no map files
   std::optional<double> max_range_m;  // nullopt: the format's default
   double ack_timeout_s = 30.0;        // longest wait for one scan's answer before giving up
-  McapOptions mcap;                   // --format mcap: topics and laser mount
+  // Log scans sent and not yet answered, at most (1: lockstep). A driver does not wait for each ScanAck either; the
+  // server holds a fast sender back through TCP, never by dropping scans. Recordings replay in lockstep.
+  std::size_t in_flight = 8;
+  McapOptions mcap;  // --format mcap: topics and laser mount
 };
 
 // Parses the arguments after "replay"; throws std::invalid_argument with a message naming the option.
