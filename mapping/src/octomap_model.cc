@@ -541,12 +541,30 @@ struct OctoMapModel::Impl {
     }
   }
 
-  // The tile of key changed: the next publish rebuilds it.
+  // The voxel of key changed: the next publish refreshes its block's inner nodes and rebuilds its tile.
   void mark_dirty(const octomap::OcTreeKey& key) {
+    const BlockId block = block_id_of(key);
+    if (block == last_dirty_block) return;
+    last_dirty_block = block;
+    dirty_blocks.insert(block);
     const OctoTileId id = tile_id_of(key);
     if (id == last_dirty) return;
     last_dirty = id;
     dirty_tiles.insert(id);
+  }
+
+  // The nodes at kRefreshDepth (cubes of 8 voxels a side) that a publish refreshes when a voxel in them changed; a
+  // tile is 64 voxels a side, and one scan changes few of its 512 blocks.
+  static constexpr int kRefreshDepth = 13;
+  static_assert(kRefreshDepth >= kTileDepth && kRefreshDepth <= 16);
+  using BlockId = std::uint64_t;  // a key prefix: x | y << 16 | z << 32
+  static constexpr BlockId kNoBlock = ~BlockId{0};
+  static constexpr BlockId pack_block(std::uint64_t x, std::uint64_t y, std::uint64_t z) {
+    return x | y << 16U | z << 32U;
+  }
+  static BlockId block_id_of(const octomap::OcTreeKey& key) {
+    constexpr unsigned kShift = 16U - kRefreshDepth;
+    return pack_block(key[0] >> kShift, key[1] >> kShift, key[2] >> kShift);
   }
 
   bool clamped(const octomap::OcTreeNode* node, float log_odds) const {
@@ -563,7 +581,7 @@ struct OctoMapModel::Impl {
     inner_stale = false;
   }
 
-  // refresh_inner for the changed tiles only: their subtrees and the nodes above them, bottom-up, as
+  // refresh_inner for the changed blocks only: their subtrees and the nodes above them, bottom-up, as
   // updateInnerOccupancy then prune would (a node's occupancy is its children's maximum; a node whose eight children
   // are equal leaves is pruned). The other subtrees are up to date already: lazy updates stale only their own paths.
   void refresh_changed_tiles() {
@@ -572,31 +590,33 @@ struct OctoMapModel::Impl {
       refresh_inner();
       return;
     }
-    // The changed tiles' ancestors at each depth above the tiles, as key prefixes packed like tile ids.
-    std::array<std::unordered_set<OctoTileId>, kTileDepth + 1> prefixes;
-    for (const OctoTileId id : dirty_tiles) {
-      for (int depth = kTileDepth; depth >= 0; --depth) {
-        const unsigned shift = static_cast<unsigned>(kTileDepth - depth);
-        const OctoTileId prefix = tile_prefix(id, shift);
-        if (!prefixes[static_cast<std::size_t>(depth)].insert(prefix).second) break;
+    // The changed blocks' ancestors at each depth, as key prefixes packed like block ids.
+    std::array<std::unordered_set<BlockId>, kRefreshDepth + 1> prefixes;
+    for (const BlockId block : dirty_blocks) {
+      const std::uint64_t bx = block & 0xFFFFU, by = (block >> 16U) & 0xFFFFU, bz = block >> 32U;
+      for (int depth = kRefreshDepth; depth >= 0; --depth) {
+        const unsigned shift = static_cast<unsigned>(kRefreshDepth - depth);
+        const auto inserted =
+            prefixes[static_cast<std::size_t>(depth)].insert(pack_block(bx >> shift, by >> shift, bz >> shift));
+        if (!inserted.second) break;
       }
     }
     refresh_above(tree->getRoot(), 0, 0, 0, 0, prefixes);
     inner_stale = false;
   }
 
-  void refresh_above(octomap::OcTreeNode* node, int depth, OctoTileId x, OctoTileId y, OctoTileId z,
-                     const std::array<std::unordered_set<OctoTileId>, kTileDepth + 1>& prefixes) {
+  void refresh_above(octomap::OcTreeNode* node, int depth, std::uint64_t x, std::uint64_t y, std::uint64_t z,
+                     const std::array<std::unordered_set<BlockId>, kRefreshDepth + 1>& prefixes) {
     octomap::OcTree& t = *tree;
-    if (depth == kTileDepth) {
+    if (depth == kRefreshDepth) {
       refresh_subtree(node, depth);
       return;
     }
     if (!t.nodeHasChildren(node)) return;
     for (unsigned i = 0; i < 8; ++i) {
       if (!t.nodeChildExists(node, i)) continue;
-      const OctoTileId cx = x << 1U | (i & 1U), cy = y << 1U | ((i >> 1U) & 1U), cz = z << 1U | ((i >> 2U) & 1U);
-      if (prefixes[static_cast<std::size_t>(depth) + 1].contains(pack_tile(cx, cy, cz))) {
+      const std::uint64_t cx = x << 1U | (i & 1U), cy = y << 1U | ((i >> 1U) & 1U), cz = z << 1U | ((i >> 2U) & 1U);
+      if (prefixes[static_cast<std::size_t>(depth) + 1].contains(pack_block(cx, cy, cz))) {
         refresh_above(t.getNodeChild(node, i), depth + 1, cx, cy, cz, prefixes);
       }
     }
@@ -750,6 +770,8 @@ struct OctoMapModel::Impl {
     });
     dirty_tiles.clear();
     last_dirty = kNoTile;
+    dirty_blocks.clear();
+    last_dirty_block = kNoBlock;
     all_tiles_dirty = false;
   }
 
@@ -760,6 +782,9 @@ struct OctoMapModel::Impl {
   static constexpr OctoTileId kNoTile = 0xFFFFFFFFU;
   std::unordered_set<OctoTileId> dirty_tiles;
   OctoTileId last_dirty = kNoTile;
+  // The blocks changed since the last publish, the same way.
+  std::unordered_set<BlockId> dirty_blocks;
+  BlockId last_dirty_block = kNoBlock;
   bool all_tiles_dirty = false;
   OctoTileTable tiles;
   // Sums over tiles, kept as tiles change (OctoMapSnapshot::Impl has the same).

@@ -80,6 +80,9 @@ OctoMapParams bench_params() {
   params.voxel_filter_enabled = false;
   params.outlier_filter_enabled = false;
   params.min_publish_interval_s = 0.0;
+  // Plain OctoMap's update rule, so that the model's map can be compared leaf by leaf with insertPointCloud's (the
+  // see-through rule is a deliberate difference: octomap_insert_test checks it apart).
+  params.laser_see_through_clears = false;
   return params;
 }
 
