@@ -21,16 +21,17 @@ void for_each_tile_in(const Tiles& tiles, const TileLayout& layout, const CellBo
   if (box_tiles <= tiles.size()) {
     for (std::int32_t ty = first.ty; ty <= last.ty; ++ty) {
       for (std::int32_t tx = first.tx; tx <= last.tx; ++tx) {
-        const auto it = tiles.find(TileIndex{tx, ty});
-        if (it != tiles.end() && !visit(it->first, *it->second)) return;
+        const TileIndex index{tx, ty};
+        const Tile* tile = tiles.find(index);
+        if (tile != nullptr && !visit(index, *tile)) return;
       }
     }
     return;
   }
-  for (const auto& [index, tile] : tiles) {
+  tiles.visit_all([&](const TileIndex& index, const Tile& tile) {
     const bool overlaps = index.tx >= first.tx && index.tx <= last.tx && index.ty >= first.ty && index.ty <= last.ty;
-    if (overlaps && !visit(index, *tile)) return;
-  }
+    return !overlaps || visit(index, tile);
+  });
 }
 
 // The part of box inside tile t.
@@ -128,19 +129,19 @@ std::vector<CellBox> GridSnapshot::changed_since(std::uint64_t version, const Ce
   return parts;
 }
 
-const Tile* GridSnapshot::find_tile(const geometry::CellIndex& c) const {
-  const auto it = tiles_.find(layout_.tile_of(c));
-  return it == tiles_.end() ? nullptr : it->second.get();
-}
+const Tile* GridSnapshot::find_tile(const geometry::CellIndex& c) const { return tiles_.find(layout_.tile_of(c)); }
 
 std::size_t GridSnapshot::memory_bytes() const {
-  // Per tile: its cells' array, the Tile in its shared pointer's control block, and the hash node holding that pointer.
+  // Per tile: its cells' array, the Tile in its shared pointer's control block, and the table's entry holding that
+  // pointer; per chunk of the table, its directory entry and vector.
   constexpr std::size_t kMallocHeader = 8;
   constexpr std::size_t kControlBlock = 16;
-  constexpr std::size_t kHashNode = sizeof(void*) + sizeof(TileIndex) + sizeof(std::shared_ptr<const Tile>);
-  const std::size_t per_tile = layout_.cells_per_tile() + kMallocHeader + sizeof(Tile) + kControlBlock + kMallocHeader +
-                               kHashNode + kMallocHeader;
-  return tiles_.size() * per_tile + tiles_.bucket_count() * sizeof(void*);
+  constexpr std::size_t kEntry = sizeof(TileIndex) + sizeof(std::shared_ptr<const Tile>);
+  constexpr std::size_t kChunk = sizeof(std::uint64_t) + 2 * sizeof(std::shared_ptr<const Tile>) + kControlBlock +
+                                 sizeof(std::vector<int>) + 2 * kMallocHeader;
+  const std::size_t per_tile =
+      layout_.cells_per_tile() + kMallocHeader + sizeof(Tile) + kControlBlock + kMallocHeader + kEntry;
+  return tiles_.size() * per_tile + tiles_.chunk_count() * kChunk;
 }
 
 }  // namespace occgeo::mapping

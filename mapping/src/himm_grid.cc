@@ -135,10 +135,20 @@ bool HimmGrid::observed(const geometry::CellIndex& c) const { return cell_value(
 bool HimmGrid::occupied(const geometry::CellIndex& c) const { return certainty(c) >= params_.occupied_threshold; }
 
 std::shared_ptr<const GridSnapshot> HimmGrid::snapshot() const {
-  GridSnapshot::SharedTiles shared_tiles;
-  shared_tiles.reserve(tiles_.size());
-  for (const auto& [index, tile] : tiles_) shared_tiles.emplace(index, tile);
-  return std::shared_ptr<const GridSnapshot>(new GridSnapshot(std::move(shared_tiles), layout_, params_.cell_size_m,
+  if (!unpublished_tiles_.empty()) {
+    // A tile copied again (a copy of the grid shared it) is listed again.
+    std::sort(unpublished_tiles_.begin(), unpublished_tiles_.end(), [](const TileIndex& a, const TileIndex& b) {
+      return TileIndexTraits::code(a) < TileIndexTraits::code(b);
+    });
+    unpublished_tiles_.erase(std::unique(unpublished_tiles_.begin(), unpublished_tiles_.end()),
+                             unpublished_tiles_.end());
+    std::vector<std::pair<TileIndex, std::shared_ptr<const Tile>>> changes;
+    changes.reserve(unpublished_tiles_.size());
+    for (const TileIndex& t : unpublished_tiles_) changes.emplace_back(t, tiles_.at(t));
+    published_tiles_.apply(std::move(changes), [](const TileIndex&, const Tile*, const Tile*) {});
+    unpublished_tiles_.clear();
+  }
+  return std::shared_ptr<const GridSnapshot>(new GridSnapshot(published_tiles_, layout_, params_.cell_size_m,
                                                               params_.occupied_threshold, params_.max_certainty,
                                                               tile_bounds_, version_, occupied_cells_));
 }
@@ -185,6 +195,7 @@ Tile& HimmGrid::writable_tile(TileIndex t) {
   if (it == tiles_.end()) {
     auto tile = std::make_shared<Tile>(Tile{std::vector<std::uint8_t>(layout_.cells_per_tile(), kUnobserved), 0, 0});
     it = tiles_.emplace(t, std::move(tile)).first;
+    unpublished_tiles_.push_back(t);
     const geometry::CellIndex first = layout_.first_cell_of(t);
     const geometry::CellIndex last = {first.ix + layout_.tile_cells() - 1, first.iy + layout_.tile_cells() - 1};
     tile_bounds_ = tile_bounds_
@@ -196,6 +207,7 @@ Tile& HimmGrid::writable_tile(TileIndex t) {
     // cannot go up meanwhile: no one else holds the tile to share it.
     it->second = std::make_shared<Tile>(*it->second);
     ++copied_tiles_;
+    unpublished_tiles_.push_back(t);
   } else {
     // The count may have just dropped to 1 as the last snapshot holding the tile let go of it (a release operation);
     // an acquire operation on the count then orders that snapshot's reads before our writes. Copying and dropping

@@ -743,7 +743,7 @@ struct OctoMapModel::Impl {
   // tiles with them, so that a publish costs what changed.
   void update_tiles(const OctoMapParams& params) {
     refresh_changed_tiles();
-    std::vector<std::pair<OctoTileId, OctoTileTable::TilePtr>> changes;
+    std::vector<std::pair<OctoTileId, OctoTileTable::ValuePtr>> changes;
     if (all_tiles_dirty) {
       tiles.clear();
       sums = {};

@@ -8,6 +8,7 @@
 #include <memory>
 #include <mutex>
 #include <numbers>
+#include <random>
 #include <stdexcept>
 #include <thread>
 #include <utility>
@@ -72,10 +73,65 @@ TEST(GridSnapshotTest, WritesCopyOnlyTheSharedTilesTheyTouch) {
   EXPECT_EQ(snapshot->certainty({4, 2}), 3);
   EXPECT_EQ(snapshot->certainty({204, 2}), 3);
 
-  snapshot.reset();  // Nobody shares the tiles any more: writes go in place.
+  // The grid keeps what it last published, for its next snapshot to share chunk by chunk, so a tile of it is copied on
+  // its first write even once every reader has let go; a tile written since then is written in place.
+  snapshot.reset();
   hit(grid, {200, 2}, {204, 2});
-  EXPECT_EQ(grid.copied_tile_count(), 1U);
+  EXPECT_EQ(grid.copied_tile_count(), 2U);
   EXPECT_EQ(grid.certainty({204, 2}), 6);
+
+  // The next snapshot has both writes; the one before it kept neither.
+  snapshot = grid.snapshot();
+  EXPECT_EQ(snapshot->certainty({4, 2}), 9);
+  EXPECT_EQ(snapshot->certainty({204, 2}), 6);
+  EXPECT_EQ(snapshot->tile_count(), 2U);
+}
+
+// Snapshots taken between batches of writes over many tiles, on both sides of the origin and across the table's chunks
+// of 8 x 8 tiles, each keep exactly the cells of their moment, while later snapshots share what did not change.
+TEST(GridSnapshotTest, EachSnapshotKeepsItsMomentAcrossManyTilesAndChunks) {
+  HimmGrid grid{HimmParams{}};  // 64-cell tiles: the rays below span about 40 x 40 tiles
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> cell(-1300, 1300);
+  struct Taken {
+    std::shared_ptr<const GridSnapshot> snapshot;
+    std::vector<std::uint8_t> cells;  // of the probes, when it was taken
+  };
+  // Every ray's end (a hit) and middle (cleared), drawn up front so that each snapshot is probed where any batch
+  // writes, and random cells besides.
+  constexpr int kBatches = 12, kRaysPerBatch = 40;
+  std::vector<std::pair<CellIndex, CellIndex>> rays;
+  std::vector<CellIndex> probes;
+  for (int r = 0; r < kBatches * kRaysPerBatch; ++r) {
+    const CellIndex from{cell(rng), cell(rng)}, to{cell(rng), cell(rng)};
+    rays.emplace_back(from, to);
+    probes.push_back(to);
+    probes.push_back({(from.ix + to.ix) / 2, (from.iy + to.iy) / 2});
+  }
+  for (int i = 0; i < 1000; ++i) probes.push_back({cell(rng), cell(rng)});
+  std::vector<Taken> taken;
+  for (int batch = 0; batch < kBatches; ++batch) {
+    for (int r = 0; r < kRaysPerBatch; ++r) {
+      const auto& [from, to] = rays[static_cast<std::size_t>(batch * kRaysPerBatch + r)];
+      hit(grid, from, to);
+    }
+    Taken now{grid.snapshot(), {}};
+    for (const CellIndex& c : probes) now.cells.push_back(grid.certainty(c));
+    EXPECT_EQ(now.snapshot->tile_count(), grid.tile_count());
+    taken.push_back(std::move(now));
+  }
+  for (std::size_t t = 0; t < taken.size(); ++t) {
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      ASSERT_EQ(taken[t].snapshot->certainty(probes[i]), taken[t].cells[i])
+          << "snapshot " << t << " at " << probes[i].ix << ", " << probes[i].iy;
+    }
+  }
+  EXPECT_GT(taken.back().snapshot->tile_count(), 500U);
+  // The probes saw the writes: every batch's ray ends hold a certainty in the last snapshot, one batch's in the first.
+  const auto observed = [&](const Taken& t) {
+    return std::count_if(t.cells.begin(), t.cells.end(), [](auto v) { return v > 0; });
+  };
+  EXPECT_GT(observed(taken.back()), 3 * observed(taken.front()));
 }
 
 TEST(GridSnapshotTest, SnapshotReportsTheGridsShape) {

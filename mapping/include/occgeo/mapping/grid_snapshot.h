@@ -4,11 +4,11 @@
 #include <functional>
 #include <memory>
 #include <optional>
-#include <unordered_map>
 #include <vector>
 
 #include "occgeo/geometry/cell.h"
 #include "occgeo/geometry/collision.h"
+#include "occgeo/mapping/chunked_table.h"
 #include "occgeo/mapping/tiles.h"
 
 namespace occgeo::mapping {
@@ -63,7 +63,8 @@ class GridSnapshot final : public geometry::OccupiedCellSource {
 
  private:
   friend class HimmGrid;
-  using SharedTiles = std::unordered_map<TileIndex, std::shared_ptr<const Tile>, TileIndexHash>;
+  // Shared with the grid's later snapshots chunk by chunk: the grid keeps it in step with the tiles it writes.
+  using SharedTiles = ChunkedTable<TileIndex, Tile, TileIndexTraits>;
 
   GridSnapshot(SharedTiles tiles, TileLayout layout, double cell_size_m, int occupied_threshold, int max_certainty,
                std::optional<CellBox> tile_bounds, std::uint64_t version, std::size_t occupied_cells);

@@ -119,6 +119,11 @@ class HimmGrid {
   std::optional<CellBox> tile_bounds_;
   std::size_t occupied_cells_ = 0;
   std::uint64_t copied_tiles_ = 0;
+  // The tiles as of the last snapshot, shared with it chunk by chunk, and the tiles allocated or copied since (each
+  // once): snapshot() applies those to these, so that it costs what changed, not a pointer per tile. Mutable:
+  // snapshot() is const, and like every member it runs on the grid's writer's thread only.
+  mutable GridSnapshot::SharedTiles published_tiles_;
+  mutable std::vector<TileIndex> unpublished_tiles_;
   std::uint64_t version_ = 0;
   std::vector<geometry::CellIndex> occupancy_changes_;
   // insert_scan's see-through scratch, reused so that a scan allocates nothing once the buffers have grown.

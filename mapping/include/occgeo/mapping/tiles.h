@@ -35,6 +35,13 @@ struct TileIndexHash {
   }
 };
 
+// Keys a grid's tiles in a ChunkedTable: row by row (south to north, then west to east), in chunks of 8 x 8 tiles.
+struct TileIndexTraits {
+  static constexpr std::uint64_t biased(std::int32_t v) { return static_cast<std::uint32_t>(v) ^ 0x80000000U; }
+  static constexpr std::uint64_t code(const TileIndex& t) { return biased(t.ty) << 32U | biased(t.tx); }
+  static constexpr std::uint64_t chunk(const TileIndex& t) { return biased(t.ty >> 3) << 32U | biased(t.tx >> 3); }
+};
+
 // One tile of cell values, row-major (offset = local_iy * n + local_ix), shared between a grid and its snapshots
 // until the grid writes to it.
 struct Tile {
