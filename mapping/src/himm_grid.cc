@@ -136,16 +136,11 @@ bool HimmGrid::occupied(const geometry::CellIndex& c) const { return certainty(c
 
 std::shared_ptr<const GridSnapshot> HimmGrid::snapshot() const {
   if (!unpublished_tiles_.empty()) {
-    // A tile copied again (a copy of the grid shared it) is listed again.
-    std::sort(unpublished_tiles_.begin(), unpublished_tiles_.end(), [](const TileIndex& a, const TileIndex& b) {
-      return TileIndexTraits::code(a) < TileIndexTraits::code(b);
-    });
-    unpublished_tiles_.erase(std::unique(unpublished_tiles_.begin(), unpublished_tiles_.end()),
-                             unpublished_tiles_.end());
+    // A tile copied twice since (a copy of the grid shared it) is listed twice: apply takes it once.
     std::vector<std::pair<TileIndex, std::shared_ptr<const Tile>>> changes;
     changes.reserve(unpublished_tiles_.size());
     for (const TileIndex& t : unpublished_tiles_) changes.emplace_back(t, tiles_.at(t));
-    published_tiles_.apply(std::move(changes), [](const TileIndex&, const Tile*, const Tile*) {});
+    published_tiles_.apply(std::move(changes));
     unpublished_tiles_.clear();
   }
   return std::shared_ptr<const GridSnapshot>(new GridSnapshot(published_tiles_, layout_, params_.cell_size_m,

@@ -97,6 +97,15 @@ struct OctoTileTableTraits {
 };
 using OctoTileTable = ChunkedTable<OctoTileId, OctoTile, OctoTileTableTraits>;
 
+// Sums over a snapshot's tiles, kept by the model as tiles come and go, so that a status request (node_count,
+// leaf_count, memory_bytes) costs the same at any map size: nodes, leaves, and heap bytes of the tiles' trees,
+// summaries and records.
+struct OctoTileSums {
+  std::size_t nodes = 0;
+  std::size_t leaves = 0;
+  std::size_t bytes = 0;
+};
+
 struct OctoMapSnapshot::Impl {
   // An empty tree with the model's parameters: key arithmetic, thresholds, and the collide of an empty snapshot.
   std::shared_ptr<const OctoTile> empty;
@@ -105,11 +114,7 @@ struct OctoMapSnapshot::Impl {
   std::size_t nodes_above_tiles = 0;
   // Nodes of the model's live tree at publication (OcTree::size, kept by the tree as it changes).
   std::size_t live_tree_nodes = 0;
-  // Sums over the tiles, taken once at publication so that a status request (node_count, leaf_count, memory_bytes)
-  // costs the same at any map size: nodes, leaves, and heap bytes of the tiles' trees, summaries and records.
-  std::size_t tile_nodes = 0;
-  std::size_t tile_leaves = 0;
-  std::size_t tile_bytes = 0;
+  OctoTileSums tile_sums;
   // See OctoMapSnapshot::changed_columns.
   std::optional<std::vector<OctoColumnRange>> changed_columns;
   std::uint64_t changed_since_version = 0;

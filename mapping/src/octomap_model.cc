@@ -279,17 +279,17 @@ std::size_t tile_heap_bytes(const OctoTile& tile) {
 }  // namespace
 
 std::size_t OctoMapSnapshot::memory_bytes() const {
-  const std::size_t nodes = impl_->tile_nodes;
-  const std::size_t leaves = impl_->tile_leaves;
+  const std::size_t nodes = impl_->tile_sums.nodes;
+  const std::size_t leaves = impl_->tile_sums.leaves;
   // The live tree holds the same leaves; its inner nodes are taken in the snapshot's proportion.
   const std::size_t live = impl_->live_tree_nodes;
   const double inner_share = nodes == 0 ? 0.0 : static_cast<double>(nodes - leaves) / static_cast<double>(nodes);
-  return impl_->tile_bytes + live * octree_node_bytes() +
+  return impl_->tile_sums.bytes + live * octree_node_bytes() +
          static_cast<std::size_t>(std::llround(static_cast<double>(live) * inner_share)) * octree_children_bytes();
 }
-std::size_t OctoMapSnapshot::leaf_count() const { return impl_->tile_leaves; }
+std::size_t OctoMapSnapshot::leaf_count() const { return impl_->tile_sums.leaves; }
 std::size_t OctoMapSnapshot::node_count() const {
-  return impl_->nodes_above_tiles + impl_->tile_nodes - impl_->tiles.size() * kTileDepth;
+  return impl_->nodes_above_tiles + impl_->tile_sums.nodes - impl_->tiles.size() * kTileDepth;
 }
 
 // ---------------------------------------------------------------------------------------------------------------------
@@ -547,10 +547,21 @@ struct OctoMapModel::Impl {
     if (block == last_dirty_block) return;
     last_dirty_block = block;
     dirty_blocks.insert(block);
-    const OctoTileId id = tile_id_of(key);
-    if (id == last_dirty) return;
-    last_dirty = id;
-    dirty_tiles.insert(id);
+  }
+
+  // The tiles of the changed blocks, each once.
+  [[nodiscard]] std::vector<OctoTileId> dirty_tile_ids() const {
+    constexpr unsigned kShift = static_cast<unsigned>(kRefreshDepth - kTileDepth);
+    std::vector<OctoTileId> ids;
+    ids.reserve(dirty_blocks.size());
+    for (const BlockId block : dirty_blocks) {
+      ids.push_back(pack_tile(static_cast<std::uint32_t>(block & 0xFFFFU) >> kShift,
+                              static_cast<std::uint32_t>((block >> 16U) & 0xFFFFU) >> kShift,
+                              static_cast<std::uint32_t>(block >> 32U) >> kShift));
+    }
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    return ids;
   }
 
   // The nodes at kRefreshDepth (cubes of 8 voxels a side) that a publish refreshes when a voxel in them changed; a
@@ -741,7 +752,7 @@ struct OctoMapModel::Impl {
 
   // Brings the published tiles in step with the tree: the changed ones rebuilt, the rest kept; and the sums over the
   // tiles with them, so that a publish costs what changed.
-  void update_tiles(const OctoMapParams& params) {
+  void update_tiles(const OctoMapParams& params, const std::vector<OctoTileId>& dirty_tiles) {
     refresh_changed_tiles();
     std::vector<std::pair<OctoTileId, OctoTileTable::ValuePtr>> changes;
     if (all_tiles_dirty) {
@@ -768,8 +779,6 @@ struct OctoMapModel::Impl {
       }
       if ((before == nullptr) != (after == nullptr)) count_tile_ancestors(id, after != nullptr ? 1 : -1);
     });
-    dirty_tiles.clear();
-    last_dirty = kNoTile;
     dirty_blocks.clear();
     last_dirty_block = kNoBlock;
     all_tiles_dirty = false;
@@ -777,22 +786,13 @@ struct OctoMapModel::Impl {
 
   std::unique_ptr<octomap::OcTree> tree;
   bool inner_stale = false;
-  // The tiles changed since the last publish (last_dirty: the latest one marked, which spares most set look-ups), and
-  // the tiles that publish gave out.
-  static constexpr OctoTileId kNoTile = 0xFFFFFFFFU;
-  std::unordered_set<OctoTileId> dirty_tiles;
-  OctoTileId last_dirty = kNoTile;
-  // The blocks changed since the last publish, the same way.
+  // The blocks changed since the last publish (last_dirty_block: the latest one marked, which spares most set
+  // look-ups); their tiles are the ones the next publish rebuilds.
   std::unordered_set<BlockId> dirty_blocks;
   BlockId last_dirty_block = kNoBlock;
   bool all_tiles_dirty = false;
   OctoTileTable tiles;
-  // Sums over tiles, kept as tiles change (OctoMapSnapshot::Impl has the same).
-  struct TileSums {
-    std::size_t nodes = 0;
-    std::size_t leaves = 0;
-    std::size_t bytes = 0;
-  } sums;
+  OctoTileSums sums;  // over tiles
   // Tiles under each ancestor above the tiles' depth (count_tile_ancestors).
   std::unordered_map<std::uint64_t, std::uint32_t> tiles_under;
   std::shared_ptr<const OctoTile> empty_tile;
@@ -964,8 +964,9 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   // What this publish rebuilds, for projections kept in step (changed_columns); the first snapshot, and the first
   // after a load, rebuild everything.
   std::optional<std::vector<OctoColumnRange>> changed_columns;
-  if (!impl_->all_tiles_dirty && impl_->empty_tile) changed_columns = columns_of_tiles(impl_->dirty_tiles);
-  impl_->update_tiles(params_);
+  const std::vector<OctoTileId> dirty_tiles = impl_->dirty_tile_ids();
+  if (!impl_->all_tiles_dirty && impl_->empty_tile) changed_columns = columns_of_tiles(dirty_tiles);
+  impl_->update_tiles(params_, dirty_tiles);
   if (!impl_->empty_tile) {
     auto empty_tree = std::make_shared<octomap::OcTree>(params_.resolution_m);
     apply_params(*empty_tree, params_);
@@ -974,9 +975,7 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
   snapshot_impl->empty = impl_->empty_tile;
   snapshot_impl->tiles = impl_->tiles;  // the directory of chunks: the chunks and tiles are shared
-  snapshot_impl->tile_nodes = impl_->sums.nodes;
-  snapshot_impl->tile_leaves = impl_->sums.leaves;
-  snapshot_impl->tile_bytes = impl_->sums.bytes;
+  snapshot_impl->tile_sums = impl_->sums;
   snapshot_impl->nodes_above_tiles = impl_->tiles_under.size();
   snapshot_impl->live_tree_nodes = impl_->tree->size();
   snapshot_impl->changed_columns = std::move(changed_columns);

@@ -49,14 +49,20 @@ class ChunkedTable {
     return true;
   }
 
-  // Sets each (key, value) of changes (keys distinct), a null value removing the key; calls replaced(key, old value
-  // or nullptr, new value or nullptr) for each, for the caller's running sums. Each chunk changed is copied once.
+  // Sets each (key, value) of changes in turn, a null value removing the key (a key given twice takes the later
+  // value); calls replaced(key, old value or nullptr, new value or nullptr) once per key, for the caller's running
+  // sums. Each chunk changed is copied once.
   template <typename Replaced>
   void apply(std::vector<std::pair<Key, ValuePtr>> changes, Replaced&& replaced) {
-    std::sort(changes.begin(), changes.end(), [](const auto& a, const auto& b) {
-      return std::pair(Traits::chunk(a.first), Traits::code(a.first)) <
-             std::pair(Traits::chunk(b.first), Traits::code(b.first));
-    });
+    const auto order = [](const Key& key) { return std::pair(Traits::chunk(key), Traits::code(key)); };
+    std::stable_sort(changes.begin(), changes.end(),
+                     [&order](const auto& a, const auto& b) { return order(a.first) < order(b.first); });
+    // Of a key's changes keep the last: unique keeps the first of equal neighbours, so reverse around it.
+    std::reverse(changes.begin(), changes.end());
+    changes.erase(std::unique(changes.begin(), changes.end(),
+                              [&order](const auto& a, const auto& b) { return order(a.first) == order(b.first); }),
+                  changes.end());
+    std::reverse(changes.begin(), changes.end());
     std::vector<ChunkEntry> chunks;
     chunks.reserve(chunks_.size() + changes.size());
     auto old_chunk = chunks_.begin();
@@ -85,6 +91,10 @@ class ChunkedTable {
     }
     while (old_chunk != chunks_.end()) chunks.push_back(std::move(*old_chunk++));
     chunks_ = std::move(chunks);
+  }
+
+  void apply(std::vector<std::pair<Key, ValuePtr>> changes) {
+    apply(std::move(changes), [](const Key&, const Value*, const Value*) {});
   }
 
   void clear() {
