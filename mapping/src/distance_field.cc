@@ -234,6 +234,8 @@ class DistanceField::Brushfire {
  public:
   static constexpr std::int32_t kBlockShift = DistanceFieldSnapshot::kBlockShift;
   static constexpr std::int32_t kBlockCells = DistanceFieldSnapshot::kBlockCells;
+  static constexpr std::int32_t kChunkShift = DistanceFieldSnapshot::kChunkShift;
+  static constexpr std::int32_t kChunkBlocks = DistanceFieldSnapshot::kChunkBlocks;
   static constexpr std::int16_t kNone = DistanceFieldSnapshot::kNone;
 
   explicit Brushfire(std::int32_t max_squared)
@@ -301,19 +303,49 @@ class DistanceField::Brushfire {
     return processed;
   }
 
-  // The references in blocks over the directory: the blocks unchanged since the previous call are the same shared
-  // ones, only those a wavefront wrote are copied out of the cells.
-  [[nodiscard]] DistanceFieldSnapshot::RefDirectory references() {
-    for (std::size_t b = 0; b < blocks_.size(); ++b) {
-      if (dirty_[b] == 0) continue;
+  // The references in blocks, in chunks over the directory: the blocks and chunks unchanged since the previous call are
+  // the same shared ones; the blocks a wavefront wrote are copied out of the cells, into copies of their chunks.
+  // Costs what the updates since the previous call wrote, plus a pointer per chunk (64 blocks).
+  [[nodiscard]] DistanceFieldSnapshot::RefDirectory references(DistanceFieldUpdate& result) {
+    using Snapshot = DistanceFieldSnapshot;
+    result.copied_blocks = dirty_slots_.size();
+    const auto chunk_of = [this](std::size_t b) {
+      const std::size_t i = b % static_cast<std::size_t>(blocks_x_), j = b / static_cast<std::size_t>(blocks_x_);
+      return (j >> kChunkShift) * static_cast<std::size_t>(chunks_x()) + (i >> kChunkShift);
+    };
+    std::sort(dirty_slots_.begin(), dirty_slots_.end(), [&chunk_of](std::size_t a, std::size_t b) {
+      return std::pair(chunk_of(a), a) < std::pair(chunk_of(b), b);
+    });
+    std::shared_ptr<Snapshot::RefChunk> copy;
+    std::size_t copy_slot = 0;
+    const auto finish_copy = [&] {
+      if (!copy) return;
+      if (!published_[copy_slot]) ++published_chunks_;
+      published_[copy_slot] = std::move(copy);
+      copy.reset();
+    };
+    for (const std::size_t b : dirty_slots_) {
       dirty_[b] = 0;
-      auto refs = std::make_shared<DistanceFieldSnapshot::RefBlock>();
+      const std::size_t chunk = chunk_of(b);
+      if (!copy || chunk != copy_slot) {
+        finish_copy();
+        ++result.copied_chunks;
+        copy = published_[chunk] ? std::make_shared<Snapshot::RefChunk>(*published_[chunk])
+                                 : std::make_shared<Snapshot::RefChunk>();
+        copy_slot = chunk;
+      }
+      auto refs = std::make_shared<Snapshot::RefBlock>();
       const Block& block = *blocks_[b];
       for (std::size_t i = 0; i < block.cells.size(); ++i) refs->refs[i] = {block.cells[i].dx, block.cells[i].dy};
-      if (!published_[b]) ++published_blocks_;
-      published_[b] = std::move(refs);
+      const std::size_t i = b % static_cast<std::size_t>(blocks_x_), j = b / static_cast<std::size_t>(blocks_x_);
+      auto& in_chunk = copy->blocks[(j & (kChunkBlocks - 1)) * kChunkBlocks + (i & (kChunkBlocks - 1))];
+      if (!in_chunk) ++published_blocks_;
+      in_chunk = std::move(refs);
     }
-    return {block_x0_, block_y0_, blocks_x_, published_, published_blocks_};
+    finish_copy();
+    dirty_slots_.clear();
+    return {block_x0_ >> kChunkShift, block_y0_ >> kChunkShift, chunks_x(), published_,
+            published_chunks_,        published_blocks_};
   }
 
  private:
@@ -362,33 +394,54 @@ class DistanceField::Brushfire {
     auto& block = blocks_[static_cast<std::size_t>(b)];
     if (!block) {
       block = std::make_unique<Block>();
-      dirty_[static_cast<std::size_t>(b)] = 1;
+      mark_dirty(static_cast<std::size_t>(b));
     }
     return block->cells[local_index(x, y)];
   }
 
-  // Makes the directory cover block (bx, by), with room for 8 more blocks on each side so that it seldom regrows.
+  [[nodiscard]] std::int32_t chunks_x() const { return blocks_x_ >> kChunkShift; }
+
+  void mark_dirty(std::size_t b) {
+    if (dirty_[b] != 0) return;
+    dirty_[b] = 1;
+    dirty_slots_.push_back(b);
+  }
+
+  // Makes the directory cover block (bx, by), with room for 8 more blocks on each side so that it seldom regrows; its
+  // edges lie on chunk boundaries, so that the published chunks keep their blocks when it grows.
   void grow_directory(std::int32_t bx, std::int32_t by) {
     constexpr std::int32_t kRoom = 8;
     const bool empty = blocks_x_ == 0;
-    const std::int32_t x0 = empty ? bx - kRoom : std::min(block_x0_, bx - kRoom);
-    const std::int32_t y0 = empty ? by - kRoom : std::min(block_y0_, by - kRoom);
-    const std::int32_t x1 = empty ? bx + kRoom : std::max(block_x0_ + blocks_x_ - 1, bx + kRoom);
-    const std::int32_t y1 = empty ? by + kRoom : std::max(block_y0_ + blocks_y_ - 1, by + kRoom);
+    const auto chunk_floor = [](std::int32_t v) { return (v >> kChunkShift) << kChunkShift; };
+    const std::int32_t x0 = chunk_floor(empty ? bx - kRoom : std::min(block_x0_, bx - kRoom));
+    const std::int32_t y0 = chunk_floor(empty ? by - kRoom : std::min(block_y0_, by - kRoom));
+    const std::int32_t x1 =
+        chunk_floor(empty ? bx + kRoom : std::max(block_x0_ + blocks_x_ - 1, bx + kRoom)) + kChunkBlocks - 1;
+    const std::int32_t y1 =
+        chunk_floor(empty ? by + kRoom : std::max(block_y0_ + blocks_y_ - 1, by + kRoom)) + kChunkBlocks - 1;
     const std::int32_t width = x1 - x0 + 1, height = y1 - y0 + 1;
+    const auto new_slot = [&](std::size_t from) {
+      const auto i = static_cast<std::int32_t>(from % static_cast<std::size_t>(blocks_x_));
+      const auto j = static_cast<std::int32_t>(from / static_cast<std::size_t>(blocks_x_));
+      return static_cast<std::size_t>(block_y0_ + j - y0) * static_cast<std::size_t>(width) +
+             static_cast<std::size_t>(block_x0_ + i - x0);
+    };
     const std::size_t count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     std::vector<std::unique_ptr<Block>> blocks(count);
     std::vector<std::uint8_t> dirty(count, 0);
-    DistanceFieldSnapshot::RefBlocks published(count);
-    for (std::int32_t j = 0; j < blocks_y_; ++j) {
-      for (std::int32_t i = 0; i < blocks_x_; ++i) {
-        const std::size_t from = static_cast<std::size_t>(j) * blocks_x_ + i;
-        const std::size_t to =
-            static_cast<std::size_t>(block_y0_ + j - y0) * static_cast<std::size_t>(width) + (block_x0_ + i - x0);
-        blocks[to] = std::move(blocks_[from]);
-        dirty[to] = dirty_[from];
-        published[to] = std::move(published_[from]);
-      }
+    for (std::size_t from = 0; from < blocks_.size(); ++from) {
+      blocks[new_slot(from)] = std::move(blocks_[from]);
+      dirty[new_slot(from)] = dirty_[from];
+    }
+    for (std::size_t& b : dirty_slots_) b = new_slot(b);
+    const std::int32_t new_chunks_x = width >> kChunkShift;
+    DistanceFieldSnapshot::RefChunks published(count >> (2 * kChunkShift));
+    for (std::size_t from = 0; from < published_.size(); ++from) {
+      const auto i = static_cast<std::int32_t>(from % static_cast<std::size_t>(chunks_x()));
+      const auto j = static_cast<std::int32_t>(from / static_cast<std::size_t>(chunks_x()));
+      published[static_cast<std::size_t>(((block_y0_ - y0) >> kChunkShift) + j) *
+                    static_cast<std::size_t>(new_chunks_x) +
+                static_cast<std::size_t>(((block_x0_ - x0) >> kChunkShift) + i)] = std::move(published_[from]);
     }
     blocks_ = std::move(blocks);
     dirty_ = std::move(dirty);
@@ -401,7 +454,7 @@ class DistanceField::Brushfire {
 
   // Every change of a cell's reference goes with a push of that cell, so this is where its block becomes dirty.
   void push(std::int32_t squared, std::int32_t x, std::int32_t y) {
-    dirty_[static_cast<std::size_t>(slot(x >> kBlockShift, y >> kBlockShift))] = 1;
+    mark_dirty(static_cast<std::size_t>(slot(x >> kBlockShift, y >> kBlockShift)));
     buckets_[static_cast<std::size_t>(squared)].push_back(static_cast<std::uint32_t>(x) |
                                                           std::uint64_t{static_cast<std::uint32_t>(y)} << 32U);
     next_bucket_ = std::min(next_bucket_, static_cast<std::size_t>(squared));
@@ -458,10 +511,13 @@ class DistanceField::Brushfire {
   }
 
   std::int32_t block_x0_ = 0, block_y0_ = 0, blocks_x_ = 0, blocks_y_ = 0;
-  std::vector<std::unique_ptr<Block>> blocks_;  // The directory, row-major; nullptr: no cell written there.
+  // The directory, row-major, its edges on chunk boundaries; nullptr: no cell written there.
+  std::vector<std::unique_ptr<Block>> blocks_;
   std::vector<std::uint8_t> dirty_;             // Per block: a reference changed since the last references().
-  DistanceFieldSnapshot::RefBlocks published_;  // The blocks the last references() returned.
-  std::size_t published_blocks_ = 0;            // Of those, the ones written (not nullptr).
+  std::vector<std::size_t> dirty_slots_;        // The blocks whose dirty_ is set, for references() to visit only those.
+  DistanceFieldSnapshot::RefChunks published_;  // The chunks the last references() returned, row-major.
+  std::size_t published_chunks_ = 0;            // Of those, the ones written (not nullptr).
+  std::size_t published_blocks_ = 0;            // Blocks in those chunks that are not nullptr.
   // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32.
   std::vector<std::vector<std::uint64_t>> buckets_;
   std::size_t next_bucket_ = 0;
@@ -501,17 +557,18 @@ bool DistanceField::prepare(std::shared_ptr<const GridSnapshot>& grid, DistanceF
   });
   result.rebuilt = true;
   result.processed_cells = brushfire.propagate();
-  take_snapshot(std::move(grid));
+  take_snapshot(std::move(grid), result);
   return false;
 }
 
-void DistanceField::take_snapshot(std::shared_ptr<const GridSnapshot> grid) {
+void DistanceField::take_snapshot(std::shared_ptr<const GridSnapshot> grid, DistanceFieldUpdate& result) {
   // The field answers for every cell; bounds() says where occupied cells can be near: the grid's tiles grown by the
   // field's reach.
   const auto reach = static_cast<std::int32_t>(std::ceil(params_.max_distance_m / grid->cell_size())) + 1;
   const CellBox tiles = *grid->tile_bounds();
   const CellBox bounds{{tiles.min.ix - reach, tiles.min.iy - reach}, {tiles.max.ix + reach, tiles.max.iy + reach}};
-  snapshot_.reset(new DistanceFieldSnapshot(std::move(grid), bounds, brushfire_->references(), params_.max_distance_m));
+  snapshot_.reset(
+      new DistanceFieldSnapshot(std::move(grid), bounds, brushfire_->references(result), params_.max_distance_m));
 }
 
 DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> grid, std::optional<CellBox> touched) {
@@ -535,7 +592,7 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
     }
     result.processed_cells = brushfire.propagate();
   }
-  take_snapshot(std::move(grid));
+  take_snapshot(std::move(grid), result);
   return result;
 }
 
@@ -548,7 +605,7 @@ DistanceFieldUpdate DistanceField::update(std::shared_ptr<const GridSnapshot> gr
     if (brushfire.set_occupied(c.ix, c.iy, grid->occupied(c))) ++result.changed_cells;
   }
   result.processed_cells = brushfire.propagate();
-  take_snapshot(std::move(grid));
+  take_snapshot(std::move(grid), result);
   return result;
 }
 
@@ -556,14 +613,20 @@ DistanceFieldSnapshot::DistanceFieldSnapshot(std::shared_ptr<const GridSnapshot>
                                              RefDirectory refs, double max_distance_m)
     : grid_(std::move(grid)), bounds_(bounds), refs_(std::move(refs)), max_distance_m_(max_distance_m) {}
 
-const DistanceFieldSnapshot::RefBlock* DistanceFieldSnapshot::block_at(std::int32_t i, std::int32_t j) const {
-  if (i < 0 || j < 0 || i >= refs_.blocks_x) return nullptr;
-  const std::size_t slot = static_cast<std::size_t>(j) * static_cast<std::size_t>(refs_.blocks_x) + i;
-  return slot < refs_.blocks.size() ? refs_.blocks[slot].get() : nullptr;
+const DistanceFieldSnapshot::RefBlock* DistanceFieldSnapshot::block_at(std::int32_t bx, std::int32_t by) const {
+  const std::int32_t i = (bx >> kChunkShift) - refs_.chunk_x0;
+  const std::int32_t j = (by >> kChunkShift) - refs_.chunk_y0;
+  if (i < 0 || j < 0 || i >= refs_.chunks_x) return nullptr;
+  const std::size_t slot = static_cast<std::size_t>(j) * static_cast<std::size_t>(refs_.chunks_x) + i;
+  if (slot >= refs_.chunks.size() || !refs_.chunks[slot]) return nullptr;
+  return refs_.chunks[slot]
+      ->blocks[static_cast<std::size_t>(by & (kChunkBlocks - 1)) * kChunkBlocks +
+               static_cast<std::size_t>(bx & (kChunkBlocks - 1))]
+      .get();
 }
 
 std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
-  const RefBlock* block = block_at((c.ix >> kBlockShift) - refs_.block_x0, (c.iy >> kBlockShift) - refs_.block_y0);
+  const RefBlock* block = block_at(c.ix >> kBlockShift, c.iy >> kBlockShift);
   if (block == nullptr) return std::nullopt;
   const Ref& ref = block->refs[static_cast<std::size_t>(c.iy & (kBlockCells - 1)) * kBlockCells +
                                static_cast<std::size_t>(c.ix & (kBlockCells - 1))];
@@ -631,14 +694,14 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     // The reference block under the row's current cells, looked up again only when the row crosses into the next.
     const RefBlock* block = nullptr;
     std::int32_t block_column = std::numeric_limits<std::int32_t>::min();
-    const std::int32_t block_row = (iy >> kBlockShift) - refs_.block_y0;
+    const std::int32_t block_row = iy >> kBlockShift;
     const std::size_t row_in_block = static_cast<std::size_t>(iy & (kBlockCells - 1)) * kBlockCells;
     for (std::int32_t ix = near.min.ix; ix <= near.max.ix; ++ix) {
       const Eigen::Vector2d center_W((ix + 0.5) * cell_size, center_y);
       if (placed.squared_distance_to_point(center_W) > squared_half_diagonal) continue;
       if ((ix >> kBlockShift) != block_column) {
         block_column = ix >> kBlockShift;
-        block = block_at(block_column - refs_.block_x0, block_row);
+        block = block_at(block_column, block_row);
       }
       const Ref ref = block == nullptr ? Ref{kNone, 0} : block->refs[row_in_block + (ix & (kBlockCells - 1))];
       if (ref.x == kNone) {

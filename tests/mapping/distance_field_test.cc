@@ -301,6 +301,46 @@ TEST(DistanceFieldTest, FollowsGridGrowthWithoutRebuilding) {
   EXPECT_LE(from_field, exact + grid.params().cell_size_m);
 }
 
+// A map of obstacles every 10 m over 300 x 300 m, then one obstacle added: the new snapshot copies the few reference
+// blocks the wavefront wrote and the chunks holding them, and shares the rest of the field with the previous snapshot.
+// The first update (a rebuild) copies every block written.
+TEST(DistanceFieldTest, AnUpdateCopiesWhatItChangedNotTheMap) {
+  HimmGrid grid(HimmParams{});
+  const auto hit = [&grid](double x, double y) {
+    for (int i = 0; i < 3; ++i) grid.insert_ray({x - 0.5, y}, {x, y}, true);
+  };
+  for (double y = -150.0; y <= 150.0; y += 10.0) {
+    for (double x = -150.0; x <= 150.0; x += 10.0) hit(x, y);
+  }
+  static_cast<void>(grid.take_occupancy_changes());
+  DistanceFieldParams params;
+  params.max_distance_m = 1.0;
+  DistanceField field(params);
+  const DistanceFieldUpdate built = field.update(grid.snapshot());
+  ASSERT_TRUE(built.rebuilt);
+  EXPECT_GE(built.copied_blocks, 31U * 31U);  // every obstacle's neighbourhood
+  const auto before = field.snapshot();
+  hit(3.0, 3.0);  // 3.2 m inside a block: its 1 m wavefront stays there
+  const auto changed = grid.take_occupancy_changes();
+  ASSERT_TRUE(changed.has_value());
+  const DistanceFieldUpdate local = field.update(grid.snapshot(), std::span<const CellIndex>(*changed));
+  EXPECT_FALSE(local.rebuilt);
+  EXPECT_EQ(local.copied_blocks, 1U);
+  EXPECT_EQ(local.copied_chunks, 1U);
+  EXPECT_EQ(field.snapshot()->distance(grid.grid_geometry().cell_of({3.0, 3.0})), 0.0);
+  EXPECT_EQ(before->distance(grid.grid_geometry().cell_of({3.0, 3.0})), 1.0);  // nothing within 1 m before
+  // Far from the change, both snapshots read the same shared blocks.
+  for (const auto& [x, y] : {std::pair{-150.0, -149.5}, {140.0, 140.3}, {-0.4, 0.0}}) {
+    const CellIndex cell = grid.grid_geometry().cell_of({x, y});
+    EXPECT_EQ(field.snapshot()->distance(cell), before->distance(cell)) << x << ", " << y;
+    EXPECT_LT(before->distance(cell), 1.0) << x << ", " << y;
+  }
+  // An update that changes nothing copies nothing.
+  const DistanceFieldUpdate idle = field.update(grid.snapshot(), std::span<const CellIndex>{});
+  EXPECT_EQ(idle.copied_blocks, 0U);
+  EXPECT_EQ(idle.copied_chunks, 0U);
+}
+
 // FCL's distance between the footprint box and the cell prisms near it (GST_INDEP: FCL 0.7's libccd GJK is off by up
 // to 0.45 m for two boxes, its own GJK by up to 0.03 m; see geometry/src/collision.cc). 0 in contact.
 double fcl_box_clearance(const geometry::BoxFootprint& box, const geometry::Pose2& pose, const GridSnapshot& grid,

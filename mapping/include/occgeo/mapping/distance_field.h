@@ -66,11 +66,12 @@ class DistanceFieldSnapshot {
   // direction is undefined. Throws like compute_clearance.
   [[nodiscard]] Eigen::Vector2d clearance_gradient(const geometry::ClearanceRequest& request) const;
 
-  // Heap bytes of the reference blocks this snapshot holds and their directory (blocks shared with the previous
-  // snapshot counted once here, as the field keeps one copy of each between updates).
+  // Heap bytes of the reference blocks this snapshot holds, their chunks and the directory (blocks shared with the
+  // previous snapshot counted once here, as the field keeps one copy of each between updates).
   [[nodiscard]] std::size_t memory_bytes() const {
     constexpr std::size_t kControlBlockAndHeader = 32;
-    return refs_.blocks.capacity() * sizeof(RefBlocks::value_type) +
+    return refs_.chunks.capacity() * sizeof(RefChunks::value_type) +
+           refs_.written_chunks * (sizeof(RefChunk) + kControlBlockAndHeader) +
            refs_.written_blocks * (sizeof(RefBlock) + kControlBlockAndHeader);
   }
 
@@ -85,21 +86,29 @@ class DistanceFieldSnapshot {
     std::int16_t y;
   };
   static constexpr std::int16_t kNone = -32768;
-  // The references come in square blocks shared between successive snapshots: a snapshot costs one pointer per block
-  // plus a copy of the blocks the update changed, not a copy of the whole field.
+  // The references come in square blocks shared between successive snapshots, and the blocks in square chunks of
+  // blocks, also shared: a snapshot costs one pointer per chunk plus a copy of the chunks and blocks the update
+  // changed, not a copy of the whole field (nor of a pointer per block: a 300 m map has thousands).
   static constexpr std::int32_t kBlockShift = 6;
   static constexpr std::int32_t kBlockCells = 1 << kBlockShift;
+  static constexpr std::int32_t kChunkShift = 3;  // in blocks
+  static constexpr std::int32_t kChunkBlocks = 1 << kChunkShift;
   struct RefBlock {
     std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
   };
-  using RefBlocks = std::vector<std::shared_ptr<const RefBlock>>;
-  // The blocks over a box of blocks (row-major from block (block_x0, block_y0), blocks_x wide); nullptr where no
-  // reference was ever written (all kNone).
+  // Row-major; nullptr where no reference was ever written (all kNone).
+  struct RefChunk {
+    std::array<std::shared_ptr<const RefBlock>, static_cast<std::size_t>(kChunkBlocks) * kChunkBlocks> blocks;
+  };
+  using RefChunks = std::vector<std::shared_ptr<const RefChunk>>;
+  // The chunks over a box of chunks (row-major from chunk (chunk_x0, chunk_y0), chunks_x wide); nullptr where no
+  // block was written.
   struct RefDirectory {
-    std::int32_t block_x0 = 0;
-    std::int32_t block_y0 = 0;
-    std::int32_t blocks_x = 0;
-    RefBlocks blocks;
+    std::int32_t chunk_x0 = 0;
+    std::int32_t chunk_y0 = 0;
+    std::int32_t chunks_x = 0;
+    RefChunks chunks;
+    std::size_t written_chunks = 0;  // chunks that are not nullptr
     std::size_t written_blocks = 0;  // blocks that are not nullptr, counted as they are written
   };
 
@@ -108,8 +117,8 @@ class DistanceFieldSnapshot {
 
   struct Answer;
   [[nodiscard]] Answer answer(const geometry::ClearanceRequest& request) const;
-  // The reference block at column i, row j of the directory; nullptr outside it or where none was written.
-  [[nodiscard]] const RefBlock* block_at(std::int32_t i, std::int32_t j) const;
+  // The reference block (bx, by) (cell index >> kBlockShift); nullptr outside the directory or where none was written.
+  [[nodiscard]] const RefBlock* block_at(std::int32_t bx, std::int32_t by) const;
 
   std::shared_ptr<const GridSnapshot> grid_;
   std::optional<CellBox> bounds_;
@@ -123,6 +132,10 @@ struct DistanceFieldUpdate {
   bool rebuilt = false;             // The field was built from scratch (the first update of a non-empty grid).
   std::size_t changed_cells = 0;    // Cells whose occupancy flipped and were fed to the field (0 when rebuilt).
   std::size_t processed_cells = 0;  // Cells taken off the wavefront's queue.
+  // What the new snapshot cost: reference blocks (64x64 cells) copied out of the field, and chunks of blocks (8x8)
+  // copied to hold them; every other block and chunk is shared with the previous snapshot.
+  std::size_t copied_blocks = 0;
+  std::size_t copied_chunks = 0;
 };
 
 // A 2D Euclidean distance field over a HIMM grid's occupied cells, kept in step with it by an incremental brushfire
@@ -160,7 +173,7 @@ class DistanceField {
   // Checks grid against the field's parameters and builds the field on the first non-empty grid; true when the caller
   // still has to bring the field in step (false: empty grid, or just built; the snapshot is taken).
   bool prepare(std::shared_ptr<const GridSnapshot>& grid, DistanceFieldUpdate& result);
-  void take_snapshot(std::shared_ptr<const GridSnapshot> grid);
+  void take_snapshot(std::shared_ptr<const GridSnapshot> grid, DistanceFieldUpdate& result);
 
   DistanceFieldParams params_;
   std::unique_ptr<Brushfire> brushfire_;
