@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -13,6 +14,30 @@
 #include <vector>
 
 #include "octomap_internal.h"
+
+namespace occgeo::mapping::detail {
+struct NodeSurgeryTag {};
+}  // namespace occgeo::mapping::detail
+
+// octomap's nodes show their children only to OcTreeBaseImpl (every specialization is a friend). This one does what a
+// snapshot tile needs and no tree does: hang under one of its nodes a subtree that it shares with other versions of the
+// tile (and so must not delete), unhang it, and give a node of such a subtree its children from an array the subtree
+// owns (a subtree is allocated in one piece, not node by node).
+template <>
+class octomap::OcTreeBaseImpl<occgeo::mapping::detail::NodeSurgeryTag, occgeo::mapping::detail::NodeSurgeryTag> {
+ public:
+  static void attach(octomap::OcTreeNode* parent, unsigned index, octomap::OcTreeNode* child) {
+    octomap::OcTreeDataNode<float>& node = *parent;
+    if (node.children == nullptr) node.children = new octomap::AbstractOcTreeNode*[8]();  // as allocChildren
+    node.children[index] = child;
+  }
+  static void detach(octomap::OcTreeNode* parent, unsigned index) {
+    static_cast<octomap::OcTreeDataNode<float>&>(*parent).children[index] = nullptr;
+  }
+  static void set_children(octomap::OcTreeNode* node, octomap::AbstractOcTreeNode** children) {
+    static_cast<octomap::OcTreeDataNode<float>&>(*node).children = children;
+  }
+};
 
 namespace occgeo::mapping {
 
@@ -645,7 +670,69 @@ struct OctoMapModel::Impl {
     static_cast<void>(t.pruneNode(node));
   }
 
-  // A tree that can be given a root (OcTree makes one only on the first update) and so be built node by node.
+  using NodeSurgery = octomap::OcTreeBaseImpl<detail::NodeSurgeryTag, detail::NodeSurgeryTag>;
+
+  // The copy of one block (a node at kRefreshDepth, 8 voxels a side, and its subtree) that successive versions of its
+  // tile share until a voxel in it changes: a publish copies the blocks that changed, not the whole tile. Its nodes
+  // and their child arrays are two allocations, not two per node: on a map of gigabytes each node allocated and freed
+  // on its own cost a few cache misses, and a scan replaces thousands.
+  struct SharedBlock {
+    std::unique_ptr<octomap::OcTreeNode[]> nodes;                 // nodes[0]: the block's node
+    std::unique_ptr<octomap::AbstractOcTreeNode*[]> child_slots;  // 8 per inner node
+    std::size_t node_count = 0;
+    std::size_t leaves = 0;
+
+    // A copy of the subtree under from_node (a node of tree).
+    SharedBlock(const octomap::OcTree& tree, const octomap::OcTreeNode* from_node) {
+      std::size_t inner = 0;
+      count(tree, from_node, inner);
+      nodes = std::make_unique<octomap::OcTreeNode[]>(node_count);
+      child_slots = std::make_unique<octomap::AbstractOcTreeNode*[]>(8 * inner);
+      std::size_t next_node = 1, next_slot = 0;
+      copy(tree, from_node, &nodes[0], next_node, next_slot);
+    }
+    SharedBlock(const SharedBlock&) = delete;
+    SharedBlock& operator=(const SharedBlock&) = delete;
+    ~SharedBlock() {
+      // ~OcTreeDataNode expects children already gone (it asserts so): they go with child_slots.
+      for (std::size_t i = 0; i < node_count; ++i) NodeSurgery::set_children(&nodes[i], nullptr);
+    }
+    [[nodiscard]] octomap::OcTreeNode* node() const { return &nodes[0]; }
+
+   private:
+    void count(const octomap::OcTree& tree, const octomap::OcTreeNode* node, std::size_t& inner) {
+      ++node_count;
+      if (!tree.nodeHasChildren(node)) {
+        ++leaves;
+        return;
+      }
+      ++inner;
+      for (unsigned i = 0; i < 8; ++i) {
+        if (tree.nodeChildExists(node, i)) count(tree, tree.getNodeChild(node, i), inner);
+      }
+    }
+    void copy(const octomap::OcTree& tree, const octomap::OcTreeNode* from, octomap::OcTreeNode* to,
+              std::size_t& next_node, std::size_t& next_slot) {
+      to->setLogOdds(from->getLogOdds());
+      if (!tree.nodeHasChildren(from)) return;
+      octomap::AbstractOcTreeNode** slots = &child_slots[next_slot];
+      next_slot += 8;
+      NodeSurgery::set_children(to, slots);
+      for (unsigned i = 0; i < 8; ++i) {
+        if (!tree.nodeChildExists(from, i)) continue;
+        octomap::OcTreeNode* child = &nodes[next_node++];
+        slots[i] = child;
+        copy(tree, tree.getNodeChild(from, i), child, next_node, next_slot);
+      }
+    }
+  };
+  // A block's place in its tile: x | y << 3 | z << 6, in blocks.
+  using BlockPlace = std::uint16_t;
+  static constexpr unsigned kBlockPlaceBits = static_cast<unsigned>(kRefreshDepth - kTileDepth);
+  static_assert(kRefreshDepth > kTileDepth && 3 * kBlockPlaceBits <= 16);
+
+  // A tree that can be given a root (OcTree makes one only on the first update) and so be built node by node, and
+  // that holds shared blocks under some of its nodes.
   class TileTree : public octomap::OcTree {
    public:
     // OcTreeBaseImpl gives every tree a ray buffer of 100,000 keys (600 KB, zeroed) for inserting rays; a tile is
@@ -655,6 +742,12 @@ struct OctoMapModel::Impl {
       keyrays.clear();
       keyrays.shrink_to_fit();
     }
+    TileTree(const TileTree&) = delete;
+    TileTree& operator=(const TileTree&) = delete;
+    // The shared blocks are unhung first, so that OcTree's destructor deletes only this version's own nodes.
+    ~TileTree() override {
+      for (const auto& [parent, index] : hung_) NodeSurgery::detach(parent, index);
+    }
     octomap::OcTreeNode* make_root() {
       if (root == nullptr) {
         root = new octomap::OcTreeNode();  // NOLINT(cppcoreguidelines-owning-memory): the tree owns and deletes it
@@ -663,23 +756,74 @@ struct OctoMapModel::Impl {
       }
       return root;
     }
+    void hang(octomap::OcTreeNode* parent, unsigned index, BlockPlace place, std::shared_ptr<const SharedBlock> block) {
+      NodeSurgery::attach(parent, index, block->node());
+      hung_.emplace_back(parent, index);
+      blocks_.emplace_back(place, std::move(block));
+    }
+    // The block this version holds at place, or nullptr.
+    [[nodiscard]] std::shared_ptr<const SharedBlock> block_at(BlockPlace place) const {
+      const auto it = std::lower_bound(blocks_.begin(), blocks_.end(), place,
+                                       [](const auto& entry, BlockPlace p) { return entry.first < p; });
+      return it != blocks_.end() && it->first == place ? it->second : nullptr;
+    }
+    // The nodes of the tree, its shared blocks' included (OcTree counts only those its own calls created).
+    void set_node_count(std::size_t nodes) { tree_size = nodes; }
+
+   private:
+    std::vector<std::pair<octomap::OcTreeNode*, unsigned>> hung_;  // (parent, child index) of each shared block
+    std::vector<std::pair<BlockPlace, std::shared_ptr<const SharedBlock>>> blocks_;  // in place order (depth-first)
   };
 
-  static void copy_children(TileTree& to, octomap::OcTreeNode* to_node, const octomap::OcTree& from,
-                            const octomap::OcTreeNode* from_node) {
+  // Nodes and leaves of a tile under construction.
+  struct NodeCounts {
+    std::size_t nodes = 0;
+    std::size_t leaves = 0;
+  };
+
+  // The tile's levels above its blocks, copied node by node; each block below them taken from the previous version
+  // of the tile when no voxel in it changed since, else copied. (bx, by, bz): from_node's place in the tile, in nodes
+  // of its depth.
+  void copy_tile_levels(TileTree& to, octomap::OcTreeNode* to_node, const octomap::OcTreeNode* from_node, int depth,
+                        OctoTileId id, std::uint32_t bx, std::uint32_t by, std::uint32_t bz, const TileTree* previous,
+                        NodeCounts& counts) const {
+    const octomap::OcTree& t = *tree;
     for (unsigned i = 0; i < 8; ++i) {
-      if (!from.nodeChildExists(from_node, i)) continue;
-      const octomap::OcTreeNode* child = from.getNodeChild(from_node, i);
-      octomap::OcTreeNode* copy = to.createNodeChild(to_node, i);
-      copy->setLogOdds(child->getLogOdds());
-      copy_children(to, copy, from, child);
+      if (!t.nodeChildExists(from_node, i)) continue;
+      const octomap::OcTreeNode* child = t.getNodeChild(from_node, i);
+      const std::uint32_t cx = bx << 1U | (i & 1U), cy = by << 1U | ((i >> 1U) & 1U), cz = bz << 1U | ((i >> 2U) & 1U);
+      if (depth + 1 < kRefreshDepth) {
+        octomap::OcTreeNode* copy = to.createNodeChild(to_node, i);
+        copy->setLogOdds(child->getLogOdds());
+        ++counts.nodes;
+        if (t.nodeHasChildren(child)) {
+          copy_tile_levels(to, copy, child, depth + 1, id, cx, cy, cz, previous, counts);
+        } else {
+          ++counts.leaves;
+        }
+        continue;
+      }
+      const auto place = static_cast<BlockPlace>(cx | cy << kBlockPlaceBits | cz << (2 * kBlockPlaceBits));
+      std::shared_ptr<const SharedBlock> block;
+      if (previous != nullptr &&
+          !dirty_blocks.contains(pack_block(std::uint64_t{tile_axis(id, 0)} << kBlockPlaceBits | cx,
+                                            std::uint64_t{tile_axis(id, 1)} << kBlockPlaceBits | cy,
+                                            std::uint64_t{tile_axis(id, 2)} << kBlockPlaceBits | cz))) {
+        block = previous->block_at(place);
+      }
+      if (!block) block = std::make_shared<const SharedBlock>(t, child);
+      counts.nodes += block->node_count;
+      counts.leaves += block->leaves;
+      to.hang(to_node, i, place, std::move(block));
     }
   }
 
   // Tile id cut out of the tree into a tree of its own: the path from the root (each node with the tile's occupancy,
-  // the maximum within it), then a copy of the tile's subtree; a pruned leaf above the tile's depth becomes one leaf
-  // of the tile's size. nullptr when the tree holds nothing there.
-  [[nodiscard]] std::shared_ptr<const OctoTile> build_tile(OctoTileId id, const OctoMapParams& params) const {
+  // the maximum within it), then a copy of the tile's subtree, which shares with `previous` (the tile's last published
+  // version, when its blocks are known to be up to date but for dirty_blocks) the blocks no voxel changed in; a pruned
+  // leaf above the tile's depth becomes one leaf of the tile's size. nullptr when the tree holds nothing there.
+  [[nodiscard]] std::shared_ptr<const OctoTile> build_tile(OctoTileId id, const OctoMapParams& params,
+                                                           const OctoTile* previous) const {
     const octomap::OcTree& t = *tree;
     const octomap::OcTreeNode* node = t.getRoot();
     if (node == nullptr) return nullptr;
@@ -701,15 +845,23 @@ struct OctoMapModel::Impl {
       copy = tile_tree->createNodeChild(copy, child_index(depth));
       copy->setLogOdds(node->getLogOdds());
     }
-    copy_children(*tile_tree, copy, t, node);
-    return make_tile(std::move(tile_tree));
+    NodeCounts counts{kTileDepth + 1, 0};
+    if (t.nodeHasChildren(node)) {
+      const auto* previous_tree = previous != nullptr ? dynamic_cast<const TileTree*>(previous->tree.get()) : nullptr;
+      copy_tile_levels(*tile_tree, copy, node, kTileDepth, id, 0, 0, 0, previous_tree, counts);
+    } else {
+      counts.leaves = 1;
+    }
+    tile_tree->set_node_count(counts.nodes);
+    return make_tile(std::move(tile_tree), counts.leaves);
   }
 
-  static std::shared_ptr<const OctoTile> make_tile(std::shared_ptr<const octomap::OcTree> tile_tree) {
+  static std::shared_ptr<const OctoTile> make_tile(std::shared_ptr<const octomap::OcTree> tile_tree,
+                                                   std::optional<std::size_t> leaf_count = std::nullopt) {
     auto tile = std::make_shared<OctoTile>();
     tile->fcl_view = make_fcl_view(tile_tree);
     tile->columns = OccupiedColumns::build(*tile_tree);
-    tile->leaf_count = tile_tree->getRoot() == nullptr ? 0 : tile_tree->getNumLeafNodes();
+    tile->leaf_count = leaf_count ? *leaf_count : tile_tree->getRoot() == nullptr ? 0 : tile_tree->getNumLeafNodes();
     tile->node_count = tile_tree->size();
     tile->tree = std::move(tile_tree);
     return tile;
@@ -760,11 +912,11 @@ struct OctoMapModel::Impl {
       sums = {};
       tiles_under.clear();
       for (const OctoTileId id : all_tile_ids()) {
-        if (auto tile = build_tile(id, params)) changes.emplace_back(id, std::move(tile));
+        if (auto tile = build_tile(id, params, nullptr)) changes.emplace_back(id, std::move(tile));
       }
     } else {
       changes.reserve(dirty_tiles.size());
-      for (const OctoTileId id : dirty_tiles) changes.emplace_back(id, build_tile(id, params));
+      for (const OctoTileId id : dirty_tiles) changes.emplace_back(id, build_tile(id, params, tiles.find(id)));
     }
     tiles.apply(std::move(changes), [&](OctoTileId id, const OctoTile* before, const OctoTile* after) {
       if (before != nullptr) {

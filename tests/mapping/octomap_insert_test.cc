@@ -177,10 +177,14 @@ TEST(OctoMapInsertTest, LazyCloudInsertionEqualsPlainOnRoomScanButDiscretizeDoes
 // The same rays through OctoMapModel::insert_cloud and through plain insertPointCloud, batch by batch, publishing
 // (inner refresh and prune) every few batches so that later batches meet pruned nodes, some already clamped; the
 // leaves must stay identical throughout.
+// Inserts the clouds into the model and into a plain OcTree, publishing every publish_every batches: each snapshot
+// holds the plain tree's leaves and node count. Every snapshot is kept to the end and checked again then: a snapshot
+// shares the blocks no later batch changed with the snapshots after it, and must not see those batches.
 void expect_same_map_over_batches(const OctoMapParams& params, const std::vector<std::vector<Eigen::Vector3f>>& clouds,
                                   const std::vector<Pose3>& poses, int publish_every) {
   OctoMapModel model{params};
   octomap::OcTree plain = plain_tree(params);
+  std::vector<std::pair<std::shared_ptr<const OctoMapSnapshot>, std::vector<LeafTuple>>> kept;
   for (std::size_t b = 0; b < clouds.size(); ++b) {
     const Pose3& X_WS = poses[b % poses.size()];
     model.insert_cloud(X_WS, clouds[b]);
@@ -195,11 +199,19 @@ void expect_same_map_over_batches(const OctoMapParams& params, const std::vector
       const auto snapshot = model.publish();
       plain.prune();
       const std::vector<LeafTuple> fast = leaves_of(*snapshot);
-      const std::vector<LeafTuple> reference = leaves_of(plain);
+      std::vector<LeafTuple> reference = leaves_of(plain);
       ASSERT_EQ(fast.size(), reference.size()) << "after batch " << b;
       ASSERT_EQ(count_differences(fast, reference), 0U) << "after batch " << b;
       ASSERT_EQ(snapshot->node_count(), plain.size()) << "after batch " << b;
+      ASSERT_EQ(snapshot->leaf_count(), reference.size()) << "after batch " << b;
+      kept.emplace_back(snapshot, std::move(reference));
     }
+  }
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    // Dropped oldest first, so that the blocks they shared outlive them in the later snapshots.
+    const auto& [snapshot, reference] = kept[i];
+    ASSERT_EQ(count_differences(leaves_of(*snapshot), reference), 0U) << "snapshot " << i << " at the end";
+    kept[i].first.reset();
   }
 }
 
@@ -268,6 +280,7 @@ TEST(OctoMapInsertTest, LazyInsertionEqualsPlainOverManyBatchesWithPruningClampi
   EXPECT_GT(cases.shared_free, 0U);
   EXPECT_GT(cases.max_range_rays, 0U);
   expect_same_map_over_batches(params, clouds, poses, 7);
+  expect_same_map_over_batches(params, clouds, poses, 1);
 }
 
 // Sparse 3D batches (OctoMapModel sorts their Morton-coded keys): a few hundred rays in random directions, some
