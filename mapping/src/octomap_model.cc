@@ -4,7 +4,11 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <memory>
+#include <new>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -674,57 +678,71 @@ struct OctoMapModel::Impl {
 
   // The copy of one block (a node at kRefreshDepth, 8 voxels a side, and its subtree) that successive versions of its
   // tile share until a voxel in it changes: a publish copies the blocks that changed, not the whole tile. Its nodes
-  // and their child arrays are two allocations, not two per node: on a map of gigabytes each node allocated and freed
+  // and their child arrays are one allocation, not two per node: on a map of gigabytes each node allocated and freed
   // on its own cost a few cache misses, and a scan replaces thousands.
   struct SharedBlock {
-    std::unique_ptr<octomap::OcTreeNode[]> nodes;                 // nodes[0]: the block's node
-    std::unique_ptr<octomap::AbstractOcTreeNode*[]> child_slots;  // 8 per inner node
     std::size_t node_count = 0;
     std::size_t leaves = 0;
 
-    // A copy of the subtree under from_node (a node of tree).
+    // A copy of the subtree under from_node (a node of tree): one pass over the live nodes, then the copy built from
+    // that list in one allocation.
     SharedBlock(const octomap::OcTree& tree, const octomap::OcTreeNode* from_node) {
+      thread_local std::vector<Visit> order;
+      order.clear();
+      visit(tree, from_node, -1, 0, order);
+      node_count = order.size();
       std::size_t inner = 0;
-      count(tree, from_node, inner);
-      nodes = std::make_unique<octomap::OcTreeNode[]>(node_count);
-      child_slots = std::make_unique<octomap::AbstractOcTreeNode*[]>(8 * inner);
-      std::size_t next_node = 1, next_slot = 0;
-      copy(tree, from_node, &nodes[0], next_node, next_slot);
+      for (const Visit& v : order) inner += v.inner ? 1 : 0;
+      leaves = node_count - inner;
+      const std::size_t slot_bytes = 8 * inner * sizeof(octomap::AbstractOcTreeNode*);
+      storage_ = std::make_unique_for_overwrite<std::byte[]>(node_count * sizeof(octomap::OcTreeNode) + slot_bytes);
+      auto* nodes = reinterpret_cast<octomap::OcTreeNode*>(storage_.get());  // NOLINT: storage for them
+      auto* slots = reinterpret_cast<octomap::AbstractOcTreeNode**>(         // NOLINT: after the nodes, same alignment
+          storage_.get() + node_count * sizeof(octomap::OcTreeNode));
+      std::memset(static_cast<void*>(slots), 0, slot_bytes);  // null: no child there
+      std::size_t next_slot = 0;
+      for (std::size_t k = 0; k < order.size(); ++k) {
+        Visit& v = order[k];
+        octomap::OcTreeNode* node = new (&nodes[k]) octomap::OcTreeNode();
+        node->setLogOdds(v.log_odds);
+        if (v.parent >= 0) slots[order[static_cast<std::size_t>(v.parent)].slot_base + v.index] = node;
+        if (v.inner) {
+          v.slot_base = next_slot;
+          NodeSurgery::set_children(node, &slots[next_slot]);
+          next_slot += 8;
+        }
+      }
+      root_ = nodes;
     }
     SharedBlock(const SharedBlock&) = delete;
     SharedBlock& operator=(const SharedBlock&) = delete;
-    ~SharedBlock() {
-      // ~OcTreeDataNode expects children already gone (it asserts so): they go with child_slots.
-      for (std::size_t i = 0; i < node_count; ++i) NodeSurgery::set_children(&nodes[i], nullptr);
-    }
-    [[nodiscard]] octomap::OcTreeNode* node() const { return &nodes[0]; }
+    // The nodes end with their storage: ~OcTreeDataNode does nothing (but assert, in a debug build, that the tree has
+    // deleted the children, which these nodes do not own).
+    ~SharedBlock() = default;
+    [[nodiscard]] octomap::OcTreeNode* node() const { return root_; }
 
    private:
-    void count(const octomap::OcTree& tree, const octomap::OcTreeNode* node, std::size_t& inner) {
-      ++node_count;
-      if (!tree.nodeHasChildren(node)) {
-        ++leaves;
-        return;
-      }
-      ++inner;
+    struct Visit {
+      float log_odds;
+      std::int32_t parent;  // index in the list; -1 for the block's node
+      std::uint32_t index;  // child index under the parent
+      bool inner;
+      std::size_t slot_base = 0;  // of its children's slots, once placed
+    };
+    static void visit(const octomap::OcTree& tree, const octomap::OcTreeNode* node, std::int32_t parent, unsigned index,
+                      std::vector<Visit>& order) {
+      const bool inner = tree.nodeHasChildren(node);
+      const auto self = static_cast<std::int32_t>(order.size());
+      order.push_back({node->getLogOdds(), parent, index, inner});
+      if (!inner) return;
       for (unsigned i = 0; i < 8; ++i) {
-        if (tree.nodeChildExists(node, i)) count(tree, tree.getNodeChild(node, i), inner);
+        if (tree.nodeChildExists(node, i)) visit(tree, tree.getNodeChild(node, i), self, i, order);
       }
     }
-    void copy(const octomap::OcTree& tree, const octomap::OcTreeNode* from, octomap::OcTreeNode* to,
-              std::size_t& next_node, std::size_t& next_slot) {
-      to->setLogOdds(from->getLogOdds());
-      if (!tree.nodeHasChildren(from)) return;
-      octomap::AbstractOcTreeNode** slots = &child_slots[next_slot];
-      next_slot += 8;
-      NodeSurgery::set_children(to, slots);
-      for (unsigned i = 0; i < 8; ++i) {
-        if (!tree.nodeChildExists(from, i)) continue;
-        octomap::OcTreeNode* child = &nodes[next_node++];
-        slots[i] = child;
-        copy(tree, tree.getNodeChild(from, i), child, next_node, next_slot);
-      }
-    }
+
+    // The nodes, then 8 child slots per inner node (null where no child).
+    std::unique_ptr<std::byte[]> storage_;
+    octomap::OcTreeNode* root_ = nullptr;
   };
   // A block's place in its tile: x | y << 3 | z << 6, in blocks.
   using BlockPlace = std::uint16_t;
