@@ -378,7 +378,10 @@ struct OctoMapModel::Impl {
     inner_stale = true;
     path_depth = -1;
 
-    const std::uint64_t nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1, nz = hi[2] - lo[2] + 1;
+    // x and y on the tree's 8-voxel blocks (apply_by_bitmap's layout).
+    lo[0] &= ~7U;
+    lo[1] &= ~7U;
+    const std::uint64_t nx = ((hi[0] - lo[0]) | 7U) + 1, ny = ((hi[1] - lo[1]) | 7U) + 1, nz = hi[2] - lo[2] + 1;
     const std::uint64_t volume = nx * ny * nz;
     const std::uint64_t n_keys = ray_keys.size() + hit_keys.size();
     if (volume <= kMaxBitmapCells && volume <= 256 * n_keys) {
@@ -397,8 +400,14 @@ struct OctoMapModel::Impl {
       free_bits.resize(n_words, 0);
       hit_bits.resize(n_words, 0);
     }
+    // One 64-bit word per 8 x 8 voxels of one layer of a tree block (lo[0], lo[1], nx and ny are multiples of 8), so
+    // that the updates visit the tree block by block, in the order its nodes lie, rather than in rows across blocks.
+    const std::uint64_t blocks_x = nx >> 3U, blocks_y = ny >> 3U;
+    const auto local_index = [blocks_x, blocks_y](std::uint64_t x, std::uint64_t y, std::uint64_t z) {
+      return ((z * blocks_y + (y >> 3U)) * blocks_x + (x >> 3U)) << 6U | (y & 7U) << 3U | (x & 7U);
+    };
     const auto index = [&](const octomap::OcTreeKey& key) {
-      return ((key[2] - lo[2]) * ny + (key[1] - lo[1])) * nx + (key[0] - lo[0]);
+      return local_index(key[0] - lo[0], key[1] - lo[1], key[2] - lo[2]);
     };
     if (see_through) {
       if (near_hit_bits.size() < n_words) {
@@ -414,8 +423,8 @@ struct OctoMapModel::Impl {
                nyi <= std::min<std::int64_t>(y + spare, static_cast<std::int64_t>(ny) - 1); ++nyi) {
             for (std::int64_t nxi = std::max<std::int64_t>(x - spare, 0);
                  nxi <= std::min<std::int64_t>(x + spare, static_cast<std::int64_t>(nx) - 1); ++nxi) {
-              const auto i = static_cast<std::uint64_t>(
-                  (nzi * static_cast<std::int64_t>(ny) + nyi) * static_cast<std::int64_t>(nx) + nxi);
+              const std::uint64_t i = local_index(static_cast<std::uint64_t>(nxi), static_cast<std::uint64_t>(nyi),
+                                                  static_cast<std::uint64_t>(nzi));
               std::uint64_t& word = near_hit_bits[i >> 6];
               if (word == 0) near_hit_words.push_back(i >> 6);
               word |= std::uint64_t{1} << (i & 63);
@@ -442,14 +451,14 @@ struct OctoMapModel::Impl {
       const std::uint64_t seen_through = see_through ? free_bits[w] & ~hits & ~near_hit_bits[w] : 0;
       free_bits[w] = 0;
       hit_bits[w] = 0;
+      const std::uint64_t block_row = w / blocks_x;
+      const std::uint64_t x0 = lo[0] + ((w % blocks_x) << 3U), y0 = lo[1] + ((block_row % blocks_y) << 3U);
+      const auto z = static_cast<octomap::key_type>(lo[2] + block_row / blocks_y);
       while (cells != 0) {
         const int b = std::countr_zero(cells);
         cells &= cells - 1;
-        const std::uint64_t i = std::uint64_t{w} * 64 + static_cast<std::uint64_t>(b);
-        const std::uint64_t row = i / nx;
-        const octomap::OcTreeKey key(static_cast<octomap::key_type>(lo[0] + i % nx),
-                                     static_cast<octomap::key_type>(lo[1] + row % ny),
-                                     static_cast<octomap::key_type>(lo[2] + row / ny));
+        const octomap::OcTreeKey key(static_cast<octomap::key_type>(x0 + (static_cast<unsigned>(b) & 7U)),
+                                     static_cast<octomap::key_type>(y0 + (static_cast<unsigned>(b) >> 3U)), z);
         const bool is_hit = ((hits >> b) & 1U) != 0;
         update(key, is_hit ? hit : miss);
         if (((seen_through >> b) & 1U) != 0 && path_depth == 16) {
