@@ -310,8 +310,9 @@ class DistanceField::Brushfire {
     using Snapshot = DistanceFieldSnapshot;
     result.copied_blocks = dirty_slots_.size();
     const auto chunk_of = [this](std::size_t b) {
-      const std::size_t i = b % static_cast<std::size_t>(blocks_x_), j = b / static_cast<std::size_t>(blocks_x_);
-      return (j >> kChunkShift) * static_cast<std::size_t>(chunks_x()) + (i >> kChunkShift);
+      const auto [i, j] = column_row(b);
+      return static_cast<std::size_t>(j >> kChunkShift) * static_cast<std::size_t>(chunks_x()) +
+             static_cast<std::size_t>(i >> kChunkShift);
     };
     std::sort(dirty_slots_.begin(), dirty_slots_.end(), [&chunk_of](std::size_t a, std::size_t b) {
       return std::pair(chunk_of(a), a) < std::pair(chunk_of(b), b);
@@ -337,8 +338,9 @@ class DistanceField::Brushfire {
       auto refs = std::make_shared<Snapshot::RefBlock>();
       const Block& block = *blocks_[b];
       for (std::size_t i = 0; i < block.cells.size(); ++i) refs->refs[i] = {block.cells[i].dx, block.cells[i].dy};
-      const std::size_t i = b % static_cast<std::size_t>(blocks_x_), j = b / static_cast<std::size_t>(blocks_x_);
-      auto& in_chunk = copy->blocks[(j & (kChunkBlocks - 1)) * kChunkBlocks + (i & (kChunkBlocks - 1))];
+      const auto [i, j] = column_row(b);
+      auto& in_chunk =
+          copy->blocks[static_cast<std::size_t>((j & (kChunkBlocks - 1)) * kChunkBlocks + (i & (kChunkBlocks - 1)))];
       if (!in_chunk) ++published_blocks_;
       in_chunk = std::move(refs);
     }
@@ -400,6 +402,11 @@ class DistanceField::Brushfire {
   }
 
   [[nodiscard]] std::int32_t chunks_x() const { return blocks_x_ >> kChunkShift; }
+  // Column and row of slot b in the directory.
+  [[nodiscard]] std::pair<std::int32_t, std::int32_t> column_row(std::size_t b) const {
+    return {static_cast<std::int32_t>(b % static_cast<std::size_t>(blocks_x_)),
+            static_cast<std::int32_t>(b / static_cast<std::size_t>(blocks_x_))};
+  }
 
   void mark_dirty(std::size_t b) {
     if (dirty_[b] != 0) return;
@@ -421,8 +428,7 @@ class DistanceField::Brushfire {
         chunk_floor(empty ? by + kRoom : std::max(block_y0_ + blocks_y_ - 1, by + kRoom)) + kChunkBlocks - 1;
     const std::int32_t width = x1 - x0 + 1, height = y1 - y0 + 1;
     const auto new_slot = [&](std::size_t from) {
-      const auto i = static_cast<std::int32_t>(from % static_cast<std::size_t>(blocks_x_));
-      const auto j = static_cast<std::int32_t>(from / static_cast<std::size_t>(blocks_x_));
+      const auto [i, j] = column_row(from);
       return static_cast<std::size_t>(block_y0_ + j - y0) * static_cast<std::size_t>(width) +
              static_cast<std::size_t>(block_x0_ + i - x0);
     };

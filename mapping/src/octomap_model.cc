@@ -753,7 +753,8 @@ struct OctoMapModel::Impl {
     std::unique_ptr<std::byte[]> storage_;
     octomap::OcTreeNode* root_ = nullptr;
   };
-  // A block's place in its tile: x | y << 3 | z << 6, in blocks.
+  // A block's place in its tile: the child indices on the path from the tile's node down to it, 3 bits a level, the
+  // first in the high bits, so that places ascend in depth-first order.
   using BlockPlace = std::uint16_t;
   static constexpr unsigned kBlockPlaceBits = static_cast<unsigned>(kRefreshDepth - kTileDepth);
   static_assert(kRefreshDepth > kTileDepth && 3 * kBlockPlaceBits <= 16);
@@ -773,7 +774,7 @@ struct OctoMapModel::Impl {
     TileTree& operator=(const TileTree&) = delete;
     // The shared blocks are unhung first, so that OcTree's destructor deletes only this version's own nodes.
     ~TileTree() override {
-      for (const auto& [parent, index] : hung_) NodeSurgery::detach(parent, index);
+      for (const HungBlock& hung : hung_) NodeSurgery::detach(hung.parent, hung.index);
     }
     octomap::OcTreeNode* make_root() {
       if (root == nullptr) {
@@ -783,23 +784,28 @@ struct OctoMapModel::Impl {
       }
       return root;
     }
+    // Hangs block as child index of parent; blocks are hung in depth-first order, so in ascending place.
     void hang(octomap::OcTreeNode* parent, unsigned index, BlockPlace place, std::shared_ptr<const SharedBlock> block) {
       NodeSurgery::attach(parent, index, block->node());
-      hung_.emplace_back(parent, index);
-      blocks_.emplace_back(place, std::move(block));
+      hung_.push_back({place, index, parent, std::move(block)});
     }
     // The block this version holds at place, or nullptr.
     [[nodiscard]] std::shared_ptr<const SharedBlock> block_at(BlockPlace place) const {
-      const auto it = std::lower_bound(blocks_.begin(), blocks_.end(), place,
-                                       [](const auto& entry, BlockPlace p) { return entry.first < p; });
-      return it != blocks_.end() && it->first == place ? it->second : nullptr;
+      const auto it = std::lower_bound(hung_.begin(), hung_.end(), place,
+                                       [](const HungBlock& hung, BlockPlace p) { return hung.place < p; });
+      return it != hung_.end() && it->place == place ? it->block : nullptr;
     }
     // The nodes of the tree, its shared blocks' included (OcTree counts only those its own calls created).
     void set_node_count(std::size_t nodes) { tree_size = nodes; }
 
    private:
-    std::vector<std::pair<octomap::OcTreeNode*, unsigned>> hung_;  // (parent, child index) of each shared block
-    std::vector<std::pair<BlockPlace, std::shared_ptr<const SharedBlock>>> blocks_;  // in place order (depth-first)
+    struct HungBlock {
+      BlockPlace place;
+      unsigned index;               // under parent
+      octomap::OcTreeNode* parent;  // a node of this tree
+      std::shared_ptr<const SharedBlock> block;
+    };
+    std::vector<HungBlock> hung_;  // in ascending place
   };
 
   // Nodes and leaves of a tile under construction.
@@ -809,11 +815,11 @@ struct OctoMapModel::Impl {
   };
 
   // The tile's levels above its blocks, copied node by node; each block below them taken from the previous version
-  // of the tile when no voxel in it changed since, else copied. (bx, by, bz): from_node's place in the tile, in nodes
-  // of its depth.
+  // of the tile when no voxel in it changed since, else copied. (bx, by, bz): from_node's coordinates in the tile, in
+  // nodes of its depth; place: the child indices down to it (BlockPlace).
   void copy_tile_levels(TileTree& to, octomap::OcTreeNode* to_node, const octomap::OcTreeNode* from_node, int depth,
-                        OctoTileId id, std::uint32_t bx, std::uint32_t by, std::uint32_t bz, const TileTree* previous,
-                        NodeCounts& counts) const {
+                        OctoTileId id, std::uint32_t bx, std::uint32_t by, std::uint32_t bz, unsigned place,
+                        const TileTree* previous, NodeCounts& counts) const {
     const octomap::OcTree& t = *tree;
     for (unsigned i = 0; i < 8; ++i) {
       if (!t.nodeChildExists(from_node, i)) continue;
@@ -824,24 +830,24 @@ struct OctoMapModel::Impl {
         copy->setLogOdds(child->getLogOdds());
         ++counts.nodes;
         if (t.nodeHasChildren(child)) {
-          copy_tile_levels(to, copy, child, depth + 1, id, cx, cy, cz, previous, counts);
+          copy_tile_levels(to, copy, child, depth + 1, id, cx, cy, cz, place << 3U | i, previous, counts);
         } else {
           ++counts.leaves;
         }
         continue;
       }
-      const auto place = static_cast<BlockPlace>(cx | cy << kBlockPlaceBits | cz << (2 * kBlockPlaceBits));
+      const auto block_place = static_cast<BlockPlace>(place << 3U | i);
       std::shared_ptr<const SharedBlock> block;
       if (previous != nullptr &&
           !dirty_blocks.contains(pack_block(std::uint64_t{tile_axis(id, 0)} << kBlockPlaceBits | cx,
                                             std::uint64_t{tile_axis(id, 1)} << kBlockPlaceBits | cy,
                                             std::uint64_t{tile_axis(id, 2)} << kBlockPlaceBits | cz))) {
-        block = previous->block_at(place);
+        block = previous->block_at(block_place);
       }
       if (!block) block = std::make_shared<const SharedBlock>(t, child);
       counts.nodes += block->node_count;
       counts.leaves += block->leaves;
-      to.hang(to_node, i, place, std::move(block));
+      to.hang(to_node, i, block_place, std::move(block));
     }
   }
 
@@ -875,7 +881,7 @@ struct OctoMapModel::Impl {
     NodeCounts counts{kTileDepth + 1, 0};
     if (t.nodeHasChildren(node)) {
       const auto* previous_tree = previous != nullptr ? dynamic_cast<const TileTree*>(previous->tree.get()) : nullptr;
-      copy_tile_levels(*tile_tree, copy, node, kTileDepth, id, 0, 0, 0, previous_tree, counts);
+      copy_tile_levels(*tile_tree, copy, node, kTileDepth, id, 0, 0, 0, 0, previous_tree, counts);
     } else {
       counts.leaves = 1;
     }
@@ -884,11 +890,11 @@ struct OctoMapModel::Impl {
   }
 
   static std::shared_ptr<const OctoTile> make_tile(std::shared_ptr<const octomap::OcTree> tile_tree,
-                                                   std::optional<std::size_t> leaf_count = std::nullopt) {
+                                                   std::size_t leaf_count) {
     auto tile = std::make_shared<OctoTile>();
     tile->fcl_view = make_fcl_view(tile_tree);
     tile->columns = OccupiedColumns::build(*tile_tree);
-    tile->leaf_count = leaf_count ? *leaf_count : tile_tree->getRoot() == nullptr ? 0 : tile_tree->getNumLeafNodes();
+    tile->leaf_count = leaf_count;
     tile->node_count = tile_tree->size();
     tile->tree = std::move(tile_tree);
     return tile;
@@ -1149,7 +1155,7 @@ std::shared_ptr<const OctoMapSnapshot> OctoMapModel::publish() {
   if (!impl_->empty_tile) {
     auto empty_tree = std::make_shared<octomap::OcTree>(params_.resolution_m);
     apply_params(*empty_tree, params_);
-    impl_->empty_tile = Impl::make_tile(std::move(empty_tree));
+    impl_->empty_tile = Impl::make_tile(std::move(empty_tree), 0);
   }
   auto snapshot_impl = std::make_unique<OctoMapSnapshot::Impl>();
   snapshot_impl->empty = impl_->empty_tile;

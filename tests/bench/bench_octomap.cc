@@ -160,9 +160,8 @@ BENCHMARK(BM_InsertScanAndPublishEveryScan)->Unit(benchmark::kMicrosecond);
 
 // Publish cost after one URG scan (timed: the publish alone), on a small map (64 scans) and on a large one
 // (geb079.bt, 532k nodes): a publish refreshes and copies the 8-voxel blocks the scan changed, so the cost follows the
-// change, not the map; geb079's blocks are fuller (a building in 3D, where the scans' own map is a slab), so its
-// changed blocks cost more each. Both take the same 500 scans from poses that move on (a pose seen again changes
-// less, its voxels clamped already).
+// change, not the map. Both take the same 500 scans from poses that move on (a pose seen again changes less, its
+// voxels clamped already).
 void BM_PublishSnapshot(benchmark::State& state) {
   OctoMapModel model{bench_params()};
   const bool big = state.range(0) == 1;
