@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/args.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/report.h"
@@ -140,7 +141,7 @@ void log_progress(const Simulation& simulation) {
 void hold_until_driven(const SimOptions& options, double hold_s) {
   Connection query = Connection::open(options.server);
   occgeo::v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(occgeo::v1::ROLE_QUERY);
   hello.set_client_name("occgeo-sim --hold");
   query.hello(hello);
@@ -148,7 +149,8 @@ void hold_until_driven(const SimOptions& options, double hold_s) {
       SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(hold_s));
   for (std::uint64_t id = 1; g_stop_requested == 0; ++id) {
     occgeo::v1::ClientMessage request;
-    request.mutable_status()->set_request_id(id);
+    request.mutable_status();
+    request.set_request_id(id);
     const occgeo::v1::ServerMessage reply = query.call(request, id);
     for (const occgeo::v1::RobotStatus& robot : reply.status().robots()) {
       if (robot.id() == options.robot_id && !robot.behaviour().empty() && robot.behaviour() != "stop") {

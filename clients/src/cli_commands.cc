@@ -20,6 +20,7 @@
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapfile/map_picture.h"
 #include "occgeo/mapping/octomap_model.h"
+#include "occgeo/proto/protocol.h"
 
 #include "cli_commands.h"
 
@@ -33,7 +34,7 @@ namespace v1 = occgeo::v1;
 Connection connect_query(const Options& options) {
   Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(v1::ROLE_QUERY);
   hello.set_client_name("occgeo-cli");
   connection.hello(hello);
@@ -149,7 +150,8 @@ v1::Pose2D pose_from(const Options& options) {
 int run_status(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(1);
+  request.mutable_status();
+  request.set_request_id(1);
   const bool detailed = options.switches.contains("detailed");
   request.mutable_status()->set_detailed(detailed);
   const v1::StatusReply status = connection.call(request, 1).status();
@@ -232,7 +234,7 @@ int run_query_collision(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_collision();
-  query->set_request_id(1);
+  request.set_request_id(1);
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
   for (const v1::Model model : models_from(options)) query->add_models(model);
@@ -274,7 +276,7 @@ int run_query_clearance(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_clearance();
-  query->set_request_id(1);
+  request.set_request_id(1);
   query->set_robot_id(options.required("robot"));
   *query->mutable_pose() = pose_from(options);
   query->set_max_distance_m(options.number("max-distance", 0.0));
@@ -318,7 +320,7 @@ int run_query_ptem(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_ptem();
-  query->set_request_id(1);
+  request.set_request_id(1);
   query->set_world(options.required("world"));
   auto* point = query->add_points();
   point->set_x(options.number("x"));
@@ -346,7 +348,7 @@ int run_query_raycast(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_raycast();
-  query->set_request_id(1);
+  request.set_request_id(1);
   if (options.values.contains("world")) query->set_world(options.required("world"));
   *query->add_rays() = pose_from(options);
   query->set_max_range_m(options.number("max-range"));
@@ -376,7 +378,7 @@ int run_query_occupancy(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_occupancy();
-  query->set_request_id(1);
+  request.set_request_id(1);
   if (options.values.contains("world")) query->set_world(options.required("world"));
   auto* point = query->add_points();
   point->set_x(options.number("x"));
@@ -406,7 +408,7 @@ int run_query_swept(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_swept();
-  query->set_request_id(1);
+  request.set_request_id(1);
   query->set_robot_id(options.required("robot"));
   for (const v1::Model model : models_from(options)) query->add_models(model);
   auto* motion = query->add_motions();
@@ -440,7 +442,7 @@ int run_query_window(const Options& options) {
   Connection connection = connect_query(options);
   v1::ClientMessage request;
   auto* query = request.mutable_grid_window();
-  query->set_request_id(1);
+  request.set_request_id(1);
   if (options.values.contains("world")) query->set_world(options.required("world"));
   query->mutable_min_corner()->set_x(options.number("min-x"));
   query->mutable_min_corner()->set_y(options.number("min-y"));
@@ -479,7 +481,8 @@ int run_octree_export(const Options& options) {
   const std::string prefix = options.required("out");
   Connection connection = connect_query(options);
   v1::ClientMessage request;
-  request.mutable_octree()->set_request_id(1);
+  request.mutable_octree();
+  request.set_request_id(1);
   request.mutable_octree()->set_world(options.required("world"));
   const v1::OctreeReply octree = connection.call(request, 1, std::chrono::seconds(60)).octree();
   const std::string path = prefix + ".bt";
@@ -582,7 +585,8 @@ int run_picture_export(const Options& options) {
 
   Connection connection = connect_query(options);
   v1::ClientMessage request;
-  request.mutable_grid()->set_request_id(1);
+  request.mutable_grid();
+  request.set_request_id(1);
   request.mutable_grid()->set_world(world);
   const v1::GridReply grid = connection.call(request, 1, std::chrono::seconds(60)).grid();
   if (grid.width() == 0 || grid.height() == 0) {
@@ -592,7 +596,8 @@ int run_picture_export(const Options& options) {
   std::size_t clusters = 0;
   if (options.switches.contains("ptem")) {
     v1::ClientMessage ptem_request;
-    ptem_request.mutable_ptem()->set_request_id(2);
+    ptem_request.mutable_ptem();
+    ptem_request.set_request_id(2);
     ptem_request.mutable_ptem()->set_world(world);
     ptem_request.mutable_ptem()->set_include_clusters(true);
     const v1::PtemReply ptem = connection.call(ptem_request, 2, std::chrono::seconds(60)).ptem();
@@ -641,7 +646,8 @@ int run_map_export(const Options& options) {
   const std::string prefix = options.required("out");
   Connection connection = connect_query(options);
   v1::ClientMessage request;
-  request.mutable_grid()->set_request_id(1);
+  request.mutable_grid();
+  request.set_request_id(1);
   request.mutable_grid()->set_world(options.required("world"));
   const v1::GridReply grid = connection.call(request, 1, std::chrono::seconds(60)).grid();
   if (grid.width() == 0 || grid.height() == 0) {
@@ -710,7 +716,7 @@ int run_cloud_insert(const std::string& file, const Options& options) {
 
   Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id(robot);
   hello.set_world(world);
@@ -787,7 +793,7 @@ int run_cloud_insert(const std::string& file, const Options& options) {
 Connection connect_role(const Options& options, v1::Role role) {
   Connection connection = Connection::open(Endpoint::parse(options.text("server", "127.0.0.1:7700")));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(role);
   hello.set_client_name("occgeo-cli");
   hello.set_auth_token(options.text("token"));
@@ -799,7 +805,7 @@ v1::LeaseReply lease_call(Connection& connection, const std::string& robot, v1::
                           double timeout_s, std::uint64_t request_id) {
   v1::ClientMessage request;
   auto* lease = request.mutable_lease();
-  lease->set_request_id(request_id);
+  request.set_request_id(request_id);
   lease->set_robot_id(robot);
   lease->set_action(action);
   lease->set_timeout_s(timeout_s);
@@ -882,7 +888,7 @@ int run_drive(const std::vector<std::string>& words, const Options& options) {
   require_granted(acquired, "acquire");
   v1::ClientMessage request;
   auto* drive = request.mutable_drive();
-  drive->set_request_id(++id);
+  request.set_request_id(++id);
   drive->set_robot_id(robot);
   drive->set_behaviour(behaviour);
   drive->set_linear_mps(v);
@@ -958,7 +964,7 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
   std::signal(SIGTERM, on_interrupt);
   v1::ClientMessage request;
   auto* drive = request.mutable_drive();
-  drive->set_request_id(++id);
+  request.set_request_id(++id);
   drive->set_robot_id(robot);
   drive->set_behaviour(waypoints ? "waypoints" : "goto");
   drive->set_escape(!options.switches.contains("no-escape"));
@@ -991,7 +997,8 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
       break;
     }
     v1::ClientMessage status_request;
-    status_request.mutable_status()->set_request_id(++id);
+    status_request.mutable_status();
+    status_request.set_request_id(++id);
     const v1::StatusReply status = connection.call(status_request, id).status();
     const auto it = std::find_if(status.robots().begin(), status.robots().end(),
                                  [&](const v1::RobotStatus& r) { return r.id() == robot; });
@@ -1047,7 +1054,7 @@ int run_estop(const Options& options) {
   if (release) require_granted(lease_call(connection, robot, v1::LeaseRequest::ACQUIRE, 0.0, ++id), "acquire");
   v1::ClientMessage request;
   auto* estop = request.mutable_estop();
-  estop->set_request_id(++id);
+  request.set_request_id(++id);
   estop->set_robot_id(robot);
   estop->set_engage(!release);
   const v1::EStopReply reply = connection.call(request, id).estop();

@@ -35,15 +35,8 @@ const google::protobuf::FieldDescriptor* body_field(const google::protobuf::Mess
   return field;
 }
 
-// The uint64 `request_id` of the message in `message`'s body; 0 when it has none.
-std::uint64_t request_id_by_reflection(const google::protobuf::Message& message) {
-  const google::protobuf::FieldDescriptor* field = body_field(message);
-  if (field == nullptr) return 0;
-  const google::protobuf::Message& inner = message.GetReflection()->GetMessage(message, field);
-  const google::protobuf::FieldDescriptor* id = inner.GetDescriptor()->FindFieldByName("request_id");
-  if (id == nullptr || id->cpp_type() != google::protobuf::FieldDescriptor::CPPTYPE_UINT64) return 0;
-  return inner.GetReflection()->GetUInt64(inner, id);
-}
+// The schema's rule (session.proto): client bodies numbered from this on are requests, each answered once.
+constexpr int kFirstRequestField = 10;
 }  // namespace
 
 Endpoint Endpoint::parse(std::string_view text) {
@@ -202,38 +195,7 @@ std::optional<v1::ServerMessage> Connection::receive(std::chrono::milliseconds t
   return message;
 }
 
-std::uint64_t reply_request_id(const v1::ServerMessage& message) {
-  switch (message.body_case()) {
-    case v1::ServerMessage::kCollision:
-      return message.collision().request_id();
-    case v1::ServerMessage::kClearance:
-      return message.clearance().request_id();
-    case v1::ServerMessage::kStatus:
-      return message.status().request_id();
-    case v1::ServerMessage::kGrid:
-      return message.grid().request_id();
-    case v1::ServerMessage::kPtem:
-      return message.ptem().request_id();
-    case v1::ServerMessage::kOctree:
-      return message.octree().request_id();
-    case v1::ServerMessage::kLease:
-      return message.lease().request_id();
-    case v1::ServerMessage::kDrive:
-      return message.drive().request_id();
-    case v1::ServerMessage::kEstop:
-      return message.estop().request_id();
-    case v1::ServerMessage::kError:
-      return message.error().request_id();
-    case v1::ServerMessage::BODY_NOT_SET:
-    case v1::ServerMessage::kWelcome:
-    case v1::ServerMessage::kMotionCommand:
-    case v1::ServerMessage::kScanAck:
-      return 0;
-    default:
-      // Reply kinds added to the schema later: their request_id field, found by name.
-      return request_id_by_reflection(message);
-  }
-}
+std::uint64_t reply_request_id(const v1::ServerMessage& message) { return message.request_id(); }
 
 v1::ServerMessage Connection::call(const v1::ClientMessage& request, std::uint64_t request_id,
                                    std::chrono::milliseconds timeout) {
@@ -258,36 +220,9 @@ void Connection::close() {
 }
 
 bool set_request_id(v1::ClientMessage& message, std::uint64_t request_id) {
-  switch (message.body_case()) {
-    case v1::ClientMessage::kCollision:
-      message.mutable_collision()->set_request_id(request_id);
-      return true;
-    case v1::ClientMessage::kClearance:
-      message.mutable_clearance()->set_request_id(request_id);
-      return true;
-    case v1::ClientMessage::kStatus:
-      message.mutable_status()->set_request_id(request_id);
-      return true;
-    case v1::ClientMessage::kGrid:
-      message.mutable_grid()->set_request_id(request_id);
-      return true;
-    case v1::ClientMessage::kPtem:
-      message.mutable_ptem()->set_request_id(request_id);
-      return true;
-    case v1::ClientMessage::kOctree:
-      message.mutable_octree()->set_request_id(request_id);
-      return true;
-    default: {
-      // Other kinds (control requests, kinds added to the schema later): their request_id field, found by name.
-      const google::protobuf::FieldDescriptor* field = body_field(message);
-      if (field == nullptr) return false;
-      google::protobuf::Message* inner = message.GetReflection()->MutableMessage(&message, field);
-      const google::protobuf::FieldDescriptor* id = inner->GetDescriptor()->FindFieldByName("request_id");
-      if (id == nullptr || id->cpp_type() != google::protobuf::FieldDescriptor::CPPTYPE_UINT64) return false;
-      inner->GetReflection()->SetUInt64(inner, id, request_id);
-      return true;
-    }
-  }
+  if (static_cast<int>(message.body_case()) < kFirstRequestField) return false;
+  message.set_request_id(request_id);
+  return true;
 }
 
 std::string Reply::error_text() const {

@@ -1,4 +1,5 @@
 #include "occgeo/client/record.h"
+#include "occgeo/proto/protocol.h"
 
 #include <unistd.h>
 
@@ -187,7 +188,7 @@ class GridFollower {
       if (!world.dirty || world.pending != 0 || world.failed || (!now && at < world.last_request + period_)) continue;
       v1::ClientMessage message;
       auto& window = *message.mutable_grid_window();
-      window.set_request_id(next_request_id_);
+      message.set_request_id(next_request_id_);
       window.set_world(name);
       // Cell centres: the window holds exactly the cells of the box.
       window.mutable_min_corner()->set_x((world.min_ix + 0.5) * world.cell_size_m);
@@ -303,13 +304,14 @@ RecordOptions parse_record_args(const std::vector<std::string>& args) {
 RecordSummary run_record(const RecordOptions& options, std::ostream& err) {
   auto connection = Connection::open(Endpoint::parse(options.server));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(v1::ROLE_OBSERVER);
   hello.set_client_name("occgeo-record");
   hello.set_auth_token(options.token);
   connection.hello(hello);
   v1::ClientMessage watch;
-  watch.mutable_watch()->set_request_id(1);
+  watch.mutable_watch();
+  watch.set_request_id(1);
   watch.mutable_watch()->set_world(options.world);
   watch.mutable_watch()->set_robot_id(options.robot_id);
   watch.mutable_watch()->set_with_data(true);

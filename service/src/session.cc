@@ -24,16 +24,10 @@ constexpr double kBusyRetryAfter_s = 0.05;
 // are (they query for the robot they drive).
 bool may_be_refused_busy(v1::Role role) { return role == v1::ROLE_QUERY || role == v1::ROLE_OBSERVER; }
 
-// The request_id of a request (every request message has one) and the name of its kind, e.g. "collision_batch".
-std::pair<std::uint64_t, std::string> request_id_and_kind(const v1::ClientMessage& message) {
+// The name of a message's kind as the schema has it, e.g. "collision_batch".
+std::string kind_name(const v1::ClientMessage& message) {
   const auto* field = v1::ClientMessage::descriptor()->FindFieldByNumber(message.body_case());
-  if (field == nullptr) return {0, {}};
-  const auto& body = message.GetReflection()->GetMessage(message, field);
-  const auto* id = body.GetDescriptor()->FindFieldByName("request_id");
-  const std::uint64_t request_id = id != nullptr && id->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64
-                                       ? body.GetReflection()->GetUInt64(body, id)
-                                       : 0;
-  return {request_id, field->name()};
+  return field == nullptr ? std::string() : field->name();
 }
 
 std::chrono::steady_clock::duration seconds(double s) {
@@ -396,19 +390,18 @@ void Session::send(const v1::ServerMessage& message) {
 }
 
 void Session::refuse_busy(const v1::ClientMessage& message, std::size_t backlog) {
-  const auto [request_id, kind] = request_id_and_kind(message);
   static metrics::Counter& refused = metrics::counter(
       "occgeo_queries_busy_total", {}, "Queries answered ERROR_BUSY: the server's query backlog was full");
   refused.inc();
   v1::ServerMessage reply;
   v1::Error& error = *reply.mutable_error();
   error.set_code(v1::ERROR_BUSY);
-  error.set_field(kind);
+  error.set_field(kind_name(message));
   error.set_message("the server is busy: " + std::to_string(backlog) +
                     " queries are in flight (limits.max_query_backlog " +
                     std::to_string(core_.config().limits.max_query_backlog) +
                     "); nothing was done, send it again after retry_after_s");
-  error.set_request_id(request_id);
+  reply.set_request_id(message.request_id());
   error.set_retry_after_s(kBusyRetryAfter_s);
   send(reply);
 }
@@ -418,20 +411,21 @@ void Session::close_after_send() {
   if (!writing_) write_next();  // writes what is queued, then shuts down
 }
 
-void Session::watch(const v1::WatchRequest& request) {
+void Session::watch(std::uint64_t request_id, const v1::WatchRequest& request) {
   if (!request.world().empty() && !valid_name(request.world())) {
     send_error(v1::ERROR_INVALID_ARGUMENT, "watch.world", "a world name is 1-64 characters of A-Z a-z 0-9 _ . -",
-               request.request_id());
+               request_id);
     return;
   }
   if (!request.robot_id().empty() && !valid_name(request.robot_id())) {
     send_error(v1::ERROR_INVALID_ARGUMENT, "watch.robot_id", "a robot id is 1-64 characters of A-Z a-z 0-9 _ . -",
-               request.request_id());
+               request_id);
     return;
   }
   shared_.watch.subscribe(shared_from_this(), request.world(), request.robot_id(), request.with_data());
   v1::ServerMessage reply;
-  reply.mutable_watch()->set_request_id(request.request_id());
+  reply.set_request_id(request_id);
+  reply.mutable_watch();
   send(reply);
   if (request.with_data()) {
     // The specs of robots already registered, queued here (on this session's thread) ahead of any data event, which

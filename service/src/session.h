@@ -91,7 +91,7 @@ class Session final : public SessionContext, public std::enable_shared_from_this
   void send(const v1::ServerMessage& message) override;
   void close_after_send() override;
   HelloThrottle* hello_throttle() override { return &shared_.hello_throttle; }
-  void watch(const v1::WatchRequest& request) override;
+  void watch(std::uint64_t request_id, const v1::WatchRequest& request) override;
   [[nodiscard]] bool data_watched() const override { return shared_.watch.has_data_watchers(); }
   void publish_data(std::shared_ptr<v1::WatchEvent> event) override;
 

@@ -186,7 +186,8 @@ TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   auto query = open_query_session(server.address());
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(1);
+  request.mutable_status();
+  request.set_request_id(1);
   const v1::StatusReply status = query.call(request, 1).status();
   ASSERT_EQ(status.robots_size(), 1);
   ASSERT_EQ(status.worlds_size(), 1);
@@ -210,7 +211,7 @@ TEST(LiveViewInBrowser, DrawsTheRobotWhereTheServerSaysAndTheOccupiedCells) {
   // The latest scan is drawn where its returns hit something: every point the page lists lies within the laser's
   // 8 m of the robot and on (or next to) a cell the server's grid holds occupied, since that scan marked it last.
   request.Clear();
-  request.mutable_grid()->set_request_id(2);
+  request.set_request_id(2);
   request.mutable_grid()->set_world(status.worlds(0).name());
   const v1::GridReply grid = query.call(request, 2).grid();
   const auto occupied_near = [&](double x, double y) {
@@ -290,7 +291,8 @@ TEST(LiveViewInBrowser, DrawsThePathOfAGotoBeingFollowed) {
   std::uint64_t request_id = 0;
   const auto robot_status = [&]() -> std::optional<v1::RobotStatus> {
     v1::ClientMessage request;
-    request.mutable_status()->set_request_id(++request_id);
+    request.mutable_status();
+    request.set_request_id(++request_id);
     const v1::StatusReply status = query.call(request, request_id).status();
     if (status.robots_size() == 0) return std::nullopt;
     return status.robots(0);

@@ -13,13 +13,14 @@
 #include "../support/process.h"
 #include "occgeo/client/pipeline.h"
 #include "occgeo/mapfile/map_file.h"
+#include "occgeo/proto/protocol.h"
 
 namespace occgeo::testing {
 namespace {
 
 v1::Hello query_hello() {
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_QUERY);
   hello.set_client_name("pipeline-test");
   return hello;
@@ -57,7 +58,8 @@ class PipelinedConnectionTest : public ::testing::Test {
     auto query = open_query_session(server_->address());
     for (int attempt = 0; attempt < 100; ++attempt) {
       v1::ClientMessage request;
-      request.mutable_status()->set_request_id(1);
+      request.mutable_status();
+      request.set_request_id(1);
       if (query.call(request, 1).status().robots_size() == 1) return;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
@@ -214,7 +216,7 @@ TEST_F(PipelinedConnectionTest, EachErrorReachesTheRequestItAnswers) {
       case 1:
         ASSERT_TRUE(reply.message.has_error()) << reply.message.ShortDebugString();
         EXPECT_EQ(reply.message.error().code(), v1::ERROR_UNKNOWN_ROBOT);
-        EXPECT_EQ(reply.message.error().request_id(), reply.request_id);
+        EXPECT_EQ(reply.message.request_id(), reply.request_id);
         break;
       default:
         ASSERT_TRUE(reply.message.has_error()) << reply.message.ShortDebugString();

@@ -5,6 +5,7 @@
 #include <optional>
 #include <sstream>
 
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 #include "occgeo/sim/report.h"
@@ -197,7 +198,7 @@ TEST(Messages, RobotSpecDescribesTheBearcat) {
 
 TEST(Messages, HelloIntroducesADriver) {
   const v1::Hello hello = make_driver_hello("bearcat-1", "default");
-  EXPECT_EQ(hello.protocol_version(), 1U);
+  EXPECT_EQ(hello.protocol_version(), proto::kProtocolVersion);
   EXPECT_EQ(hello.role(), v1::ROLE_DRIVER);
   EXPECT_EQ(hello.robot_id(), "bearcat-1");
   EXPECT_EQ(hello.world(), "default");

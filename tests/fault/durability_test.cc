@@ -342,7 +342,7 @@ struct PtemState {
 PtemState ptem_state(const std::string& address) {
   auto query = open_query_session(address);
   v1::ClientMessage request;
-  request.mutable_ptem()->set_request_id(1);
+  request.set_request_id(1);
   request.mutable_ptem()->set_include_clusters(true);
   const v1::PtemReply reply = query.call(request, 1).ptem();
   PtemState state{reply.scans(), reply.latest_stamp_s(), {}, {}};

@@ -164,7 +164,7 @@ using ObservedCells = std::map<std::pair<std::int64_t, std::int64_t>, int>;
 inline ObservedCells observed_cells(const std::string& address) {
   auto query = open_query_session(address);
   v1::ClientMessage request;
-  request.mutable_grid()->set_request_id(1);
+  request.set_request_id(1);
   request.mutable_grid()->set_world("default");
   const v1::GridReply reply = query.call(request, 1).grid();
   ObservedCells cells;

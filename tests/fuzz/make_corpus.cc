@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/v1/session.pb.h"
 #include "replay_excerpts.h"
 #include "sensor_robot_spec.h"
@@ -36,7 +37,7 @@ void write_seed(const std::string& target, const std::string& name, const std::s
 v1::ClientMessage hello(v1::Role role, const std::string& robot_id = {}, const std::string& token = {}) {
   v1::ClientMessage message;
   auto* body = message.mutable_hello();
-  body->set_protocol_version(1);
+  body->set_protocol_version(occgeo::proto::kProtocolVersion);
   body->set_role(role);
   body->set_robot_id(robot_id);
   body->set_auth_token(token);
@@ -151,8 +152,8 @@ v1::ClientMessage point_cloud(std::uint64_t seq, double stamp) {
 
 v1::ClientMessage collision(const std::string& robot_id, double x, double y) {
   v1::ClientMessage message;
+  message.set_request_id(11);
   auto* body = message.mutable_collision();
-  body->set_request_id(11);
   body->set_robot_id(robot_id);
   body->mutable_pose()->set_x(x);
   body->mutable_pose()->set_y(y);
@@ -171,8 +172,8 @@ v1::ClientMessage collision_with_footprint(const std::string& robot_id) {
 
 v1::ClientMessage clearance(const std::string& robot_id) {
   v1::ClientMessage message;
+  message.set_request_id(12);
   auto* body = message.mutable_clearance();
-  body->set_request_id(12);
   body->set_robot_id(robot_id);
   body->mutable_pose()->set_x(0.5);
   body->set_max_distance_m(3.0);
@@ -181,21 +182,22 @@ v1::ClientMessage clearance(const std::string& robot_id) {
 
 v1::ClientMessage status() {
   v1::ClientMessage message;
-  message.mutable_status()->set_request_id(13);
+  message.mutable_status();
+  message.set_request_id(13);
   return message;
 }
 
 v1::ClientMessage grid(const std::string& world) {
   v1::ClientMessage message;
-  message.mutable_grid()->set_request_id(14);
+  message.set_request_id(14);
   message.mutable_grid()->set_world(world);
   return message;
 }
 
 v1::ClientMessage ptem(const std::string& world) {
   v1::ClientMessage message;
+  message.set_request_id(15);
   auto* body = message.mutable_ptem();
-  body->set_request_id(15);
   body->set_world(world);
   for (int k = 0; k < 4; ++k) {
     auto* point = body->add_points();
@@ -208,15 +210,15 @@ v1::ClientMessage ptem(const std::string& world) {
 
 v1::ClientMessage octree(const std::string& world) {
   v1::ClientMessage message;
-  message.mutable_octree()->set_request_id(16);
+  message.set_request_id(16);
   message.mutable_octree()->set_world(world);
   return message;
 }
 
 v1::ClientMessage lease(const std::string& robot_id, v1::LeaseRequest::Action action, double timeout_s = 0.0) {
   v1::ClientMessage message;
+  message.set_request_id(17);
   auto* body = message.mutable_lease();
-  body->set_request_id(17);
   body->set_robot_id(robot_id);
   body->set_action(action);
   body->set_timeout_s(timeout_s);
@@ -226,8 +228,8 @@ v1::ClientMessage lease(const std::string& robot_id, v1::LeaseRequest::Action ac
 v1::ClientMessage drive(const std::string& robot_id, const std::string& behaviour, double linear = 0.0,
                         double angular = 0.0) {
   v1::ClientMessage message;
+  message.set_request_id(18);
   auto* body = message.mutable_drive();
-  body->set_request_id(18);
   body->set_robot_id(robot_id);
   body->set_behaviour(behaviour);
   body->set_linear_mps(linear);
@@ -237,8 +239,8 @@ v1::ClientMessage drive(const std::string& robot_id, const std::string& behaviou
 
 v1::ClientMessage estop(const std::string& robot_id, bool engage) {
   v1::ClientMessage message;
+  message.set_request_id(19);
   auto* body = message.mutable_estop();
-  body->set_request_id(19);
   body->set_robot_id(robot_id);
   body->set_engage(engage);
   return message;
@@ -246,8 +248,8 @@ v1::ClientMessage estop(const std::string& robot_id, bool engage) {
 
 v1::ClientMessage collision_batch(const std::string& robot_id) {
   v1::ClientMessage message;
+  message.set_request_id(20);
   auto* body = message.mutable_collision_batch();
-  body->set_request_id(20);
   body->set_robot_id(robot_id);
   for (int k = 0; k < 4; ++k) body->add_poses()->set_x(0.5 * k);
   return message;
@@ -255,8 +257,8 @@ v1::ClientMessage collision_batch(const std::string& robot_id) {
 
 v1::ClientMessage clearance_batch(const std::string& robot_id) {
   v1::ClientMessage message;
+  message.set_request_id(21);
   auto* body = message.mutable_clearance_batch();
-  body->set_request_id(21);
   body->set_robot_id(robot_id);
   for (int k = 0; k < 4; ++k) body->add_poses()->set_y(0.5 * k);
   body->set_max_distance_m(2.0);
@@ -265,8 +267,8 @@ v1::ClientMessage clearance_batch(const std::string& robot_id) {
 
 v1::ClientMessage raycast(const std::string& world) {
   v1::ClientMessage message;
+  message.set_request_id(22);
   auto* body = message.mutable_raycast();
-  body->set_request_id(22);
   body->set_world(world);
   for (int k = 0; k < 4; ++k) body->add_rays()->set_theta(0.4 * k);
   body->set_max_range_m(5.0);
@@ -275,8 +277,8 @@ v1::ClientMessage raycast(const std::string& world) {
 
 v1::ClientMessage occupancy(const std::string& world) {
   v1::ClientMessage message;
+  message.set_request_id(23);
   auto* body = message.mutable_occupancy();
-  body->set_request_id(23);
   body->set_world(world);
   for (int k = 0; k < 4; ++k) {
     auto* point = body->add_points();
@@ -288,8 +290,8 @@ v1::ClientMessage occupancy(const std::string& world) {
 
 v1::ClientMessage swept(const std::string& robot_id) {
   v1::ClientMessage message;
+  message.set_request_id(24);
   auto* body = message.mutable_swept();
-  body->set_request_id(24);
   body->set_robot_id(robot_id);
   auto* motion = body->add_motions();
   motion->set_linear_mps(0.3);
@@ -303,8 +305,8 @@ v1::ClientMessage swept(const std::string& robot_id) {
 
 v1::ClientMessage grid_window(const std::string& world) {
   v1::ClientMessage message;
+  message.set_request_id(25);
   auto* body = message.mutable_grid_window();
-  body->set_request_id(25);
   body->set_world(world);
   body->mutable_min_corner()->set_x(-1.0);
   body->mutable_min_corner()->set_y(-1.0);
@@ -315,8 +317,8 @@ v1::ClientMessage grid_window(const std::string& world) {
 
 v1::ClientMessage octree_window(const std::string& world) {
   v1::ClientMessage message;
+  message.set_request_id(26);
   auto* body = message.mutable_octree_window();
-  body->set_request_id(26);
   body->set_world(world);
   body->mutable_min_corner()->set_x(-1.0);
   body->mutable_max_corner()->set_x(3.0);
@@ -327,7 +329,7 @@ v1::ClientMessage octree_window(const std::string& world) {
 
 v1::ClientMessage watch(const std::string& world) {
   v1::ClientMessage message;
-  message.mutable_watch()->set_request_id(35);
+  message.set_request_id(35);
   message.mutable_watch()->set_world(world);
   return message;
 }
@@ -401,7 +403,7 @@ void message_seeds() {
   for (const auto& [name, message] : every_client_message())
     write_seed("messages", "client_" + name, message.SerializeAsString());
   v1::ServerMessage reply;
-  reply.mutable_welcome()->set_protocol_version(1);
+  reply.mutable_welcome()->set_protocol_version(occgeo::proto::kProtocolVersion);
   reply.mutable_welcome()->set_session_id(7);
   write_seed("messages", "server_welcome", reply.SerializeAsString());
   reply.Clear();
@@ -409,6 +411,12 @@ void message_seeds() {
   reply.mutable_error()->set_field("laser_scan.ranges[17]");
   reply.mutable_error()->set_message("NaN");
   write_seed("messages", "server_error", reply.SerializeAsString());
+  reply.Clear();
+  reply.set_request_id(11);  // an Error answering a request carries its id on the envelope
+  reply.mutable_error()->set_code(v1::ERROR_UNKNOWN_ROBOT);
+  reply.mutable_error()->set_field("collision.robot_id");
+  reply.mutable_error()->set_message("no robot 'ghost'");
+  write_seed("messages", "server_error_answering_request", reply.SerializeAsString());
   reply.Clear();
   reply.mutable_scan_ack()->set_seq(3);
   reply.mutable_scan_ack()->set_world_version(9);
@@ -430,20 +438,24 @@ void message_seeds() {
   grid_reply->set_cells(std::string("\x00\x01\x02\x03\x04\x05\x0f\xff\xff\x03\x02\x01", 12));
   grid_reply->set_occupied_threshold(3);
   grid_reply->set_max_certainty(15);
+  reply.set_request_id(14);  // answers grid("default")
   write_seed("messages", "server_grid", reply.SerializeAsString());
   grid_reply->set_width(5);  // cells no longer match width * height
   write_seed("messages", "server_grid_inconsistent", reply.SerializeAsString());
   reply.Clear();
   reply.mutable_status()->add_robots()->set_id("r1");
   reply.mutable_status()->add_worlds()->set_name("default");
+  reply.set_request_id(13);
   write_seed("messages", "server_status", reply.SerializeAsString());
   reply.Clear();
   reply.mutable_lease()->set_granted(true);
   reply.mutable_lease()->mutable_holder()->set_session_id(2);
+  reply.set_request_id(17);
   write_seed("messages", "server_lease", reply.SerializeAsString());
   reply.Clear();
   reply.mutable_ptem()->add_samples()->set_threat(0.5);
   reply.mutable_ptem()->add_clusters()->set_radius_m(0.3);
+  reply.set_request_id(15);
   write_seed("messages", "server_ptem", reply.SerializeAsString());
 }
 

@@ -5,13 +5,14 @@
 
 #include <cmath>
 #include <random>
-#include <regex>
 #include <thread>
 
 #include "../integration/test_clients.h"
+#include "../support/json_fields.h"
 #include "../support/process.h"
 #include "../support/world_truth.h"
 #include "occgeo/geometry/convex_polygon.h"
+#include "occgeo/proto/protocol.h"
 
 namespace occgeo::testing {
 namespace {
@@ -44,7 +45,7 @@ class PolygonRobotOnKnownWorld : public ::testing::Test {
     driver_ =
         std::make_unique<client::Connection>(client::Connection::open(client::Endpoint::parse(server_->address())));
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(proto::kProtocolVersion);
     hello.set_role(v1::ROLE_DRIVER);
     hello.set_robot_id("arrow");
     hello.set_client_name("polygon-footprint-test");
@@ -56,7 +57,8 @@ class PolygonRobotOnKnownWorld : public ::testing::Test {
     auto query = open_query_session(server_->address());
     for (int attempt = 0; attempt < 100; ++attempt) {
       v1::ClientMessage request;
-      request.mutable_status()->set_request_id(1);
+      request.mutable_status();
+      request.set_request_id(1);
       if (query.call(request, 1).status().robots_size() == 1) return;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
@@ -94,10 +96,10 @@ TEST_F(PolygonRobotOnKnownWorld, SingleAndBatchQueriesAgreeWithTheTrueGeometryAn
   constexpr int kPoses = 500;
   constexpr double kMaxDistance = 2.0;
   v1::ClientMessage collision_batch;
-  collision_batch.mutable_collision_batch()->set_request_id(9000);
+  collision_batch.set_request_id(9000);
   collision_batch.mutable_collision_batch()->set_robot_id("arrow");
   v1::ClientMessage clearance_batch;
-  clearance_batch.mutable_clearance_batch()->set_request_id(9001);
+  clearance_batch.set_request_id(9001);
   clearance_batch.mutable_clearance_batch()->set_robot_id("arrow");
   clearance_batch.mutable_clearance_batch()->set_max_distance_m(kMaxDistance);
   std::vector<double> distances;
@@ -133,19 +135,17 @@ TEST_F(PolygonRobotOnKnownWorld, SingleAndBatchQueriesAgreeWithTheTrueGeometryAn
     if (i % 5 != 0) continue;
     // Every 5th pose again as single queries: the same answers, field for field.
     v1::ClientMessage single;
-    single.mutable_collision()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    single.set_request_id(static_cast<std::uint64_t>(i + 1));
     single.mutable_collision()->set_robot_id("arrow");
     *single.mutable_collision()->mutable_pose() = pose;
-    v1::CollisionReply one = query.call(single, static_cast<std::uint64_t>(i + 1)).collision();
-    one.clear_request_id();
+    const v1::CollisionReply one = query.call(single, static_cast<std::uint64_t>(i + 1)).collision();
     EXPECT_EQ(one.SerializeAsString(), collisions.results(i).SerializeAsString()) << "pose " << i;
     v1::ClientMessage single_clearance;
-    single_clearance.mutable_clearance()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    single_clearance.set_request_id(static_cast<std::uint64_t>(i + 1));
     single_clearance.mutable_clearance()->set_robot_id("arrow");
     single_clearance.mutable_clearance()->set_max_distance_m(kMaxDistance);
     *single_clearance.mutable_clearance()->mutable_pose() = pose;
-    v1::ClearanceReply clear = query.call(single_clearance, static_cast<std::uint64_t>(i + 1)).clearance();
-    clear.clear_request_id();
+    const v1::ClearanceReply clear = query.call(single_clearance, static_cast<std::uint64_t>(i + 1)).clearance();
     EXPECT_EQ(clear.SerializeAsString(), clearances.results(i).SerializeAsString()) << "pose " << i;
   }
   std::cout << hits << " of " << kPoses << " poses of the polygon robot in collision\n";
@@ -170,17 +170,16 @@ TEST_F(PolygonRobotOnKnownWorld, CliPolygonOverrideReachesTheServer) {
   };
   const ProcessResult hit = ask(reaching);
   ASSERT_EQ(hit.exit_code, 0) << hit.err;
-  EXPECT_NE(hit.out.find("\"hit\":true"), std::string::npos) << hit.out;
+  EXPECT_TRUE(json_bool(hit.out, "hit")) << hit.out;
   const ProcessResult free = ask(short_of);
   ASSERT_EQ(free.exit_code, 0) << free.err;
-  EXPECT_NE(free.out.find("\"hit\":false"), std::string::npos) << free.out;
+  EXPECT_FALSE(json_bool(free.out, "hit")) << free.out;
 
   const ProcessResult clearance = cli({"query", "clearance", "--robot", "arrow", "--x", "-29.2", "--y", "0.05",
                                        "--theta", "3.14159265358979", "--footprint", short_of});
   ASSERT_EQ(clearance.exit_code, 0) << clearance.err;
-  std::smatch match;
-  ASSERT_TRUE(std::regex_search(clearance.out, match, std::regex("\"clearance_m\":([0-9.eE+-]+)"))) << clearance.out;
-  EXPECT_NEAR(std::stod(match[1]), 0.05, 1e-6);
+  const double clearance_m = json_number(clearance.out, "clearance_m");
+  EXPECT_NEAR(clearance_m, 0.05, 1e-6);
 
   // Driving at 0.5 m/s towards the fence, the 5 cm gap closes after 0.1 s: the swept check reports contact (within
   // 0.005 m, so from 0.09 s) no later than that.
@@ -188,10 +187,10 @@ TEST_F(PolygonRobotOnKnownWorld, CliPolygonOverrideReachesTheServer) {
       cli({"query", "swept", "--robot", "arrow", "--x", "-29.2", "--y", "0.05", "--theta", "3.14159265358979", "--v",
            "0.5", "--w", "0", "--duration", "2", "--footprint", short_of});
   ASSERT_EQ(swept.exit_code, 0) << swept.err;
-  EXPECT_NE(swept.out.find("\"hit\":true"), std::string::npos) << swept.out;
-  ASSERT_TRUE(std::regex_search(swept.out, match, std::regex("\"time_s\":([0-9.eE+-]+)"))) << swept.out;
-  EXPECT_GE(std::stod(match[1]), 0.09 - 1e-6);
-  EXPECT_LE(std::stod(match[1]), 0.1 + 1e-6);
+  EXPECT_TRUE(json_bool(swept.out, "hit")) << swept.out;
+  const double time_s = json_number(swept.out, "time_s");
+  EXPECT_GE(time_s, 0.09 - 1e-6);
+  EXPECT_LE(time_s, 0.1 + 1e-6);
 
   // Vertex 2 dents the outline: refused, naming it.
   const ProcessResult dented = ask("polygon:0.5:0.5,0:-0.2,0.2:0,0:-0.2,-0.2");

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "process.h"
 #include "raw_client.h"
 #include "test_clients.h"
@@ -67,7 +68,7 @@ class LockstepDriver {
   LockstepDriver(const std::string& address, const std::string& robot_id, const std::string& world)
       : connection_(client::Connection::open(client::Endpoint::parse(address))) {
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(proto::kProtocolVersion);
     hello.set_role(v1::ROLE_DRIVER);
     hello.set_robot_id(robot_id);
     hello.set_world(world);
@@ -141,7 +142,7 @@ class LockstepDriver {
 
 v1::ClientMessage hello_message(v1::Role role) {
   v1::ClientMessage message;
-  message.mutable_hello()->set_protocol_version(1);
+  message.mutable_hello()->set_protocol_version(proto::kProtocolVersion);
   message.mutable_hello()->set_role(role);
   message.mutable_hello()->set_client_name("backpressure-test");
   return message;
@@ -149,7 +150,7 @@ v1::ClientMessage hello_message(v1::Role role) {
 
 v1::ClientMessage watch_message(const std::string& world) {
   v1::ClientMessage message;
-  message.mutable_watch()->set_request_id(1);
+  message.set_request_id(1);
   message.mutable_watch()->set_world(world);
   return message;
 }
@@ -178,7 +179,7 @@ TEST(Backpressure, SlowObserversLoseTheirOldestEventsAndAreToldWhileIngestAndMem
     // connection is stalled from the first event on, so its event queue fills and drops, as a slow link's would.
     for (std::uint64_t id = 2; id < 22; ++id) {
       v1::ClientMessage window;
-      window.mutable_grid_window()->set_request_id(id);
+      window.set_request_id(id);
       window.mutable_grid_window()->set_world("watched");
       window.mutable_grid_window()->mutable_min_corner()->set_x(-25.0);
       window.mutable_grid_window()->mutable_min_corner()->set_y(-25.0);
@@ -272,7 +273,7 @@ TEST(Backpressure, AClientThatStopsReadingIsDisconnectedAfterTheWriteTimeout) {
   ASSERT_EQ(warmup_acked, driver.last_seq());
   for (std::uint64_t id = 1; id <= 40; ++id) {
     v1::ClientMessage window;
-    window.mutable_grid_window()->set_request_id(id);
+    window.set_request_id(id);
     window.mutable_grid_window()->mutable_min_corner()->set_x(-25.0);
     window.mutable_grid_window()->mutable_min_corner()->set_y(-25.0);
     window.mutable_grid_window()->mutable_max_corner()->set_x(24.95);
@@ -315,7 +316,7 @@ TEST(Backpressure, AQueryFloodDoesNotStarveIngestOrOtherClients) {
     auto* collision = query.mutable_collision();
     collision->set_robot_id("bot");
     while (!stop.load()) {
-      collision->set_request_id(flood_sent.load() + 1);
+      query.set_request_id(flood_sent.load() + 1);
       if (!client.send_within(query, 200ms)) continue;
       ++flood_sent;
     }
@@ -330,7 +331,8 @@ TEST(Backpressure, AQueryFloodDoesNotStarveIngestOrOtherClients) {
     ASSERT_TRUE(flooded.step()) << "scan " << i << " not acknowledged during the flood";
     if (i % 10 == 0) {
       v1::ClientMessage status;
-      status.mutable_status()->set_request_id(i + 1);
+      status.mutable_status();
+      status.set_request_id(i + 1);
       const auto asked = Clock::now();
       const auto reply = polite.call(status, i + 1, 5s);
       polite_worst_ms =
@@ -450,13 +452,13 @@ TEST(Backpressure, AControllerThatVanishesLeavesTheRobotStopped) {
   RawClient controller(server->port());
   controller.send(hello_message(v1::ROLE_CONTROLLER));
   v1::ClientMessage lease;
-  lease.mutable_lease()->set_request_id(1);
+  lease.set_request_id(1);
   lease.mutable_lease()->set_robot_id("bot");
   lease.mutable_lease()->set_action(v1::LeaseRequest::ACQUIRE);
   lease.mutable_lease()->set_timeout_s(1.0);
   controller.send(lease);
   v1::ClientMessage drive;
-  drive.mutable_drive()->set_request_id(2);
+  drive.set_request_id(2);
   drive.mutable_drive()->set_robot_id("bot");
   drive.mutable_drive()->set_behaviour("teleop");
   drive.mutable_drive()->set_linear_mps(0.4);

@@ -13,6 +13,7 @@
 
 #include "../support/process.h"
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -87,7 +88,7 @@ class RawSocket {
 v1::ClientMessage hello_message(v1::Role role, const std::string& robot_id = {}) {
   v1::ClientMessage message;
   auto* hello = message.mutable_hello();
-  hello->set_protocol_version(1);
+  hello->set_protocol_version(proto::kProtocolVersion);
   hello->set_role(role);
   hello->set_robot_id(robot_id);
   return message;
@@ -150,7 +151,7 @@ class BadInput : public ::testing::Test {
   v1::GridReply grid() {
     auto query = open_query_session(server_->address());
     v1::ClientMessage request;
-    request.mutable_grid()->set_request_id(9);
+    request.set_request_id(9);
     request.mutable_grid()->set_world("default");
     return query.call(request, 9).grid();
   }
@@ -210,7 +211,8 @@ TEST_F(BadInput, FrameCutOffByDisconnectLeavesNoTrace) {
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   auto query = open_query_session(server_->address());
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(1);
+  request.mutable_status();
+  request.set_request_id(1);
   const auto status = query.call(request, 1).status();
   ASSERT_EQ(status.robots_size(), 1) << "the half-sent spec must not register robot-b";
   EXPECT_EQ(status.robots(0).id(), "robot-a");
@@ -227,7 +229,8 @@ TEST_F(BadInput, UnknownMessageGetsAnErrorAndTheSessionGoesOn) {
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_MESSAGE);
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(2);
+  request.mutable_status();
+  request.set_request_id(2);
   EXPECT_NO_THROW(query.call(request, 2));
   expect_serving_and_map_unchanged();
 }
@@ -274,8 +277,8 @@ TEST_F(BadInput, TimestampsGoingBackwardsAndFarPosesAreRejected) {
 TEST_F(BadInput, QueryForUnknownRobotNamesIt) {
   auto query = open_query_session(server_->address());
   v1::ClientMessage request;
+  request.set_request_id(5);
   auto* collision = request.mutable_collision();
-  collision->set_request_id(5);
   collision->set_robot_id("ghost");
   collision->mutable_pose();
   query.send(request);
@@ -283,7 +286,7 @@ TEST_F(BadInput, QueryForUnknownRobotNamesIt) {
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_ROBOT);
   EXPECT_EQ(reply->error().field(), "collision.robot_id");
-  EXPECT_EQ(reply->error().request_id(), 5U);
+  EXPECT_EQ(reply->request_id(), 5U);
   EXPECT_NE(reply->error().message().find("ghost"), std::string::npos);
   expect_serving_and_map_unchanged();
 }
@@ -297,13 +300,14 @@ TEST_F(BadInput, FramesOfOneWriteAroundALargeOneAreEachAnswered) {
   std::string bytes = proto::encode_frame(hello_message(v1::ROLE_QUERY));
   const auto append_status = [&](std::uint64_t request_id) {
     v1::ClientMessage status;
-    status.mutable_status()->set_request_id(request_id);
+    status.mutable_status();
+    status.set_request_id(request_id);
     proto::append_frame(status, bytes);
   };
   for (int i = 0; i < kStatusBefore; ++i) append_status(100 + i);
   v1::ClientMessage batch;
+  batch.set_request_id(50);
   auto* query = batch.mutable_collision_batch();
-  query->set_request_id(50);
   query->set_robot_id("robot-a");
   for (int i = 0; i < kPoses; ++i) {
     auto* pose = query->add_poses();
@@ -325,12 +329,12 @@ TEST_F(BadInput, FramesOfOneWriteAroundALargeOneAreEachAnswered) {
   for (std::size_t i = 1; i < messages.size(); ++i) {
     if (messages[i].has_collision_batch()) {
       ++batches;
-      EXPECT_EQ(messages[i].collision_batch().request_id(), 50U);
+      EXPECT_EQ(messages[i].request_id(), 50U);
       EXPECT_EQ(messages[i].collision_batch().results_size(), kPoses);
       continue;
     }
     ASSERT_TRUE(messages[i].has_status()) << messages[i].DebugString();
-    status_ids.push_back(messages[i].status().request_id());
+    status_ids.push_back(messages[i].request_id());
   }
   EXPECT_EQ(batches, 1);
   std::vector<std::uint64_t> expected;
@@ -343,7 +347,8 @@ TEST_F(BadInput, FramesOfOneWriteAroundALargeOneAreEachAnswered) {
 TEST_F(BadInput, SessionsMustStartWithHelloOfTheRightVersion) {
   RawSocket raw(server_->port());
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(1);
+  status.mutable_status();
+  status.set_request_id(1);
   raw.send_message(status);
   auto wrong_version = hello_message(v1::ROLE_QUERY);
   wrong_version.mutable_hello()->set_protocol_version(7);
@@ -370,7 +375,8 @@ TEST(SlowClient, StuckReaderIsDroppedWhileTheRobotKeepsDriving) {
   std::string requests;
   for (std::uint64_t i = 1; i <= 3000; ++i) {
     v1::ClientMessage request;
-    request.mutable_grid()->set_request_id(i);
+    request.mutable_grid();
+    request.set_request_id(i);
     requests += proto::encode_frame(request);
   }
   std::uint64_t answered = 0;
@@ -418,8 +424,8 @@ TEST(BatchLimit, ConfiguredLimitRefusesALargerBatchNamingIt) {
   auto query = open_query_session(server.address());
   for (const int poses : {5, 4}) {
     v1::ClientMessage request;
+    request.set_request_id(static_cast<std::uint64_t>(poses));
     auto* batch = request.mutable_collision_batch();
-    batch->set_request_id(static_cast<std::uint64_t>(poses));
     batch->set_robot_id("robot-a");
     for (int i = 0; i < poses; ++i) batch->add_poses()->set_x(0.1 * i);
     query.send(request);
@@ -473,7 +479,8 @@ TEST(ScanVoxelLimit, ScanOverTheLimitIsRefusedNamingItAndTheRobotCarriesOn) {
   auto query = open_query_session(server.address());
   const auto world_status = [&query](std::uint64_t id) {
     v1::ClientMessage request;
-    request.mutable_status()->set_request_id(id);
+    request.mutable_status();
+    request.set_request_id(id);
     return query.call(request, id).status().worlds(0);
   };
   const v1::WorldStatus before = world_status(1);

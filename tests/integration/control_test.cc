@@ -13,6 +13,7 @@
 
 #include "../support/process.h"
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -24,7 +25,7 @@ client::Connection open_role(const std::string& address, v1::Role role, const st
                              const std::string& token = {}) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(role);
   hello.set_client_name(name);
   hello.set_auth_token(token);
@@ -34,7 +35,7 @@ client::Connection open_role(const std::string& address, v1::Role role, const st
 
 v1::LeaseReply lease(client::Connection& c, v1::LeaseRequest::Action action, std::uint64_t id, double timeout_s = 0) {
   v1::ClientMessage m;
-  m.mutable_lease()->set_request_id(id);
+  m.set_request_id(id);
   m.mutable_lease()->set_robot_id("r1");
   m.mutable_lease()->set_action(action);
   m.mutable_lease()->set_timeout_s(timeout_s);
@@ -44,7 +45,7 @@ v1::LeaseReply lease(client::Connection& c, v1::LeaseRequest::Action action, std
 // Asks for teleop driving of r1 as request 2, answered by a Drive reply.
 v1::ClientMessage teleop_drive(double linear_mps, double angular_radps = 0.0) {
   v1::ClientMessage drive;
-  drive.mutable_drive()->set_request_id(2);
+  drive.set_request_id(2);
   drive.mutable_drive()->set_robot_id("r1");
   drive.mutable_drive()->set_behaviour("teleop");
   drive.mutable_drive()->set_linear_mps(linear_mps);
@@ -132,7 +133,8 @@ TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheRobotWithinHalfASecond) {
   EXPECT_TRUE(stopped) << "no stop within 5 scans (0.5 s) of the holder's disconnect\n" << server_->log();
   auto query = open_query_session(server_->address());
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(1);
+  status.mutable_status();
+  status.set_request_id(1);
   const auto reply = query.call(status, 1).status();
   ASSERT_EQ(reply.robots_size(), 1);
   EXPECT_FALSE(reply.robots(0).has_lease_holder());
@@ -152,7 +154,8 @@ TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheLockstepSimulator) {
   std::uint64_t status_id = 0;
   const auto robot_status = [&]() -> std::optional<v1::RobotStatus> {
     v1::ClientMessage status;
-    status.mutable_status()->set_request_id(++status_id);
+    status.mutable_status();
+    status.set_request_id(++status_id);
     const auto reply = query.call(status, status_id).status();
     if (reply.robots_size() != 1) return std::nullopt;
     return reply.robots(0);
@@ -300,7 +303,7 @@ class SilentServer {
       while (decoder.next(message) == proto::FrameStatus::frame) {
         v1::ServerMessage reply;
         if (message.has_hello()) {
-          reply.mutable_welcome()->set_protocol_version(1);
+          reply.mutable_welcome()->set_protocol_version(proto::kProtocolVersion);
           reply.mutable_welcome()->set_session_id(1);
         } else if (message.has_laser_scan() && ++scans <= answered_) {
           auto* command = reply.mutable_motion_command();

@@ -7,6 +7,7 @@
 
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 
@@ -27,7 +28,8 @@ class DriveRefusal : public ::testing::Test {
     *spec.mutable_robot_spec() = sim::make_robot_spec(*sim::find_robot_preset(preset), {});
     connection.send(spec);
     v1::ClientMessage status;
-    status.mutable_status()->set_request_id(1);
+    status.mutable_status();
+    status.set_request_id(1);
     static_cast<void>(connection.call(status, 1));
     return connection;
   }
@@ -35,12 +37,12 @@ class DriveRefusal : public ::testing::Test {
   client::Connection controller(const std::string& robot) {
     auto connection = client::Connection::open(client::Endpoint::parse(server_->address()));
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(proto::kProtocolVersion);
     hello.set_role(v1::ROLE_CONTROLLER);
     hello.set_client_name("refusal-test");
     connection.hello(hello);
     v1::ClientMessage lease;
-    lease.mutable_lease()->set_request_id(++id_);
+    lease.set_request_id(++id_);
     lease.mutable_lease()->set_robot_id(robot);
     lease.mutable_lease()->set_action(v1::LeaseRequest::ACQUIRE);
     EXPECT_TRUE(connection.call(lease, id_).lease().granted());
@@ -51,7 +53,7 @@ class DriveRefusal : public ::testing::Test {
   std::string drive(client::Connection& connection, const v1::DriveRequest& request) {
     v1::ClientMessage message;
     *message.mutable_drive() = request;
-    message.mutable_drive()->set_request_id(++id_);
+    message.set_request_id(++id_);
     try {
       static_cast<void>(connection.call(message, id_));
       return {};
@@ -62,7 +64,8 @@ class DriveRefusal : public ::testing::Test {
 
   std::string behaviour_of(client::Connection& connection, const std::string& robot) {
     v1::ClientMessage request;
-    request.mutable_status()->set_request_id(++id_);
+    request.mutable_status();
+    request.set_request_id(++id_);
     const v1::ServerMessage reply = connection.call(request, id_);
     for (const auto& r : reply.status().robots()) {
       if (r.id() == robot) return r.behaviour();

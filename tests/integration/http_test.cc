@@ -158,7 +158,8 @@ class LiveView : public ::testing::Test {
 
   v1::StatusReply status() {
     v1::ClientMessage request;
-    request.mutable_status()->set_request_id(++request_id_);
+    request.mutable_status();
+    request.set_request_id(++request_id_);
     return query_->call(request, request_id_).status();
   }
 

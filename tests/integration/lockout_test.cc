@@ -81,7 +81,8 @@ TEST(Lockout, ConnectionThatNeverSaysHelloIsClosedAfterTheHelloTimeout) {
   auto query = open_query_session(server.address());
   std::this_thread::sleep_for(std::chrono::milliseconds(1200));
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(1);
+  status.mutable_status();
+  status.set_request_id(1);
   EXPECT_TRUE(query.call(status, 1).has_status());
 }
 

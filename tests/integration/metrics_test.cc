@@ -228,7 +228,8 @@ TEST_F(MetricsEndpoint, CountersMoveByWhatTheClientsDid) {
 
   auto query = open_query_session(server_->address());
   v1::ClientMessage status_request;
-  status_request.mutable_status()->set_request_id(1);
+  status_request.mutable_status();
+  status_request.set_request_id(1);
   const v1::StatusReply status = query.call(status_request, 1).status();
   ASSERT_EQ(status.robots_size(), 1);
   const double scans = static_cast<double>(status.robots(0).scans_ingested());
@@ -237,8 +238,8 @@ TEST_F(MetricsEndpoint, CountersMoveByWhatTheClientsDid) {
   constexpr int kQueries = 25;
   for (int i = 0; i < kQueries; ++i) {
     v1::ClientMessage request;
+    request.set_request_id(static_cast<std::uint64_t>(100 + i));
     auto* collision = request.mutable_collision();
-    collision->set_request_id(static_cast<std::uint64_t>(100 + i));
     collision->set_robot_id("bearcat-m");
     collision->mutable_pose()->set_x(0.1 * i);
     ASSERT_TRUE(query.call(request, static_cast<std::uint64_t>(100 + i)).has_collision());
@@ -268,7 +269,8 @@ TEST_F(MetricsEndpoint, ReportsModelSizesAndResidentMemoryAsTheStatusDoes) {
   auto query = open_query_session(server_->address());
   const auto status = [&query](std::uint64_t id) {
     v1::ClientMessage request;
-    request.mutable_status()->set_request_id(id);
+    request.mutable_status();
+    request.set_request_id(id);
     return query.call(request, id).status();
   };
   const v1::StatusReply empty = status(1);

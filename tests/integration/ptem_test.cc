@@ -84,13 +84,12 @@ class PtemScenario : public ::testing::Test {
     EXPECT_NE(result.out.find("\"collisions\": 0"), std::string::npos) << result.out;
   }
 
-  // A PtemQuery over the wire. Connection::call does not yet know PtemReply's request_id, so the reply is matched
-  // here.
+  // A PtemQuery over the wire; its reply (or Error) is matched here by the envelope's request_id.
   v1::PtemReply ptem(const std::string& world, const std::vector<Eigen::Vector2d>& points, bool include_clusters) {
     const std::uint64_t id = ++request_id_;
     v1::ClientMessage request;
+    request.set_request_id(id);
     auto* query = request.mutable_ptem();
-    query->set_request_id(id);
     query->set_world(world);
     query->set_include_clusters(include_clusters);
     for (const Eigen::Vector2d& p : points) {
@@ -102,11 +101,11 @@ class PtemScenario : public ::testing::Test {
     for (int i = 0; i < 100; ++i) {
       const auto reply = query_->receive(std::chrono::seconds(10));
       if (!reply) break;
-      if (reply->has_error() && reply->error().request_id() == id) {
+      if (reply->has_error() && reply->request_id() == id) {
         ADD_FAILURE() << client::describe(reply->error());
         return {};
       }
-      if (reply->has_ptem() && reply->ptem().request_id() == id) return reply->ptem();
+      if (reply->has_ptem() && reply->request_id() == id) return reply->ptem();
     }
     ADD_FAILURE() << "no PtemReply to request " << id;
     return {};

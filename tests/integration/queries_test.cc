@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <random>
-#include <regex>
 #include <thread>
 
+#include "../support/json_fields.h"
 #include "../support/process.h"
 #include "../support/world_truth.h"
 #include "test_clients.h"
@@ -32,7 +32,8 @@ class QueriesOnKnownWorld : public ::testing::Test {
     auto query = open_query_session(server_->address());
     for (int attempt = 0; attempt < 100; ++attempt) {
       v1::ClientMessage request;
-      request.mutable_status()->set_request_id(1);
+      request.mutable_status();
+      request.set_request_id(1);
       if (query.call(request, 1).status().robots_size() == 1) return;
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
@@ -57,8 +58,8 @@ TEST_F(QueriesOnKnownWorld, ClearanceWithinOneCellOfTrueDistanceOverThousandRand
   for (int i = 0; i < kPoses; ++i) {
     const double x = coordinate(rng), y = coordinate(rng), theta = heading(rng);
     v1::ClientMessage request;
+    request.set_request_id(static_cast<std::uint64_t>(i + 1));
     auto* clearance = request.mutable_clearance();
-    clearance->set_request_id(static_cast<std::uint64_t>(i + 1));
     clearance->set_robot_id("probe");
     clearance->mutable_pose()->set_x(x);
     clearance->mutable_pose()->set_y(y);
@@ -91,8 +92,8 @@ TEST_F(QueriesOnKnownWorld, CollisionAgreesWithTrueGeometryOverThousandRandomPos
     const double distance = truth_->box_distance(x, y, theta, kBearcatLength, kBearcatWidth, 0.0);
     if (distance > 0.0 && distance < 1e-9) continue;  // touching within rounding: either answer is right
     v1::ClientMessage request;
+    request.set_request_id(static_cast<std::uint64_t>(i + 1));
     auto* collision = request.mutable_collision();
-    collision->set_request_id(static_cast<std::uint64_t>(i + 1));
     collision->set_robot_id("probe");
     collision->mutable_pose()->set_x(x);
     collision->mutable_pose()->set_y(y);
@@ -120,18 +121,16 @@ TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
   // The fence runs along x = -30..-29.7; a robot centred on it collides, one at the origin does not.
   const ProcessResult on_fence = cli({"query", "collision", "--robot", "probe", "--x", "-29.85", "--y", "0"});
   ASSERT_EQ(on_fence.exit_code, 0) << on_fence.err;
-  EXPECT_NE(on_fence.out.find("\"hit\":true"), std::string::npos) << on_fence.out;
+  EXPECT_TRUE(json_bool(on_fence.out, "hit")) << on_fence.out;
   const ProcessResult at_origin = cli({"query", "collision", "--robot", "probe", "--x", "0", "--y", "0"});
   ASSERT_EQ(at_origin.exit_code, 0) << at_origin.err;
-  EXPECT_NE(at_origin.out.find("\"hit\":false"), std::string::npos) << at_origin.out;
+  EXPECT_FALSE(json_bool(at_origin.out, "hit")) << at_origin.out;
 
   const double x = -27.0, y = 0.0;
   const ProcessResult clearance = cli({"query", "clearance", "--robot", "probe", "--x", "-27", "--y", "0"});
   ASSERT_EQ(clearance.exit_code, 0) << clearance.err;
-  std::smatch match;
-  ASSERT_TRUE(std::regex_search(clearance.out, match, std::regex("\"clearance_m\":([0-9.eE+-]+)"))) << clearance.out;
-  EXPECT_NEAR(std::stod(match[1]), truth_->box_distance(x, y, 0.0, kBearcatLength, kBearcatWidth, 0.0),
-              truth_->cell_size());
+  const double clearance_m = json_number(clearance.out, "clearance_m");
+  EXPECT_NEAR(clearance_m, truth_->box_distance(x, y, 0.0, kBearcatLength, kBearcatWidth, 0.0), truth_->cell_size());
 
   const ProcessResult unknown = cli({"query", "collision", "--robot", "nobody", "--x", "0", "--y", "0"});
   EXPECT_EQ(unknown.exit_code, 1);
@@ -152,7 +151,7 @@ TEST_F(QueriesOnKnownWorld, CliAnswersCollisionAndClearanceAsJson) {
                                                "--robot", "probe", "--x", "0", "--y", "0"},
                                               std::chrono::seconds(30));
   ASSERT_EQ(all_first.exit_code, 0) << all_first.err;
-  EXPECT_NE(all_first.out.find("\"hit\":false"), std::string::npos) << all_first.out;
+  EXPECT_FALSE(json_bool(all_first.out, "hit")) << all_first.out;
   // Split around the command, with the command's own flag among them.
   const ProcessResult split = run_process({occgeo, "--json", "status", "--detailed", "--server=" + server_->address()},
                                           std::chrono::seconds(30));
@@ -182,8 +181,8 @@ TEST_F(QueriesOnKnownWorld, BatchOverLoopbackAnswersLikeSingleQueriesAndTheTrueG
   std::uniform_real_distribution<double> offset(-1.5, 1.5);
   std::uniform_real_distribution<double> heading(-M_PI, M_PI);
   v1::ClientMessage batch;
+  batch.set_request_id(5000);
   auto* poses = batch.mutable_collision_batch();
-  poses->set_request_id(5000);
   poses->set_robot_id("probe");
   std::vector<double> distances;
   while (poses->poses_size() < 2000) {
@@ -210,11 +209,10 @@ TEST_F(QueriesOnKnownWorld, BatchOverLoopbackAnswersLikeSingleQueriesAndTheTrueG
   // Every 50th pose again as a single query, pipelined on the same connection: the same answer.
   for (int i = 0; i < 2000; i += 50) {
     v1::ClientMessage single;
-    single.mutable_collision()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    single.set_request_id(static_cast<std::uint64_t>(i + 1));
     single.mutable_collision()->set_robot_id("probe");
     *single.mutable_collision()->mutable_pose() = poses->poses(i);
-    v1::CollisionReply one = query.call(single, static_cast<std::uint64_t>(i + 1)).collision();
-    one.clear_request_id();
+    const v1::CollisionReply one = query.call(single, static_cast<std::uint64_t>(i + 1)).collision();
     EXPECT_EQ(one.SerializeAsString(), reply.results(i).SerializeAsString()) << "pose " << i;
   }
   std::cout << hits << " of 2000 batched poses in collision\n";

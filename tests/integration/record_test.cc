@@ -18,6 +18,7 @@
 #include <boost/asio/write.hpp>
 
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/replay/mcap.h"
 #include "process.h"
 #include "raw_client.h"
@@ -31,12 +32,12 @@ using namespace std::chrono_literals;
 client::Connection open_observer(const std::string& address, bool with_data, const std::string& robot_id = "") {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_OBSERVER);
   hello.set_client_name("record-test");
   connection.hello(hello);
   v1::ClientMessage watch;
-  watch.mutable_watch()->set_request_id(7);
+  watch.set_request_id(7);
   watch.mutable_watch()->set_robot_id(robot_id);
   watch.mutable_watch()->set_with_data(with_data);
   EXPECT_TRUE(connection.call(watch, 7).has_watch());
@@ -145,11 +146,11 @@ TEST(ObserverData, ASlowDataWatcherLosesItsOldestEventsIsToldHowManyAndTheDriver
   ServerProcess server(dir.path(), {"--config", config.string()});
   RawClient watcher(server.port());
   v1::ClientMessage hello;
-  hello.mutable_hello()->set_protocol_version(1);
+  hello.mutable_hello()->set_protocol_version(proto::kProtocolVersion);
   hello.mutable_hello()->set_role(v1::ROLE_OBSERVER);
   watcher.send(hello);
   v1::ClientMessage watch;
-  watch.mutable_watch()->set_request_id(1);
+  watch.set_request_id(1);
   watch.mutable_watch()->set_with_data(true);
   watcher.send(watch);
   ASSERT_TRUE(watcher.receive(5s)) << "no welcome";
@@ -159,7 +160,7 @@ TEST(ObserverData, ASlowDataWatcherLosesItsOldestEventsIsToldHowManyAndTheDriver
   // link would: its event queue fills and drops.
   for (std::uint64_t id = 2; id < 32; ++id) {
     v1::ClientMessage window;
-    window.mutable_grid_window()->set_request_id(id);
+    window.set_request_id(id);
     window.mutable_grid_window()->mutable_min_corner()->set_x(-25.0);
     window.mutable_grid_window()->mutable_min_corner()->set_y(-25.0);
     window.mutable_grid_window()->mutable_max_corner()->set_x(24.95);
@@ -248,7 +249,7 @@ TEST(Record, TheMapRebuiltFromARecordingEqualsTheLiveOne) {
   EXPECT_GE(grid_messages, 2U) << "the grid's changes were not followed during the run";
   auto query = open_query_session(live.address());
   v1::ClientMessage request;
-  request.mutable_grid()->set_request_id(1);
+  request.set_request_id(1);
   request.mutable_grid()->set_world("default");
   const v1::GridReply grid = query.call(request, 1).grid();
   std::size_t observed = 0;

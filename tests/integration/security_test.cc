@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/service/config.h"
 #include "process.h"
 #include "test_clients.h"
@@ -53,7 +54,7 @@ std::unique_ptr<ServerProcess> start_server(const TempDir& dir, const std::strin
 
 v1::Hello make_hello(v1::Role role, const std::string& token, const std::string& robot_id = "") {
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(role);
   hello.set_auth_token(token);
   hello.set_client_name("security-test");
@@ -83,7 +84,8 @@ bool refused_and_closed(const std::string& address, const v1::Hello& hello, std:
     *error_text = e.what();
   }
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(1);
+  status.mutable_status();
+  status.set_request_id(1);
   try {
     connection.send(status);
     for (int i = 0; i < 50; ++i) {
@@ -183,7 +185,8 @@ bool refused_for_role(client::Connection& connection, const google::protobuf::Fi
   connection.send(message);
   constexpr std::uint64_t kMarker = 424242;
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(kMarker);
+  status.mutable_status();
+  status.set_request_id(kMarker);
   connection.send(status);
   bool refused = false;
   const auto deadline = std::chrono::steady_clock::now() + 10s;
@@ -248,11 +251,11 @@ TEST(Security, OnlyTheLeaseHoldingControllerDrivesAndOtherRolesAreRefusedEveryTi
         v1::ClientMessage message;
         const std::uint64_t id = request_id++;
         if (lease) {
-          message.mutable_lease()->set_request_id(id);
+          message.set_request_id(id);
           message.mutable_lease()->set_robot_id("bot");
           message.mutable_lease()->set_action(round % 2 == 0 ? v1::LeaseRequest::ACQUIRE : v1::LeaseRequest::TAKE);
         } else {
-          message.mutable_drive()->set_request_id(id);
+          message.set_request_id(id);
           message.mutable_drive()->set_robot_id("bot");
           message.mutable_drive()->set_behaviour("teleop");
           message.mutable_drive()->set_linear_mps(0.5);
@@ -273,7 +276,7 @@ TEST(Security, OnlyTheLeaseHoldingControllerDrivesAndOtherRolesAreRefusedEveryTi
   auto controller = client::Connection::open(client::Endpoint::parse(server->address()));
   controller.hello(make_hello(v1::ROLE_CONTROLLER, "controller-44e0"));
   v1::ClientMessage acquire;
-  acquire.mutable_lease()->set_request_id(1);
+  acquire.set_request_id(1);
   acquire.mutable_lease()->set_robot_id("bot");
   acquire.mutable_lease()->set_action(v1::LeaseRequest::ACQUIRE);
   const auto reply = controller.call(acquire, 1, 5s);
@@ -358,11 +361,12 @@ TEST(Security, TlsWithASelfSignedCertificate) {
   const auto welcome = tls.receive();
   ASSERT_TRUE(welcome.has_welcome()) << welcome.DebugString();
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(7);
+  status.mutable_status();
+  status.set_request_id(7);
   tls.send(status);
   const auto reply = tls.receive();
   ASSERT_TRUE(reply.has_status()) << reply.DebugString();
-  EXPECT_EQ(reply.status().request_id(), 7U);
+  EXPECT_EQ(reply.request_id(), 7U);
 
   // Plain TCP to the TLS socket gets no session: the handshake fails and the server closes.
   EXPECT_NE(try_hello(server->address(), make_hello(v1::ROLE_QUERY, "query-5c61")), "");

@@ -10,6 +10,7 @@
 #include "../service/sensor_robot_spec.h"
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/protocol.h"
 
 namespace occgeo::testing {
 namespace {
@@ -19,7 +20,7 @@ using R = SensorRobot;
 client::Connection open_session(const std::string& address, v1::Role role, const std::string& robot_id = {}) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(role);
   hello.set_robot_id(robot_id);
   hello.set_client_name("sensors-test");
@@ -65,7 +66,7 @@ class Sensors : public ::testing::Test {
   v1::GridReply grid() {
     auto query = open_session(server_->address(), v1::ROLE_QUERY);
     v1::ClientMessage request;
-    request.mutable_grid()->set_request_id(7);
+    request.set_request_id(7);
     request.mutable_grid()->set_world("default");
     return query.call(request, 7).grid();
   }
@@ -150,7 +151,8 @@ TEST_F(Sensors, EachKindIsAcknowledgedAndMappedAtTheDeadReckonedPose) {
   // Status counts every sensor kind.
   auto query = open_session(server_->address(), v1::ROLE_QUERY);
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(3);
+  request.mutable_status();
+  request.set_request_id(3);
   const auto status = query.call(request, 3).status();
   ASSERT_EQ(status.robots_size(), 1);
   EXPECT_EQ(status.robots(0).scans_ingested(), 3U);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 
@@ -16,7 +17,7 @@ namespace occgeo::testing {
 inline client::Connection open_query_session(const std::string& address) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_QUERY);
   hello.set_client_name("integration-test");
   connection.hello(hello);
@@ -30,7 +31,7 @@ inline v1::RobotSpec bearcat_spec() { return sim::make_robot_spec(*sim::find_rob
 inline client::Connection open_driver_session(const std::string& address, const std::string& robot_id) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id(robot_id);
   hello.set_client_name("integration-test-driver");

@@ -14,7 +14,9 @@
 #include <thread>
 #include <vector>
 
+#include "occgeo/client/pipeline.h"
 #include "occgeo/mapping/octomap_model.h"
+#include "occgeo/proto/protocol.h"
 #include "process.h"
 #include "temp_dir.h"
 #include "test_clients.h"
@@ -78,7 +80,7 @@ v1::ServerMessage wait_for(client::Connection& connection, v1::ServerMessage::Bo
 v1::CollisionReply collide(client::Connection& query, std::uint64_t id, double x, v1::Model model) {
   v1::ClientMessage request;
   auto* collision = request.mutable_collision();
-  collision->set_request_id(id);
+  request.set_request_id(id);
   collision->set_robot_id("bearcat");
   collision->mutable_pose()->set_x(x);
   collision->add_models(model);
@@ -88,7 +90,8 @@ v1::CollisionReply collide(client::Connection& query, std::uint64_t id, double x
 v1::WorldStatus world_status(const std::string& address, const std::string& name) {
   auto query = open_query_session(address);
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(1);
+  request.mutable_status();
+  request.set_request_id(1);
   const v1::ServerMessage reply = query.call(request, 1);
   for (const auto& world : reply.status().worlds()) {
     if (world.name() == name) return world;
@@ -132,7 +135,7 @@ TEST(ThreeModels, ShortObstacleAndOverhangAreInTheOctreeButNotTheGrid) {
   // (0.05 m up to its height) and the grid stays the Bearcat laser's alone.
   auto probe = client::Connection::open(client::Endpoint::parse(server.address()));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id("depth-probe");
   probe.hello(hello);
@@ -181,7 +184,7 @@ TEST(ThreeModels, ShortObstacleAndOverhangAreInTheOctreeButNotTheGrid) {
   EXPECT_FALSE(collide(query, ++id, 0.7, v1::MODEL_GRID).hit());
   // All models at once: the grid is clear, the octree answers.
   v1::ClientMessage all;
-  all.mutable_collision()->set_request_id(++id);
+  all.set_request_id(++id);
   all.mutable_collision()->set_robot_id("bearcat");
   all.mutable_collision()->mutable_pose()->set_x(4.0);
   const auto reply = query.call(all, id).collision();
@@ -311,22 +314,22 @@ TEST(ThreeModels, CliExportsTheOctreeAndInsertsAPcdWhichSurvivesARestart) {
   }
 }
 
-// Connection::call matches every reply kind by its request_id (it used to miss PtemReply, so a PtemQuery call timed
-// out); the CLI's `query ptem` and `map export --format bt` above go through it.
-TEST(ThreeModels, EveryReplyKindIsMatchedByItsRequestId) {
-  const auto id_of = [](auto set) {
-    v1::ServerMessage message;
-    set(message);
-    return client::reply_request_id(message);
-  };
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_collision()->set_request_id(1); }), 1U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_clearance()->set_request_id(2); }), 2U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_status()->set_request_id(3); }), 3U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_grid()->set_request_id(4); }), 4U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_ptem()->set_request_id(5); }), 5U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_octree()->set_request_id(6); }), 6U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_error()->set_request_id(7); }), 7U);
-  EXPECT_EQ(id_of([](v1::ServerMessage& m) { m.mutable_scan_ack()->set_seq(8); }), 0U);
+// The client numbers exactly the request kinds (every ClientMessage body from field 10 on, as the schema says): a
+// request of each kind gets the id on its envelope, and the messages no reply answers (hello, spec, odometry, sensor
+// data) are refused, since a caller waiting for their answer would wait forever.
+TEST(ThreeModels, TheClientNumbersEveryRequestKindAndNothingElse) {
+  const auto* body = v1::ClientMessage::descriptor()->FindOneofByName("body");
+  ASSERT_NE(body, nullptr);
+  for (int i = 0; i < body->field_count(); ++i) {
+    const auto* field = body->field(i);
+    v1::ClientMessage message;
+    message.GetReflection()->MutableMessage(&message, field);
+    const bool numbered = client::set_request_id(message, 40 + static_cast<std::uint64_t>(i));
+    EXPECT_EQ(numbered, field->number() >= 10) << field->name();
+    EXPECT_EQ(message.request_id(), numbered ? 40 + static_cast<std::uint64_t>(i) : 0U) << field->name();
+  }
+  v1::ClientMessage empty;
+  EXPECT_FALSE(client::set_request_id(empty, 1));
 }
 
 }  // namespace

@@ -5,20 +5,17 @@
 
 #include <cmath>
 #include <iostream>
-#include <regex>
 #include <string>
 
+#include "../support/json_fields.h"
 #include "../support/process.h"
 
 namespace occgeo::testing {
 namespace {
 
-// The number after "key": in a one-line JSON object; NaN when absent.
+// The number stored under key in the tool's JSON summary; NaN when absent.
 double json_value(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\":(-?[0-9.eE+-]+)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) return std::nan("");
-  return std::stod(match[1].str());
+  return json_optional_number(json, key).value_or(std::nan(""));
 }
 
 TEST(LoadTest, RobotsClientsAndObserversRunWithoutAnyErrorAndTheServerSurvives) {

@@ -9,7 +9,8 @@ namespace {
 
 v1::ClientMessage status_request(std::uint64_t id) {
   v1::ClientMessage message;
-  message.mutable_status()->set_request_id(id);
+  message.mutable_status();
+  message.set_request_id(id);
   return message;
 }
 
@@ -21,7 +22,7 @@ TEST(FrameDecoder, DecodesFramesSplitAtEveryByte) {
   for (const char byte : stream) {
     decoder.append(&byte, 1);
     v1::ClientMessage message;
-    while (decoder.next(message) == FrameStatus::frame) ids.push_back(message.status().request_id());
+    while (decoder.next(message) == FrameStatus::frame) ids.push_back(message.request_id());
   }
   EXPECT_EQ(ids, (std::vector<std::uint64_t>{1, 2, 3}));
   EXPECT_EQ(decoder.buffered(), 0U);

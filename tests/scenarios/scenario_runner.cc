@@ -15,6 +15,7 @@
 #include "../support/json_fields.h"
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 #include "occgeo/sim/shape_world.h"
@@ -32,7 +33,7 @@ double seconds_since(Clock::time_point start) { return std::chrono::duration<dou
 client::Connection open_controller(const std::string& address) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_CONTROLLER);
   hello.set_client_name("scenario-runner");
   connection.hello(hello);
@@ -42,7 +43,8 @@ client::Connection open_controller(const std::string& address) {
 std::optional<v1::RobotStatus> robot_status(client::Connection& connection, const std::string& robot,
                                             std::uint64_t request_id) {
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(request_id);
+  request.mutable_status();
+  request.set_request_id(request_id);
   const v1::StatusReply status = connection.call(request, request_id).status();
   for (const auto& r : status.robots()) {
     if (r.id() == robot) return r;
@@ -53,7 +55,7 @@ std::optional<v1::RobotStatus> robot_status(client::Connection& connection, cons
 v1::LeaseReply lease(client::Connection& connection, const std::string& robot, v1::LeaseRequest::Action action,
                      std::uint64_t request_id) {
   v1::ClientMessage request;
-  request.mutable_lease()->set_request_id(request_id);
+  request.set_request_id(request_id);
   request.mutable_lease()->set_robot_id(robot);
   request.mutable_lease()->set_action(action);
   request.mutable_lease()->set_timeout_s(10.0);
@@ -87,7 +89,8 @@ void register_robot_offline(const std::string& address, const std::string& robot
   driver.send(spec);
   // The spec has no reply: a status request on the same session is answered after the spec was handled.
   v1::ClientMessage request;
-  request.mutable_status()->set_request_id(1);
+  request.mutable_status();
+  request.set_request_id(1);
   const v1::StatusReply status = driver.call(request, 1).status();
   if (std::none_of(status.robots().begin(), status.robots().end(),
                    [&](const v1::RobotStatus& r) { return r.id() == robot; })) {
@@ -356,7 +359,7 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
       throw std::runtime_error("the lease was refused");
     }
     v1::ClientMessage drive;
-    drive.mutable_drive()->set_request_id(++id);
+    drive.set_request_id(++id);
     drive.mutable_drive()->set_robot_id(robot);
     drive.mutable_drive()->set_behaviour(scenario.behaviour);
     drive.mutable_drive()->set_linear_mps(scenario.teleop_linear_mps);

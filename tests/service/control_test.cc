@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "fake_session.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 
@@ -14,7 +15,7 @@ namespace {
 v1::Hello hello(v1::Role role, const std::string& name, const std::string& robot_id = {},
                 const std::string& token = {}) {
   v1::Hello message;
-  message.set_protocol_version(1);
+  message.set_protocol_version(proto::kProtocolVersion);
   message.set_role(role);
   message.set_robot_id(robot_id);
   message.set_client_name(name);
@@ -79,7 +80,7 @@ class Control : public ::testing::Test {
   v1::ServerMessage lease(const std::shared_ptr<FakeSession>& s, v1::LeaseRequest::Action action,
                           double timeout_s = 0.0) {
     v1::ClientMessage m;
-    m.mutable_lease()->set_request_id(7);
+    m.set_request_id(7);
     m.mutable_lease()->set_robot_id("r1");
     m.mutable_lease()->set_action(action);
     m.mutable_lease()->set_timeout_s(timeout_s);
@@ -89,7 +90,7 @@ class Control : public ::testing::Test {
   v1::ServerMessage drive(const std::shared_ptr<FakeSession>& s, const std::string& behaviour, double v = 0.0,
                           double w = 0.0) {
     v1::ClientMessage m;
-    m.mutable_drive()->set_request_id(8);
+    m.set_request_id(8);
     m.mutable_drive()->set_robot_id("r1");
     m.mutable_drive()->set_behaviour(behaviour);
     m.mutable_drive()->set_linear_mps(v);
@@ -99,7 +100,7 @@ class Control : public ::testing::Test {
 
   v1::ServerMessage estop(const std::shared_ptr<FakeSession>& s, bool engage) {
     v1::ClientMessage m;
-    m.mutable_estop()->set_request_id(9);
+    m.set_request_id(9);
     m.mutable_estop()->set_robot_id("r1");
     m.mutable_estop()->set_engage(engage);
     return send(s, m);
@@ -122,7 +123,7 @@ TEST_F(Control, ASecondControllerIsRefusedAndToldTheHolder) {
   auto reply = lease(first, v1::LeaseRequest::ACQUIRE);
   ASSERT_TRUE(reply.has_lease());
   EXPECT_TRUE(reply.lease().granted());
-  EXPECT_EQ(reply.lease().request_id(), 7U);
+  EXPECT_EQ(reply.request_id(), 7U);
   EXPECT_NEAR(reply.lease().expires_in_s(), 2.0, 0.1) << "control.lease_timeout_s by default";
 
   reply = lease(second, v1::LeaseRequest::ACQUIRE);
@@ -257,7 +258,8 @@ TEST_F(Control, EStopLatchesAcrossBehaviourChangesAndOnlyTheHolderReleasesIt) {
 
   // The status shows the latch and the holder.
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(3);
+  status.mutable_status();
+  status.set_request_id(3);
   const auto robots = send(observer, status).status().robots();
   ASSERT_EQ(robots.size(), 1);
   EXPECT_TRUE(robots[0].estop());
@@ -278,7 +280,7 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   auto holder = session(v1::ROLE_CONTROLLER, "alice");
   ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE, 10.0).lease().granted());
   v1::ClientMessage go;
-  go.mutable_drive()->set_request_id(8);
+  go.set_request_id(8);
   go.mutable_drive()->set_robot_id("r1");
   go.mutable_drive()->set_behaviour("goto");
   go.mutable_drive()->mutable_goal()->set_x_m(3.0);
@@ -291,7 +293,8 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   EXPECT_TRUE(path.back().isApprox(Eigen::Vector2d(3.0, 1.0)));
   // A plain status stays cheap: no path and no scan; the detailed one carries both, world frame.
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(9);
+  status.mutable_status();
+  status.set_request_id(9);
   const v1::RobotStatus plain = send(holder, status).status().robots(0);
   EXPECT_EQ(plain.path_size(), 0);
   EXPECT_EQ(plain.scan_size(), 0);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "fake_session.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
 #include "test_robots.h"
@@ -56,7 +57,7 @@ class Handlers : public ::testing::Test {
 TEST_F(Handlers, HelloChecksVersionRoleAndRobotName) {
   auto session = std::make_shared<FakeSession>(core_);
   auto wrong = testing::hello_message(v1::ROLE_QUERY);
-  wrong.set_protocol_version(2);
+  wrong.set_protocol_version(1);
   handle_hello(session, wrong);
   auto reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
@@ -76,14 +77,32 @@ TEST_F(Handlers, HelloChecksVersionRoleAndRobotName) {
   handle_hello(session, testing::hello_message(v1::ROLE_QUERY));
   reply = session->next();
   ASSERT_TRUE(reply && reply->has_welcome());
-  EXPECT_EQ(reply->welcome().protocol_version(), 1U);
+  EXPECT_EQ(reply->welcome().protocol_version(), proto::kProtocolVersion);
   EXPECT_TRUE(session->info().greeted);
+}
+
+// A version 1 client (request_id inside each body) is refused at hello and told why, before it sends a request whose
+// id the server would not see.
+TEST_F(Handlers, HelloOfProtocolVersionOneIsRefusedNamingTheEnvelope) {
+  auto session = std::make_shared<FakeSession>(core_);
+  auto old = testing::hello_message(v1::ROLE_QUERY);
+  old.set_protocol_version(1);
+  handle_hello(session, old);
+  const auto reply = session->next();
+  ASSERT_TRUE(reply && reply->has_error());
+  EXPECT_EQ(reply->error().code(), v1::ERROR_PROTOCOL_VERSION);
+  EXPECT_EQ(reply->error().field(), "hello.protocol_version");
+  EXPECT_NE(reply->error().message().find("version 2"), std::string::npos) << reply->error().message();
+  EXPECT_NE(reply->error().message().find("request_id"), std::string::npos) << reply->error().message();
+  EXPECT_EQ(reply->request_id(), 0U) << "a hello is no request";
+  EXPECT_FALSE(session->info().greeted);
 }
 
 TEST_F(Handlers, DispatchRequiresHelloFirstAndDriverRoleForRobotData) {
   auto session = std::make_shared<FakeSession>(core_);
   v1::ClientMessage status;
-  status.mutable_status()->set_request_id(1);
+  status.mutable_status();
+  status.set_request_id(1);
   dispatch(session, status);
   auto reply = session->next();
   ASSERT_TRUE(reply && reply->has_error());
@@ -193,8 +212,7 @@ TEST_F(Handlers, QueriesUseTheFootprintOfTheRobotsLatestRegistration) {
   clearance.set_robot_id("r1");
   clearance.add_models(v1::MODEL_GRID);
   const auto clearance_now = [&](std::uint64_t request_id) {
-    clearance.set_request_id(request_id);
-    handle_clearance_query(query, clearance);
+    handle_clearance_query(query, request_id, clearance);
     const auto reply = query->next_of(v1::ServerMessage::kClearance);
     EXPECT_TRUE(reply && reply->clearance().found());
     return reply ? reply->clearance().clearance_m() : -1.0;
@@ -215,22 +233,20 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   auto robot_session = driver_that_mapped_an_arc("r1");
   auto query = query_client();
   v1::CollisionQuery collision;
-  collision.set_request_id(3);
   collision.set_robot_id("r1");
   collision.mutable_pose()->set_x(3.45);  // on the arc of returns 3 m ahead of the sensor
-  handle_collision_query(query, collision);
+  handle_collision_query(query, 3, collision);
   auto reply = query->next_of(v1::ServerMessage::kCollision);
   ASSERT_TRUE(reply);
-  EXPECT_EQ(reply->collision().request_id(), 3U);
+  EXPECT_EQ(reply->request_id(), 3U);
   EXPECT_TRUE(reply->collision().hit());
 
   v1::ClearanceQuery clearance;
-  clearance.set_request_id(4);
   clearance.set_robot_id("r1");
   // The grid only first; then every model (no `models`), which answers against matter too: the PTEM's clusters are
   // the returns they gathered, not a restricted region covering the robot.
   clearance.add_models(v1::MODEL_GRID);
-  handle_clearance_query(query, clearance);
+  handle_clearance_query(query, 4, clearance);
   reply = query->next_of(v1::ServerMessage::kClearance);
   ASSERT_TRUE(reply);
   EXPECT_TRUE(reply->clearance().found());
@@ -240,22 +256,21 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   EXPECT_EQ(reply->clearance().model(), v1::MODEL_GRID);
   v1::ClearanceQuery every = clearance;
   every.clear_models();
-  every.set_request_id(5);
-  handle_clearance_query(query, every);
+  handle_clearance_query(query, 5, every);
   reply = query->next_of(v1::ServerMessage::kClearance);
   ASSERT_TRUE(reply);
   EXPECT_NEAR(reply->clearance().clearance_m(), 2.5, 0.1);
   EXPECT_GT(reply->clearance().clearance_m(), 0.0);
 
   clearance.set_max_distance_m(1.0e9);
-  handle_clearance_query(query, clearance);
+  handle_clearance_query(query, 4, clearance);
   reply = query->next_of(v1::ServerMessage::kError);
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->error().field(), "clearance.max_distance_m");
-  EXPECT_EQ(reply->error().request_id(), 4U);
+  EXPECT_EQ(reply->request_id(), 4U);
 
   collision.set_robot_id("nobody");
-  handle_collision_query(query, collision);
+  handle_collision_query(query, 3, collision);
   reply = query->next_of(v1::ServerMessage::kError);
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_ROBOT);

@@ -2,9 +2,12 @@
 // extra keys; anything else gets an error naming the field, and changes nothing.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core.h"
+#include "http/foxglove.h"
 #include "http/live_view.h"
 #include "occgeo/service/config.h"
 
@@ -45,6 +48,45 @@ TEST_F(LiveViewMessages, BadMessagesNameTheField) {
   error_names(R"({"type":"select","slice_z_m":1e9})", "slice_z_m");
   error_names(R"({"type":"estop"})", "robot");
   error_names(R"({"type":"estop","robot":"nobody"})", "robot");
+}
+
+// A Foxglove client's subscribe and unsubscribe are read as JSON: key order, spacing and the extra keys the protocol
+// allows change nothing (a pattern match on the text missed a subscription with an extra key and would have taken an
+// "id" from any nested object).
+TEST(FoxgloveMessages, SubscribeAndUnsubscribeAreReadAsJsonWhateverTheKeyOrderOrExtraKeys) {
+  using http::foxglove::parse_client_request;
+  const auto subscribe = parse_client_request(
+      R"({ "subscriptions" : [ {"channelId": 1, "id": 7}, {"id": 8, "extra": {"id": 99}, "channelId": 2} ],)"
+      R"( "op" : "subscribe" })");
+  EXPECT_EQ(subscribe.op, "subscribe");
+  EXPECT_TRUE(subscribe.problem.empty()) << subscribe.problem;
+  ASSERT_EQ(subscribe.subscribe.size(), 2U);
+  EXPECT_EQ(subscribe.subscribe[0].id, 7U);
+  EXPECT_EQ(subscribe.subscribe[0].channel, 1U);
+  EXPECT_EQ(subscribe.subscribe[1].id, 8U);
+  EXPECT_EQ(subscribe.subscribe[1].channel, 2U);
+  const auto unsubscribe = parse_client_request(R"({"subscriptionIds":[8, 7],"op":"unsubscribe"})");
+  EXPECT_EQ(unsubscribe.op, "unsubscribe");
+  EXPECT_EQ(unsubscribe.unsubscribe, (std::vector<std::uint32_t>{8, 7}));
+  EXPECT_TRUE(unsubscribe.subscribe.empty());
+  // Other ops of the protocol are recognised and ask for nothing here.
+  const auto other = parse_client_request(R"({"op":"getParameters","parameterNames":[],"id":"a"})");
+  EXPECT_EQ(other.op, "getParameters");
+  EXPECT_TRUE(other.subscribe.empty() && other.unsubscribe.empty() && other.problem.empty());
+}
+
+TEST(FoxgloveMessages, WhatIsNotUnderstoodIsNamedAndSubscribesNothing) {
+  using http::foxglove::parse_client_request;
+  EXPECT_EQ(parse_client_request("subscribe 1").problem, "not a JSON object");
+  EXPECT_EQ(parse_client_request(R"({"subscriptions":[]})").problem, R"(no "op" string)");
+  EXPECT_EQ(parse_client_request(R"({"op":"subscribe"})").problem, R"(subscribe without a "subscriptions" array)");
+  // A bad entry is skipped and named; the good ones still count.
+  const auto mixed = parse_client_request(
+      R"({"op":"subscribe","subscriptions":[{"id":-1,"channelId":1},{"id":"3","channelId":1},{"id":4,"channelId":2}]})");
+  ASSERT_EQ(mixed.subscribe.size(), 1U);
+  EXPECT_EQ(mixed.subscribe[0].id, 4U);
+  EXPECT_NE(mixed.problem.find("id"), std::string::npos);
+  EXPECT_EQ(parse_client_request(R"({"op":"unsubscribe","subscriptionIds":[1.5]})").unsubscribe.size(), 0U);
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "fake_session.h"
 #include "model_geometry.h"
 #include "occgeo/geometry/collision.h"
+#include "occgeo/proto/protocol.h"
 #include "sensor_robot_spec.h"
 #include "test_robots.h"
 
@@ -71,7 +72,7 @@ class ModelsHandlers : public ::testing::Test {
   std::shared_ptr<FakeSession> querier() {
     auto session = std::make_shared<FakeSession>(core_);
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(proto::kProtocolVersion);
     hello.set_role(v1::ROLE_QUERY);
     handle_hello(session, hello);
     EXPECT_TRUE(session->next_of(v1::ServerMessage::kWelcome));
@@ -90,7 +91,6 @@ class ModelsHandlers : public ::testing::Test {
   v1::CollisionReply collide(const std::shared_ptr<FakeSession>& session, double x, double y,
                              const std::vector<v1::Model>& models, std::optional<double> height = std::nullopt) {
     v1::CollisionQuery query;
-    query.set_request_id(++request_id_);
     query.set_robot_id("r1");
     query.mutable_pose()->set_x(x);
     query.mutable_pose()->set_y(y);
@@ -101,7 +101,7 @@ class ModelsHandlers : public ::testing::Test {
       box->set_width_m(0.5);
       box->set_height_m(*height);
     }
-    handle_collision_query(session, query);
+    handle_collision_query(session, ++request_id_, query);
     const auto reply = session->next();
     EXPECT_TRUE(reply && reply->has_collision()) << (reply ? reply->DebugString() : "no reply");
     return reply && reply->has_collision() ? reply->collision() : v1::CollisionReply{};
@@ -110,14 +110,13 @@ class ModelsHandlers : public ::testing::Test {
   v1::ClearanceReply clearance(const std::shared_ptr<FakeSession>& session, double x, double y, double theta,
                                const std::vector<v1::Model>& models, double max_distance = 0.0) {
     v1::ClearanceQuery query;
-    query.set_request_id(++request_id_);
     query.set_robot_id("r1");
     query.mutable_pose()->set_x(x);
     query.mutable_pose()->set_y(y);
     query.mutable_pose()->set_theta(theta);
     query.set_max_distance_m(max_distance);
     for (const auto m : models) query.add_models(m);
-    handle_clearance_query(session, query);
+    handle_clearance_query(session, ++request_id_, query);
     const auto reply = session->next();
     EXPECT_TRUE(reply && reply->has_clearance()) << (reply ? reply->DebugString() : "no reply");
     return reply && reply->has_clearance() ? reply->clearance() : v1::ClearanceReply{};
@@ -225,7 +224,6 @@ TEST_F(ModelsHandlers, CollisionChoosesModelsAndTheOctreeSeesAnOverhangTheGridCa
   // Clearance on the octree's columns in the robot's band: 1.2 m tall, 1 m before the overhang's edge at x 1.3.
   q = querier();
   v1::ClearanceQuery query;
-  query.set_request_id(7);
   query.set_robot_id("r1");
   query.mutable_pose()->set_x(0.0);
   query.add_models(v1::MODEL_OCTOMAP);
@@ -233,7 +231,7 @@ TEST_F(ModelsHandlers, CollisionChoosesModelsAndTheOctreeSeesAnOverhangTheGridCa
   box->set_length_m(0.6);
   box->set_width_m(0.5);
   box->set_height_m(1.2);
-  handle_clearance_query(q, query);
+  handle_clearance_query(q, 7, query);
   const auto reply = q->next();
   ASSERT_TRUE(reply && reply->has_clearance()) << (reply ? reply->DebugString() : "no reply");
   std::printf("octomap clearance %.4f m (model %d)\n", reply->clearance().clearance_m(), reply->clearance().model());
@@ -376,23 +374,21 @@ TEST_F(ModelsHandlers, DefaultCollisionAndClearanceAnswerAgainstMatterAndReportT
     if (matter_m < 2.0 * radius) continue;
     ++tested;
     v1::CollisionQuery collision;
-    collision.set_request_id(++request_id_);
     collision.set_robot_id("r1");
     collision.mutable_pose()->set_x(p.x());
     collision.mutable_pose()->set_y(p.y());
     collision.mutable_pose()->set_theta(theta);
     *collision.mutable_footprint() = footprint;
-    handle_collision_query(q, collision);
+    handle_collision_query(q, ++request_id_, collision);
     const auto hit = q->next();
     ASSERT_TRUE(hit && hit->has_collision());
     EXPECT_FALSE(hit->collision().hit()) << "at (" << p.x() << ", " << p.y() << ", " << theta << "), " << matter_m
                                          << " m from matter: " << hit->collision().DebugString();
     v1::ClearanceQuery clearance;
-    clearance.set_request_id(++request_id_);
     clearance.set_robot_id("r1");
     *clearance.mutable_pose() = collision.pose();
     *clearance.mutable_footprint() = footprint;
-    handle_clearance_query(q, clearance);
+    handle_clearance_query(q, ++request_id_, clearance);
     const auto room = q->next();
     ASSERT_TRUE(room && room->has_clearance());
     // The footprint's points lie within radius of the pose, so matter is at least matter_m - radius away.
@@ -411,21 +407,19 @@ TEST_F(ModelsHandlers, UnknownModelsAreRefusedNamingTheField) {
   auto session = driver("r1", laser_spec());
   auto q = querier();
   v1::CollisionQuery collision;
-  collision.set_request_id(3);
   collision.set_robot_id("r1");
   collision.add_models(v1::MODEL_GRID);
   collision.add_models(static_cast<v1::Model>(9));
-  handle_collision_query(q, collision);
+  handle_collision_query(q, 3, collision);
   auto reply = q->next();
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().code(), v1::ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(reply->error().field(), "collision.models[1]");
-  EXPECT_EQ(reply->error().request_id(), 3U);
+  EXPECT_EQ(reply->request_id(), 3U);
   v1::ClearanceQuery clearance_query;
-  clearance_query.set_request_id(4);
   clearance_query.set_robot_id("r1");
   clearance_query.add_models(v1::MODEL_UNSPECIFIED);
-  handle_clearance_query(q, clearance_query);
+  handle_clearance_query(q, 4, clearance_query);
   reply = q->next();
   ASSERT_TRUE(reply && reply->has_error());
   EXPECT_EQ(reply->error().field(), "clearance.models[0]");
@@ -438,15 +432,14 @@ TEST_F(ModelsHandlers, OctreeRequestExportsTheTreeAsBt) {
   expect_ack(*session, 1);
   auto q = querier();
   v1::OctreeRequest request;
-  request.set_request_id(5);
-  handle_octree_request(q, request);
+  handle_octree_request(q, 5, request);
   const auto reply = q->next();
   ASSERT_TRUE(reply && reply->has_octree()) << (reply ? reply->DebugString() : "no reply");
   const v1::OctreeReply& octree = reply->octree();
   std::printf("exported %zu bytes, %llu nodes, %llu leaves\n", octree.bt().size(),
               static_cast<unsigned long long>(octree.node_count()),
               static_cast<unsigned long long>(octree.leaf_count()));
-  EXPECT_EQ(octree.request_id(), 5U);
+  EXPECT_EQ(reply->request_id(), 5U);
   EXPECT_EQ(octree.world(), "default");
   EXPECT_EQ(octree.version(), 1U);
   EXPECT_DOUBLE_EQ(octree.resolution_m(), 0.05);
@@ -459,7 +452,7 @@ TEST_F(ModelsHandlers, OctreeRequestExportsTheTreeAsBt) {
   std::filesystem::remove(path);
 
   request.set_world("nowhere");
-  handle_octree_request(q, request);
+  handle_octree_request(q, 5, request);
   const auto error = q->next();
   ASSERT_TRUE(error && error->has_error());
   EXPECT_EQ(error->error().code(), v1::ERROR_UNKNOWN_WORLD);
@@ -496,8 +489,7 @@ TEST_F(SmallOctreeLimit, OversizedExportIsRefusedAndALaggingOctreeIsPublishedByT
 
   auto q = querier();
   v1::OctreeRequest request;
-  request.set_request_id(6);
-  handle_octree_request(q, request);
+  handle_octree_request(q, 6, request);
   const auto reply = q->next();
   ASSERT_TRUE(reply && reply->has_error()) << (reply ? reply->DebugString() : "no reply");
   EXPECT_EQ(reply->error().field(), "octree.world");
@@ -513,7 +505,7 @@ void measure_ingest(double interval_s) {
   ServerCore core(config);
   auto session = std::make_shared<FakeSession>(core);
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id("r1");
   handle_hello(session, hello);
@@ -612,10 +604,9 @@ TEST_F(ModelsHandlers, ReadersOnlyEverSeeWholeUpdatesWhileScansStream) {
         }
       }
       v1::CollisionQuery query;
-      query.set_request_id(static_cast<std::uint64_t>(reader * 1000000 + collision_replies));
       query.set_robot_id("r1");
       query.mutable_pose()->set_x(1.0);
-      handle_collision_query(querier_session, query);
+      handle_collision_query(querier_session, static_cast<std::uint64_t>(reader * 1000000 + collision_replies), query);
       const auto reply = querier_session->next();
       ASSERT_TRUE(reply && reply->has_collision()) << (reply ? reply->DebugString() : "no reply");
       ++collision_replies;

@@ -140,7 +140,6 @@ class PhysicalAnswers : public ::testing::Test {
   // A collision or clearance query for the test's robot at X_WB against models (empty: the defaults).
   template <typename Query>
   void fill(Query& query, const geometry::Pose2& X_WB, const std::vector<v1::Model>& models) {
-    query.set_request_id(++request_id_);
     query.set_robot_id("ugv-1");
     query.mutable_pose()->set_x(X_WB.x);
     query.mutable_pose()->set_y(X_WB.y);
@@ -151,7 +150,7 @@ class PhysicalAnswers : public ::testing::Test {
   v1::CollisionReply collide(const geometry::Pose2& X_WB, const std::vector<v1::Model>& models = {}) {
     v1::CollisionQuery query;
     fill(query, X_WB, models);
-    handle_collision_query(querier_, query);
+    handle_collision_query(querier_, ++request_id_, query);
     const auto reply = querier_->next();
     EXPECT_TRUE(reply && reply->has_collision()) << (reply ? reply->DebugString() : "no reply");
     return reply && reply->has_collision() ? reply->collision() : v1::CollisionReply{};
@@ -160,7 +159,7 @@ class PhysicalAnswers : public ::testing::Test {
   v1::ClearanceReply clearance(const geometry::Pose2& X_WB, const std::vector<v1::Model>& models = {}) {
     v1::ClearanceQuery query;
     fill(query, X_WB, models);
-    handle_clearance_query(querier_, query);
+    handle_clearance_query(querier_, ++request_id_, query);
     const auto reply = querier_->next();
     EXPECT_TRUE(reply && reply->has_clearance()) << (reply ? reply->DebugString() : "no reply");
     return reply && reply->has_clearance() ? reply->clearance() : v1::ClearanceReply{};

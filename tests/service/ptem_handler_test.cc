@@ -115,9 +115,11 @@ class PtemHandler : public ::testing::Test {
     return session;
   }
 
-  // Sends the query and returns the reply or error.
-  static v1::ServerMessage ask(const std::shared_ptr<FakeSession>& session, const v1::PtemQuery& query) {
+  // Sends the query as request `request_id` and returns the reply or error.
+  static v1::ServerMessage ask(const std::shared_ptr<FakeSession>& session, const v1::PtemQuery& query,
+                               std::uint64_t request_id = 0) {
     v1::ClientMessage message;
+    message.set_request_id(request_id);
     *message.mutable_ptem() = query;
     dispatch(session, message);
     auto reply = session->next();
@@ -163,7 +165,6 @@ TEST_F(PtemHandler, ScanOfACircleMakesOneClusterAndQueriesAgreeWithTheLibrary) {
     auto driver = scan_circle("probe-" + world, world);
     auto session = query_session();
     v1::PtemQuery query;
-    query.set_request_id(42);
     query.set_world(world == "default" ? "" : world);  // empty: the default world
     query.set_include_clusters(true);
     *query.add_points() = point(1.75, 0.0);          // the obstacle's centre
@@ -172,10 +173,10 @@ TEST_F(PtemHandler, ScanOfACircleMakesOneClusterAndQueriesAgreeWithTheLibrary) {
     *query.add_points() = point(0.0, 0.0);           // the robot
     *query.add_points() = point(-3.0, 2.0);          // far away
     *query.add_points() = point(1.70, 0.02);         // off-axis, for the gradient's y
-    const v1::ServerMessage reply = ask(session, query);
+    const v1::ServerMessage reply = ask(session, query, 42);
     ASSERT_TRUE(reply.has_ptem()) << reply.DebugString();
     const v1::PtemReply& ptem = reply.ptem();
-    EXPECT_EQ(ptem.request_id(), 42U);
+    EXPECT_EQ(reply.request_id(), 42U);
     EXPECT_EQ(ptem.world(), world);
     EXPECT_EQ(ptem.construction(), world == "default" ? "single_scan" : "cumulative");
     EXPECT_EQ(ptem.cluster_count(), 1U);
@@ -201,8 +202,7 @@ TEST_F(PtemHandler, WithoutIncludeClustersOnlyTheCountAndSamplesComeBack) {
   auto driver = scan_circle("probe", "default");
   auto session = query_session();
   v1::PtemQuery query;
-  query.set_request_id(3);
-  const v1::ServerMessage reply = ask(session, query);
+  const v1::ServerMessage reply = ask(session, query, 3);
   ASSERT_TRUE(reply.has_ptem());
   EXPECT_EQ(reply.ptem().cluster_count(), 1U);
   EXPECT_EQ(reply.ptem().clusters_size(), 0);
@@ -213,7 +213,8 @@ TEST_F(PtemHandler, StatusListsEachWorldsClusters) {
   auto driver = scan_circle("probe", "cumulative_world");
   auto session = query_session();
   v1::ClientMessage message;
-  message.mutable_status()->set_request_id(1);
+  message.mutable_status();
+  message.set_request_id(1);
   dispatch(session, message);
   const auto reply = session->next_of(v1::ServerMessage::kStatus);
   ASSERT_TRUE(reply);
@@ -246,20 +247,18 @@ TEST_F(PtemHandler, ValidationErrorsNameTheField) {
   std::uint64_t request_id = 100;
   for (const Case& c : cases) {
     v1::PtemQuery query;
-    query.set_request_id(++request_id);
     *query.add_points() = point(1.0, 1.0);
     c.damage(query);
-    const v1::ServerMessage reply = ask(session, query);
+    const v1::ServerMessage reply = ask(session, query, ++request_id);
     ASSERT_TRUE(reply.has_error()) << c.field;
     EXPECT_EQ(reply.error().code(), c.code) << c.field;
     EXPECT_EQ(reply.error().field(), c.field);
-    EXPECT_EQ(reply.error().request_id(), request_id);
+    EXPECT_EQ(reply.request_id(), request_id);
   }
   // Exactly the limit is fine.
   v1::PtemQuery query;
-  query.set_request_id(7);
   for (int i = 0; i < 1000; ++i) *query.add_points() = point(0.0, 0.0);
-  const v1::ServerMessage reply = ask(session, query);
+  const v1::ServerMessage reply = ask(session, query, 7);
   ASSERT_TRUE(reply.has_ptem());
   EXPECT_EQ(reply.ptem().samples_size(), 1000);
 }

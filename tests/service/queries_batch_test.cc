@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "fake_session.h"
+#include "occgeo/proto/protocol.h"
 #include "test_robots.h"
 
 namespace occgeo::service {
@@ -55,7 +56,7 @@ class QueriesBatch : public ::testing::Test {
     ASSERT_NE(core_.find_robot("r1"), nullptr);
     querier_ = std::make_shared<FakeSession>(core_);
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(proto::kProtocolVersion);
     hello.set_role(v1::ROLE_QUERY);
     handle_hello(querier_, hello);
     ASSERT_TRUE(querier_->next_of(v1::ServerMessage::kWelcome));
@@ -94,10 +95,8 @@ class QueriesBatch : public ::testing::Test {
     return poses;
   }
 
-  static void expect_same(google::protobuf::Message& single, const google::protobuf::Message& batch, int index) {
-    // The single reply's request_id is the only field a batch entry leaves unset.
-    const auto* field = single.GetDescriptor()->FindFieldByName("request_id");
-    if (field != nullptr) single.GetReflection()->ClearField(&single, field);
+  // A single reply and the batch entry for the same pose are equal, field for field.
+  static void expect_same(const google::protobuf::Message& single, const google::protobuf::Message& batch, int index) {
     EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(single, batch))
         << "entry " << index << "\nsingle: " << single.ShortDebugString() << "\nbatch:  " << batch.ShortDebugString();
   }
@@ -113,12 +112,12 @@ TEST_F(QueriesBatch, CollisionAndClearanceBatchesAnswerLikeSingleQueries) {
   map_world();
   const auto poses = random_poses(150);
   v1::ClientMessage collision_batch;
+  collision_batch.set_request_id(1000);
   auto* cb = collision_batch.mutable_collision_batch();
-  cb->set_request_id(1000);
   cb->set_robot_id("r1");
   v1::ClientMessage clearance_batch;
+  clearance_batch.set_request_id(1001);
   auto* kb = clearance_batch.mutable_clearance_batch();
-  kb->set_request_id(1001);
   kb->set_robot_id("r1");
   kb->set_max_distance_m(1.5);
   for (const auto& p : poses) {
@@ -127,7 +126,7 @@ TEST_F(QueriesBatch, CollisionAndClearanceBatchesAnswerLikeSingleQueries) {
   }
   const v1::ServerMessage collisions = ask(collision_batch);
   ASSERT_TRUE(collisions.has_collision_batch()) << collisions.ShortDebugString();
-  ASSERT_EQ(collisions.collision_batch().request_id(), 1000U);
+  ASSERT_EQ(collisions.request_id(), 1000U);
   ASSERT_EQ(collisions.collision_batch().results_size(), 150);
   const v1::ServerMessage clearances = ask(clearance_batch);
   ASSERT_TRUE(clearances.has_clearance_batch()) << clearances.ShortDebugString();
@@ -135,22 +134,22 @@ TEST_F(QueriesBatch, CollisionAndClearanceBatchesAnswerLikeSingleQueries) {
   int hits = 0;
   for (int i = 0; i < 150; ++i) {
     v1::ClientMessage single;
-    single.mutable_collision()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    single.set_request_id(static_cast<std::uint64_t>(i + 1));
     single.mutable_collision()->set_robot_id("r1");
     *single.mutable_collision()->mutable_pose() = poses[static_cast<std::size_t>(i)];
     v1::ServerMessage reply = ask(single);
     ASSERT_TRUE(reply.has_collision());
     hits += reply.collision().hit() ? 1 : 0;
-    expect_same(*reply.mutable_collision(), collisions.collision_batch().results(i), i);
+    expect_same(reply.collision(), collisions.collision_batch().results(i), i);
 
     v1::ClientMessage clearance;
-    clearance.mutable_clearance()->set_request_id(static_cast<std::uint64_t>(i + 1));
+    clearance.set_request_id(static_cast<std::uint64_t>(i + 1));
     clearance.mutable_clearance()->set_robot_id("r1");
     clearance.mutable_clearance()->set_max_distance_m(1.5);
     *clearance.mutable_clearance()->mutable_pose() = poses[static_cast<std::size_t>(i)];
     reply = ask(clearance);
     ASSERT_TRUE(reply.has_clearance());
-    expect_same(*reply.mutable_clearance(), clearances.clearance_batch().results(i), i);
+    expect_same(reply.clearance(), clearances.clearance_batch().results(i), i);
   }
   EXPECT_EQ(collisions.collision_batch().hits(), static_cast<std::uint32_t>(hits));
   EXPECT_GT(hits, 0);
@@ -161,12 +160,12 @@ TEST_F(QueriesBatch, RaycastOccupancyAndSweptListsAnswerLikeOneEntryEach) {
   map_world();
   const auto poses = random_poses(60);
   v1::ClientMessage rays;
-  rays.mutable_raycast()->set_request_id(1);
+  rays.set_request_id(1);
   rays.mutable_raycast()->set_max_range_m(6.0);
   v1::ClientMessage points;
-  points.mutable_occupancy()->set_request_id(2);
+  points.set_request_id(2);
   v1::ClientMessage motions;
-  motions.mutable_swept()->set_request_id(3);
+  motions.set_request_id(3);
   motions.mutable_swept()->set_robot_id("r1");
   for (const auto& p : poses) {
     *rays.mutable_raycast()->add_rays() = p;
@@ -193,7 +192,7 @@ TEST_F(QueriesBatch, RaycastOccupancyAndSweptListsAnswerLikeOneEntryEach) {
     *one.mutable_raycast()->add_rays() = poses[static_cast<std::size_t>(i)];
     v1::ServerMessage reply = ask(one);
     ASSERT_EQ(reply.raycast().results_size(), 1);
-    expect_same(*reply.mutable_raycast()->mutable_results(0), all_rays.raycast().results(i), i);
+    expect_same(reply.raycast().results(0), all_rays.raycast().results(i), i);
     ray_hits += reply.raycast().results(0).hit() ? 1 : 0;
     ASSERT_EQ(reply.raycast().results(0).per_model_size(), 3) << "all three models by default";
 
@@ -202,14 +201,14 @@ TEST_F(QueriesBatch, RaycastOccupancyAndSweptListsAnswerLikeOneEntryEach) {
     *one.mutable_occupancy()->add_points() = points.occupancy().points(i);
     reply = ask(one);
     ASSERT_EQ(reply.occupancy().samples_size(), 1);
-    expect_same(*reply.mutable_occupancy()->mutable_samples(0), all_points.occupancy().samples(i), i);
+    expect_same(reply.occupancy().samples(0), all_points.occupancy().samples(i), i);
 
     one = motions;
     one.mutable_swept()->clear_motions();
     *one.mutable_swept()->add_motions() = motions.swept().motions(i);
     reply = ask(one);
     ASSERT_EQ(reply.swept().results_size(), 1);
-    expect_same(*reply.mutable_swept()->mutable_results(0), all_motions.swept().results(i), i);
+    expect_same(reply.swept().results(0), all_motions.swept().results(i), i);
     swept_hits += reply.swept().results(0).hit() ? 1 : 0;
   }
   EXPECT_GT(ray_hits, 0);
@@ -219,8 +218,8 @@ TEST_F(QueriesBatch, RaycastOccupancyAndSweptListsAnswerLikeOneEntryEach) {
 TEST_F(QueriesBatch, BadEntriesAreRefusedNamingTheField) {
   map_world();
   v1::ClientMessage message;
+  message.set_request_id(5);
   auto* batch = message.mutable_collision_batch();
-  batch->set_request_id(5);
   batch->set_robot_id("r1");
   *batch->add_poses() = pose2d(0, 0, 0);
   *batch->add_poses() = pose2d(std::nan(""), 0, 0);
@@ -228,25 +227,25 @@ TEST_F(QueriesBatch, BadEntriesAreRefusedNamingTheField) {
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().code(), v1::ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(reply.error().field().rfind("collision_batch.poses[1]", 0), 0U) << reply.error().field();
-  EXPECT_EQ(reply.error().request_id(), 5U);
+  EXPECT_EQ(reply.request_id(), 5U);
 
   message.Clear();
-  message.mutable_raycast()->set_request_id(6);
+  message.set_request_id(6);
   *message.mutable_raycast()->add_rays() = pose2d(0, 0, 0);
   reply = ask(message);
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().field(), "raycast.max_range_m");
 
   message.Clear();
-  message.mutable_clearance_batch()->set_request_id(7);
+  message.set_request_id(7);
   message.mutable_clearance_batch()->set_robot_id("r1");
   reply = ask(message);
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().field(), "clearance_batch.poses");
 
   message.Clear();
+  message.set_request_id(8);
   auto* swept = message.mutable_swept();
-  swept->set_request_id(8);
   swept->set_robot_id("r1");
   swept->add_motions()->set_duration_s(-1.0);
   reply = ask(message);
@@ -254,8 +253,8 @@ TEST_F(QueriesBatch, BadEntriesAreRefusedNamingTheField) {
   EXPECT_EQ(reply.error().field(), "swept.motions[0].duration_s");
 
   message.Clear();
+  message.set_request_id(9);
   auto* window = message.mutable_grid_window();
-  window->set_request_id(9);
   window->mutable_min_corner()->set_x(1.0);
   window->mutable_max_corner()->set_x(0.0);
   reply = ask(message);
@@ -282,8 +281,8 @@ void apply(const v1::GridWindowReply& reply, std::vector<std::uint8_t>& copy) {
 TEST_F(QueriesBatch, AFollowerPatchedWithChangesMatchesAFreshWindowWhileScansStream) {
   map_from(0.0, 0.0, 0.0);
   v1::ClientMessage request;
+  request.set_request_id(1);
   auto* window = request.mutable_grid_window();
-  window->set_request_id(1);
   window->mutable_min_corner()->set_x(-3.0);
   window->mutable_min_corner()->set_y(-2.5);
   window->mutable_max_corner()->set_x(9.0);
@@ -337,8 +336,8 @@ TEST_F(QueriesBatch, AFollowerPatchedWithChangesMatchesAFreshWindowWhileScansStr
 TEST_F(QueriesBatch, OctreeWindowListsTheOccupiedVoxelsInTheBox) {
   map_world();
   v1::ClientMessage request;
+  request.set_request_id(3);
   auto* window = request.mutable_octree_window();
-  window->set_request_id(3);
   window->mutable_min_corner()->set_x(-5);
   window->mutable_min_corner()->set_y(-5);
   window->mutable_min_corner()->set_z(0);
@@ -377,22 +376,17 @@ TEST_F(QueriesBatch, EveryQueryKindIsARequestAnsweredByExactlyOneAnswer) {
     ++requests;
     EXPECT_TRUE(is_answer(static_cast<v1::ServerMessage::BodyCase>(reply_field->number()))) << reply_field->name();
 
-    // An empty request of this kind (refused or answered) gets exactly one answer, carrying its request_id.
+    // An empty request of this kind (refused or answered) gets exactly one answer, carrying its request_id on the
+    // envelope.
     v1::ClientMessage message;
-    auto* body = message.GetReflection()->MutableMessage(&message, field);
-    const auto* request_id = body->GetDescriptor()->FindFieldByName("request_id");
-    ASSERT_NE(request_id, nullptr) << field->name();
-    body->GetReflection()->SetUInt64(body, request_id, 40 + static_cast<std::uint64_t>(i));
+    message.GetReflection()->MutableMessage(&message, field);
+    message.set_request_id(40 + static_cast<std::uint64_t>(i));
     dispatch(querier_, std::move(message));
     const auto answer = querier_->next();
     ASSERT_TRUE(answer) << field->name() << " got no answer";
     EXPECT_TRUE(is_answer(answer->body_case())) << answer->ShortDebugString();
     // A second answer to an earlier kind would arrive here first, with that kind's request_id.
-    const auto* answer_field = server->FindFieldByNumber(answer->body_case());
-    const auto& answer_body = answer->GetReflection()->GetMessage(*answer, answer_field);
-    const auto* answer_id = answer_body.GetDescriptor()->FindFieldByName("request_id");
-    ASSERT_NE(answer_id, nullptr) << answer->ShortDebugString();
-    EXPECT_EQ(answer_body.GetReflection()->GetUInt64(answer_body, answer_id), 40 + static_cast<std::uint64_t>(i))
+    EXPECT_EQ(answer->request_id(), 40 + static_cast<std::uint64_t>(i))
         << field->name() << ": " << answer->ShortDebugString();
   }
   core_.drain();
@@ -407,6 +401,41 @@ TEST_F(QueriesBatch, EveryQueryKindIsARequestAnsweredByExactlyOneAnswer) {
                           v1::ServerMessage::kWatchEvent}) {
     EXPECT_FALSE(is_answer(kind)) << kind;
   }
+}
+
+// Protocol version 2 carries request_id on the envelope: ClientMessage and ServerMessage each have request_id = 9
+// outside their body, no body message has a request_id of its own, and every ClientMessage kind numbered 10 or more is
+// a request answered by the ServerMessage kind of the same number and name (or an Error).
+TEST(EnvelopeSchema, RequestIdIsOnTheEnvelopeAndEveryRequestKindHasItsReply) {
+  for (const auto* envelope : {v1::ClientMessage::descriptor(), v1::ServerMessage::descriptor()}) {
+    const auto* request_id = envelope->FindFieldByName("request_id");
+    ASSERT_NE(request_id, nullptr) << envelope->full_name();
+    EXPECT_EQ(request_id->number(), 9) << envelope->full_name();
+    EXPECT_EQ(request_id->type(), google::protobuf::FieldDescriptor::TYPE_UINT64) << envelope->full_name();
+    EXPECT_EQ(request_id->containing_oneof(), nullptr) << envelope->full_name();
+    const auto* body = envelope->FindOneofByName("body");
+    ASSERT_NE(body, nullptr) << envelope->full_name();
+    for (int i = 0; i < body->field_count(); ++i) {
+      const auto* field = body->field(i);
+      ASSERT_NE(field->message_type(), nullptr) << field->full_name();
+      EXPECT_EQ(field->message_type()->FindFieldByName("request_id"), nullptr)
+          << field->full_name() << " (" << field->message_type()->full_name() << ") still has a request_id";
+    }
+  }
+
+  const auto* client_body = v1::ClientMessage::descriptor()->FindOneofByName("body");
+  const auto* server_body = v1::ServerMessage::descriptor()->FindOneofByName("body");
+  int requests = 0;
+  for (int i = 0; i < client_body->field_count(); ++i) {
+    const auto* field = client_body->field(i);
+    if (field->number() < 10) continue;  // hello, robot_spec and sensor data: not requests
+    ++requests;
+    const auto* reply = v1::ServerMessage::descriptor()->FindFieldByNumber(field->number());
+    ASSERT_NE(reply, nullptr) << field->name() << " (" << field->number() << ") has no reply kind";
+    EXPECT_EQ(reply->name(), field->name()) << "field " << field->number();
+    EXPECT_EQ(reply->containing_oneof(), server_body) << reply->full_name();
+  }
+  EXPECT_GT(requests, 0);
 }
 
 }  // namespace

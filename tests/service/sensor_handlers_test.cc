@@ -9,6 +9,7 @@
 #include "fake_session.h"
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/geometry/kinematics.h"
+#include "occgeo/proto/protocol.h"
 #include "sensor_robot_spec.h"
 #include "test_robots.h"
 
@@ -373,7 +374,7 @@ TEST_F(SensorHandlers, BadSensorMessagesNameTheFieldAndLeaveTheMapAlone) {
 TEST_F(SensorHandlers, DispatchRoutesTheNewKindsOnlyFromADriverWithASpec) {
   auto query = std::make_shared<FakeSession>(core_);
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_QUERY);
   handle_hello(query, hello);
   ASSERT_TRUE(query->next_of(v1::ServerMessage::kWelcome));
@@ -407,7 +408,7 @@ TEST_F(SensorHandlers, DispatchRoutesTheNewKindsOnlyFromADriverWithASpec) {
 TEST_F(SensorHandlers, RobotSpecErrorsForTheNewKindsNameTheField) {
   auto session = std::make_shared<FakeSession>(core_);
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id("r1");
   handle_hello(session, hello);

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "fake_session.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/v1/robot.pb.h"
 
 namespace occgeo::testing {
@@ -61,10 +62,10 @@ inline v1::Odometry odometry(double x, double y, double theta, double stamp) {
   return message;
 }
 
-// A Hello of protocol version 1.
+// A Hello of the protocol version this build speaks (proto::kProtocolVersion).
 inline v1::Hello hello_message(v1::Role role, const std::string& robot_id = {}, const std::string& world = {}) {
   v1::Hello message;
-  message.set_protocol_version(1);
+  message.set_protocol_version(proto::kProtocolVersion);
   message.set_role(role);
   message.set_robot_id(robot_id);
   message.set_world(world);

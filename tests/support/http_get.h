@@ -8,7 +8,8 @@
 #include <boost/beast/http.hpp>
 #include <chrono>
 #include <cstdint>
-#include <regex>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -19,11 +20,15 @@ namespace occgeo::testing {
 
 // The HTTP port the server logged (tests ask for port 0, so the kernel picks a free one); waits up to 4 s for it.
 inline std::uint16_t http_port(const ServerProcess& server) {
-  const std::regex pattern(R"re("event":"http_listening".*"port":([0-9]+))re");
   for (int attempt = 0; attempt < 200; ++attempt) {
-    std::smatch match;
-    const std::string log = server.log();
-    if (std::regex_search(log, match, pattern)) return static_cast<std::uint16_t>(std::stoi(match[1]));
+    std::istringstream log(server.log());
+    for (std::string line; std::getline(log, line);) {
+      const auto event = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+      if (event.is_object() && event.value("event", "") == "http_listening" && event.contains("port") &&
+          event["port"].is_number_unsigned()) {
+        return event["port"].get<std::uint16_t>();
+      }
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   throw std::runtime_error("occgeod did not log http_listening: " + server.log());

@@ -1,8 +1,10 @@
 #pragma once
 
-// Fields of the flat one-object JSON summaries the programs print (occgeo-sim --json, occgeo --json).
+// Fields of the JSON the programs print (occgeo-sim --json, occgeo --json, occgeo-load --json) and the server logs,
+// read with nlohmann-json: key order, spacing and nesting change nothing.
 
-#include <regex>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -10,32 +12,80 @@
 
 namespace occgeo::testing {
 
-// The number stored under key; throws std::runtime_error naming the key when it is absent. Nested objects are not
-// distinguished, so ask only for keys that appear once.
+namespace detail {
+
+// The value stored under key in `value` or anything nested in it, depth first in document order; nullptr when none.
+inline const nlohmann::ordered_json* find_key(const nlohmann::ordered_json& value, const std::string& key) {
+  if (value.is_object()) {
+    if (const auto found = value.find(key); found != value.end()) return &*found;
+  }
+  if (value.is_structured()) {
+    for (const auto& item : value) {
+      if (const auto* found = find_key(item, key)) return found;
+    }
+  }
+  return nullptr;
+}
+
+// The documents in `text`: the whole text when it is one JSON document, else each line that is one (a program that
+// prints progress lines before its summary), last line first.
+inline std::vector<nlohmann::ordered_json> documents(const std::string& text) {
+  auto whole = nlohmann::ordered_json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!whole.is_discarded()) return {std::move(whole)};
+  std::vector<nlohmann::ordered_json> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    auto document = nlohmann::ordered_json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (!document.is_discarded() && document.is_structured()) lines.insert(lines.begin(), std::move(document));
+  }
+  return lines;
+}
+
+// The value stored under key in the JSON of `text` (see documents()); nullopt when no document holds it.
+inline std::optional<nlohmann::ordered_json> json_field(const std::string& text, const std::string& key) {
+  for (const auto& document : documents(text)) {
+    if (const auto* found = find_key(document, key)) return *found;
+  }
+  return std::nullopt;
+}
+
+inline nlohmann::ordered_json required_field(const std::string& text, const std::string& key,
+                                             bool (nlohmann::ordered_json::*is_kind)() const noexcept,
+                                             const char* kind) {
+  const auto value = json_field(text, key);
+  if (!value) throw std::runtime_error("no '" + key + "' in " + text);
+  if (!((*value).*is_kind)()) throw std::runtime_error("'" + key + "' is not " + kind + " in " + text);
+  return *value;
+}
+
+}  // namespace detail
+
+// The number stored under key, at any depth; throws std::runtime_error naming the key when it is absent or not a
+// number. Keys that appear more than once give the first in document order, so ask for keys that appear once.
 inline double json_number(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\"\\s*:\\s*(-?[0-9.eE+-]+)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no '" + key + "' in " + json);
-  return std::stod(match[1]);
+  return detail::required_field(json, key, &nlohmann::ordered_json::is_number, "a number").get<double>();
+}
+
+// The number stored under key, or nullopt when the JSON holds none.
+inline std::optional<double> json_optional_number(const std::string& json, const std::string& key) {
+  const auto value = detail::json_field(json, key);
+  if (!value || !value->is_number()) return std::nullopt;
+  return value->get<double>();
 }
 
 // The boolean stored under key; throws std::runtime_error naming the key when it is absent.
 inline bool json_bool(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\"\\s*:\\s*(true|false)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no '" + key + "' in " + json);
-  return match[1] == "true";
+  return detail::required_field(json, key, &nlohmann::ordered_json::is_boolean, "a boolean").get<bool>();
+}
+
+// The string stored under key; throws std::runtime_error naming the key when it is absent.
+inline std::string json_string(const std::string& json, const std::string& key) {
+  return detail::required_field(json, key, &nlohmann::ordered_json::is_string, "a string").get<std::string>();
 }
 
 // The array of numbers stored under key; throws std::runtime_error naming the key when it is absent.
 inline std::vector<double> json_number_array(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\"\\s*:\\s*\\[([^\\]]*)\\]");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) throw std::runtime_error("no array '" + key + "' in " + json);
-  std::vector<double> values;
-  std::stringstream items(match[1]);
-  for (std::string item; std::getline(items, item, ',');) values.push_back(std::stod(item));
-  return values;
+  return detail::required_field(json, key, &nlohmann::ordered_json::is_array, "an array").get<std::vector<double>>();
 }
 
 }  // namespace occgeo::testing

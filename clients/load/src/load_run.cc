@@ -1,4 +1,5 @@
 #include "occgeo/load/load_run.h"
+#include "occgeo/proto/protocol.h"
 
 #include <fcntl.h>
 #include <sched.h>
@@ -373,7 +374,7 @@ struct ClientShared {
 
 v1::Hello make_hello(v1::Role role, const std::string& name) {
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(role);
   hello.set_client_name(name);
   return hello;

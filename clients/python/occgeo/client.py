@@ -2,8 +2,9 @@
 
 Every message on the stream is a protobuf message preceded by its length as a base-128 varint
 (protobuf's delimited format); the client sends ``ClientMessage``s and receives ``ServerMessage``s
-(see docs/PROTOCOL.md). Queries carry a ``request_id`` chosen here and their replies are matched by
-it; ``Error`` replies raise :class:`ServerError`.
+(see docs/PROTOCOL.md). Requests carry a ``request_id`` chosen here on the ``ClientMessage``
+envelope, and their replies are matched by the ``request_id`` on the ``ServerMessage`` envelope;
+``Error`` replies raise :class:`ServerError`.
 
 Frames and units: poses are ``base_link`` in the ``world`` frame (x, y in metres, theta in radians
 counter-clockwise from +x); points are world-frame metres; all values are SI.
@@ -15,8 +16,8 @@ import time
 
 from occgeo.v1 import common_pb2, control_pb2, query_pb2, robot_pb2, sensors_pb2, session_pb2
 
-#: The protocol version this client speaks.
-PROTOCOL_VERSION = 1
+#: The protocol version this client speaks (2: request_id on the ClientMessage / ServerMessage envelope).
+PROTOCOL_VERSION = 2
 #: Largest frame accepted from the server (whole-map replies can be large), as the C++ client.
 MAX_FRAME_BYTES = 256 * 1024 * 1024
 
@@ -27,9 +28,6 @@ _ROLES = {
     "observer": session_pb2.ROLE_OBSERVER,
 }
 _MODELS = {"grid": query_pb2.MODEL_GRID, "octomap": query_pb2.MODEL_OCTOMAP, "ptem": query_pb2.MODEL_PTEM}
-# ServerMessage bodies that answer a query (they carry request_id).
-_REPLY_BODIES = ("collision", "clearance", "status", "grid", "ptem", "octree", "collision_batch", "clearance_batch",
-                 "raycast", "occupancy", "swept", "grid_window", "octree_window", "lease", "drive", "estop", "watch")
 _LEASE_ACTIONS = {
     "acquire": control_pb2.LeaseRequest.ACQUIRE,
     "retain": control_pb2.LeaseRequest.RETAIN,
@@ -53,7 +51,8 @@ class ServerError(Exception):
 
     Attributes: ``code`` (``occgeo.v1.ErrorCode`` value, e.g. ``session_pb2.ERROR_UNKNOWN_ROBOT``),
     ``code_name`` (e.g. ``"ERROR_UNKNOWN_ROBOT"``), ``field`` (path of the offending field, e.g.
-    ``"collision.robot_id"``), ``message`` (text), ``request_id`` (the query's id, 0 otherwise),
+    ``"collision.robot_id"``), ``message`` (text), ``request_id`` (the id of the request it answers,
+    from the ``ServerMessage`` envelope; 0 otherwise),
     ``seq`` (the rejected sensor/odometry message's seq, 0 otherwise) and ``retry_after_s``
     (``ERROR_BUSY``: the server's query backlog was full and nothing was done; send the request
     again after this many seconds). ``busy`` is true for ``ERROR_BUSY``.
@@ -80,8 +79,14 @@ class ServerError(Exception):
             return "ERROR_%d" % self.code
 
     @classmethod
-    def from_proto(cls, error):
-        return cls(error.code, error.field, error.message, error.request_id, error.seq, error.retry_after_s)
+    def from_proto(cls, error, request_id=0):
+        """From an ``Error`` and the ``request_id`` of the ``ServerMessage`` envelope that carried it."""
+        return cls(error.code, error.field, error.message, request_id, error.seq, error.retry_after_s)
+
+    @classmethod
+    def from_message(cls, message):
+        """From a ``ServerMessage`` whose body is an ``Error``."""
+        return cls.from_proto(message.error, message.request_id)
 
     def __str__(self):
         text = self.code_name
@@ -272,7 +277,7 @@ class Client:
                     client.welcome = reply.welcome
                     return client
                 if kind == "error":
-                    raise ServerError.from_proto(reply.error)
+                    raise ServerError.from_message(reply)
         except BaseException:
             client.close()
             raise
@@ -361,11 +366,10 @@ class Client:
             self.motion_commands.append(message.motion_command)
         elif kind == "watch_event":
             self.watch_events.append(message.watch_event)
-        elif kind == "error" and message.error.request_id == 0:
-            self.errors.append(ServerError.from_proto(message.error))
-        elif kind == "error" or kind in _REPLY_BODIES:
-            request_id = message.error.request_id if kind == "error" else getattr(message, kind).request_id
-            self._replies[request_id] = message
+        elif kind == "error" and message.request_id == 0:
+            self.errors.append(ServerError.from_message(message))
+        elif message.request_id != 0:  # a reply, or an Error answering a request
+            self._replies[message.request_id] = message
 
     def _wait(self, predicate, timeout_s, what):
         """Receives until ``predicate(message)`` is true for a message, which is returned (others
@@ -385,24 +389,22 @@ class Client:
         return request_id
 
     def _call(self, body, fill, timeout_s=None):
-        """Sends a query (``ClientMessage.<body>``), waits for the reply with its request_id and
-        returns the reply's body; raises :class:`ServerError` for an ``Error`` reply."""
+        """Sends a request (``ClientMessage.<body>``, its request_id on the envelope), waits for the
+        reply whose envelope carries that request_id and returns the reply's body; raises
+        :class:`ServerError` for an ``Error`` reply."""
         request_id = self._new_request_id()
         message = session_pb2.ClientMessage()
+        message.request_id = request_id
         request = getattr(message, body)
-        request.request_id = request_id
+        request.SetInParent()  # the body is sent even when fill leaves every field at its default
         fill(request)
         self._send(message)
         reply = self._replies.pop(request_id, None)
         if reply is None:
-            def matches(m):
-                kind = m.WhichOneof("body")
-                if kind == "error":
-                    return m.error.request_id == request_id
-                return kind in _REPLY_BODIES and getattr(m, kind).request_id == request_id
-            reply = self._wait(matches, timeout_s, "the reply to request %d (%s)" % (request_id, body))
+            reply = self._wait(lambda m: m.request_id == request_id, timeout_s,
+                               "the reply to request %d (%s)" % (request_id, body))
         if reply.WhichOneof("body") == "error":
-            raise ServerError.from_proto(reply.error)
+            raise ServerError.from_message(reply)
         return getattr(reply, reply.WhichOneof("body"))
 
     # ----------------------------------------------------------------------------- queries
@@ -781,12 +783,12 @@ class Client:
             body = m.WhichOneof("body")
             if body == "scan_ack":
                 return m.scan_ack.seq == seq
-            if body == "error" and m.error.request_id == 0:
+            if body == "error" and m.request_id == 0:
                 return m.error.seq == seq or (m.error.seq == 0 and m.error.field.startswith(kind))
             return False
         reply = self._wait(matches, timeout_s, "the ScanAck of %s seq %d" % (kind, seq))
         if reply.WhichOneof("body") == "error":
-            raise ServerError.from_proto(reply.error)
+            raise ServerError.from_message(reply)
         return reply.scan_ack
 
 

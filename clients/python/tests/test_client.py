@@ -10,6 +10,7 @@ import math
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import time
@@ -357,16 +358,102 @@ class BusyErrorTest(unittest.TestCase):
     """ERROR_BUSY (the server's query backlog was full) reads as such, with its retry hint."""
 
     def test_busy_error_names_the_retry(self):
-        proto = session_pb2.Error(code=session_pb2.ERROR_BUSY, field="collision_batch", request_id=9,
-                                  message="the server is busy", retry_after_s=0.05)
-        error = occgeo.ServerError.from_proto(proto)
+        message = session_pb2.ServerMessage(request_id=9)  # the request it answers, on the envelope
+        message.error.CopyFrom(session_pb2.Error(code=session_pb2.ERROR_BUSY, field="collision_batch",
+                                                 message="the server is busy", retry_after_s=0.05))
+        error = occgeo.ServerError.from_message(message)
         self.assertTrue(error.busy)
         self.assertEqual(error.code_name, "ERROR_BUSY")
         self.assertEqual(error.request_id, 9)
         self.assertAlmostEqual(error.retry_after_s, 0.05)
         self.assertIn("ERROR_BUSY collision_batch", str(error))
         self.assertIn("retry in 0.05 s", str(error))
+        self.assertEqual(occgeo.ServerError.from_proto(message.error, 9).request_id, 9)
+        self.assertEqual(occgeo.ServerError.from_proto(message.error).request_id, 0)
         self.assertFalse(occgeo.ServerError(session_pb2.ERROR_UNKNOWN_ROBOT, "collision.robot_id", "no").busy)
+
+
+def _frame(message):
+    """``message`` as a frame: its length as a base-128 varint, then the message."""
+    payload = message.SerializeToString()
+    length, prefix = len(payload), bytearray()
+    while length >= 0x80:
+        prefix.append((length & 0x7F) | 0x80)
+        length >>= 7
+    prefix.append(length)
+    return bytes(prefix) + payload
+
+
+def _read_frame(sock):
+    """One ClientMessage frame read from ``sock``."""
+    length, shift = 0, 0
+    while True:
+        byte = sock.recv(1)[0]
+        length |= (byte & 0x7F) << shift
+        if not byte & 0x80:
+            break
+        shift += 7
+    payload = b""
+    while len(payload) < length:
+        payload += sock.recv(length - len(payload))
+    message = session_pb2.ClientMessage()
+    message.ParseFromString(payload)
+    return message
+
+
+class EnvelopeTest(unittest.TestCase):
+    """Protocol version 2: a request's request_id is on the ClientMessage envelope, and its reply (or Error) is the
+    ServerMessage whose envelope carries the same id. No server: the test writes the server's side of a socket pair."""
+
+    def setUp(self):
+        self.ours, self.theirs = socket.socketpair()
+        self.client = occgeo.Client(self.ours, None, "query", None, None, 5.0)
+
+    def tearDown(self):
+        self.client.close()
+        self.theirs.close()
+
+    def test_the_client_speaks_version_2(self):
+        self.assertEqual(occgeo.client.PROTOCOL_VERSION, 2)
+
+    def test_request_id_travels_on_the_envelopes(self):
+        # Answers queued before the requests (the client numbers them 1, 2, ...): a reply to a request never sent,
+        # a watch event, the status reply to request 1, then an Error answering request 2.
+        stray = session_pb2.ServerMessage(request_id=77)
+        stray.status.server_version = "stray"
+        event = session_pb2.ServerMessage()
+        event.watch_event.seq = 3
+        status = session_pb2.ServerMessage(request_id=1)
+        status.status.server_version = "answer to 1"
+        error = session_pb2.ServerMessage(request_id=2)
+        error.error.code = session_pb2.ERROR_UNKNOWN_ROBOT
+        error.error.field = "collision.robot_id"
+        self.theirs.sendall(_frame(stray) + _frame(event) + _frame(status) + _frame(error))
+
+        self.assertEqual(self.client.status().server_version, "answer to 1")
+        request = _read_frame(self.theirs)
+        self.assertEqual(request.request_id, 1)
+        self.assertEqual(request.WhichOneof("body"), "status")  # sent even with every field at its default
+        self.assertEqual(len(self.client.watch_events), 1)
+
+        with self.assertRaises(occgeo.ServerError) as caught:
+            self.client.collision("ghost", 0.0, 0.0)
+        self.assertEqual(caught.exception.code, session_pb2.ERROR_UNKNOWN_ROBOT)
+        self.assertEqual(caught.exception.request_id, 2)
+        request = _read_frame(self.theirs)
+        self.assertEqual(request.request_id, 2)
+        self.assertEqual(request.collision.robot_id, "ghost")
+        self.assertEqual(len(self.client.errors), 0, "an Error answering a request is not filed as unsolicited")
+
+    def test_an_error_answering_no_request_is_filed(self):
+        unsolicited = session_pb2.ServerMessage()
+        unsolicited.error.code = session_pb2.ERROR_INVALID_ARGUMENT
+        unsolicited.error.field = "laser_scan.ranges[17]"
+        unsolicited.error.seq = 4
+        self.client._file(unsolicited)
+        self.assertEqual(len(self.client.errors), 1)
+        self.assertEqual(self.client.errors[0].request_id, 0)
+        self.assertEqual(self.client.errors[0].seq, 4)
 
 
 if __name__ == "__main__":

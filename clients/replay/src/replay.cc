@@ -1,4 +1,5 @@
 #include "occgeo/replay/replay.h"
+#include "occgeo/proto/protocol.h"
 
 #include <unistd.h>
 
@@ -256,7 +257,8 @@ class Pass {
     result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
     if (!connection) throw std::runtime_error("no usable scan in '" + options_.file.string() + "'");
     v1::ClientMessage request;
-    request.mutable_grid()->set_request_id(1);
+    request.mutable_grid();
+    request.set_request_id(1);
     request.mutable_grid()->set_world(config_.world);
     result_.grid = connection->call(request, 1, std::chrono::seconds(60)).grid();
     return std::move(result_);
@@ -266,7 +268,7 @@ class Pass {
   client::Connection connect(const ScanRecord& first) {
     auto connection = client::Connection::open(client::Endpoint::parse(options_.server));
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(occgeo::proto::kProtocolVersion);
     hello.set_role(v1::ROLE_DRIVER);
     hello.set_robot_id(config_.robot_id);
     hello.set_world(config_.world);
@@ -520,7 +522,8 @@ class RecordingPass {
     result_.scans_per_s_by_tenth = progress.scans_per_s_by_tenth();
     if (drivers_.empty()) throw std::runtime_error("no robot spec in the recording '" + options_.file.string() + "'");
     v1::ClientMessage request;
-    request.mutable_grid()->set_request_id(1);
+    request.mutable_grid();
+    request.set_request_id(1);
     request.mutable_grid()->set_world(grid_world_);
     result_.grid = drivers_.begin()->second.connection.call(request, 1, std::chrono::seconds(60)).grid();
     return std::move(result_);
@@ -538,7 +541,7 @@ class RecordingPass {
     const std::string world = options_.world == "default" ? recorded_world : options_.world;
     auto connection = client::Connection::open(client::Endpoint::parse(options_.server));
     v1::Hello hello;
-    hello.set_protocol_version(1);
+    hello.set_protocol_version(occgeo::proto::kProtocolVersion);
     hello.set_role(v1::ROLE_DRIVER);
     hello.set_robot_id(robot);
     hello.set_world(world);

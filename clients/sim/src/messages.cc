@@ -1,4 +1,5 @@
 #include "occgeo/sim/messages.h"
+#include "occgeo/proto/protocol.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +9,7 @@ namespace occgeo::sim {
 
 v1::Hello make_driver_hello(const std::string& robot_id, const std::string& world_name) {
   v1::Hello hello;
-  hello.set_protocol_version(1);
+  hello.set_protocol_version(occgeo::proto::kProtocolVersion);
   hello.set_role(v1::ROLE_DRIVER);
   hello.set_robot_id(robot_id);
   hello.set_world(world_name);

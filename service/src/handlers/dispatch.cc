@@ -16,13 +16,13 @@ void SessionContext::send_error(v1::ErrorCode code, const std::string& field, co
   error->set_code(code);
   error->set_field(field);
   error->set_message(message);
-  error->set_request_id(request_id);
+  reply.set_request_id(request_id);
   error->set_seq(seq);
   send(reply);
 }
 
-void SessionContext::watch(const v1::WatchRequest& request) {
-  send_error(v1::ERROR_NOT_ALLOWED, "watch", "this session cannot receive watch events", request.request_id());
+void SessionContext::watch(std::uint64_t request_id, const v1::WatchRequest& /*request*/) {
+  send_error(v1::ERROR_NOT_ALLOWED, "watch", "this session cannot receive watch events", request_id);
 }
 
 bool is_request(v1::ClientMessage::BodyCase body) {
@@ -156,7 +156,8 @@ bool require_controller(const SessionPtr& session, const char* field, std::uint6
 void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
   if (message.body_case() == v1::ClientMessage::BODY_NOT_SET) {
     session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "",
-                        "the message has no body this server knows (protocol occgeo.v1); it was ignored");
+                        "the message has no body this server knows (protocol occgeo.v1); it was ignored",
+                        message.request_id());
     return;
   }
   if (message.has_hello()) {
@@ -164,7 +165,8 @@ void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
     return;
   }
   if (!session->info().greeted) {
-    session->send_error(v1::ERROR_OUT_OF_ORDER, "hello", "the first message of a session must be a hello");
+    session->send_error(v1::ERROR_OUT_OF_ORDER, "hello", "the first message of a session must be a hello",
+                        message.request_id());
     return;
   }
   if (is_request(message.body_case())) query_counter(message.body_case()).inc();
@@ -203,73 +205,73 @@ void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
       }
       return;
     case v1::ClientMessage::kCollision:
-      handle_collision_query(session, message.collision());
+      handle_collision_query(session, message.request_id(), message.collision());
       return;
     case v1::ClientMessage::kClearance:
-      handle_clearance_query(session, message.clearance());
+      handle_clearance_query(session, message.request_id(), message.clearance());
       return;
     case v1::ClientMessage::kCollisionBatch:
-      handle_collision_batch(session, message.collision_batch());
+      handle_collision_batch(session, message.request_id(), message.collision_batch());
       return;
     case v1::ClientMessage::kClearanceBatch:
-      handle_clearance_batch(session, message.clearance_batch());
+      handle_clearance_batch(session, message.request_id(), message.clearance_batch());
       return;
     case v1::ClientMessage::kRaycast:
-      handle_raycast_query(session, message.raycast());
+      handle_raycast_query(session, message.request_id(), message.raycast());
       return;
     case v1::ClientMessage::kOccupancy:
-      handle_occupancy_query(session, message.occupancy());
+      handle_occupancy_query(session, message.request_id(), message.occupancy());
       return;
     case v1::ClientMessage::kSwept:
-      handle_swept_query(session, message.swept());
+      handle_swept_query(session, message.request_id(), message.swept());
       return;
     case v1::ClientMessage::kGridWindow:
-      handle_grid_window(session, message.grid_window());
+      handle_grid_window(session, message.request_id(), message.grid_window());
       return;
     case v1::ClientMessage::kOctreeWindow:
-      handle_octree_window(session, message.octree_window());
+      handle_octree_window(session, message.request_id(), message.octree_window());
       return;
     case v1::ClientMessage::kStatus:
-      handle_status_request(session, message.status());
+      handle_status_request(session, message.request_id(), message.status());
       return;
     case v1::ClientMessage::kGrid:
-      handle_grid_request(session, message.grid());
+      handle_grid_request(session, message.request_id(), message.grid());
       return;
     case v1::ClientMessage::kPtem:
-      handle_ptem_query(session, message.ptem());
+      handle_ptem_query(session, message.request_id(), message.ptem());
       return;
     case v1::ClientMessage::kOctree:
-      handle_octree_request(session, message.octree());
+      handle_octree_request(session, message.request_id(), message.octree());
       return;
     case v1::ClientMessage::kLease:
-      if (require_controller(session, "lease", message.lease().request_id()))
-        handle_lease_request(session, message.lease());
+      if (require_controller(session, "lease", message.request_id()))
+        handle_lease_request(session, message.request_id(), message.lease());
       return;
     case v1::ClientMessage::kDrive:
-      if (require_controller(session, "drive", message.drive().request_id()))
-        handle_drive_request(session, message.drive());
+      if (require_controller(session, "drive", message.request_id()))
+        handle_drive_request(session, message.request_id(), message.drive());
       return;
     case v1::ClientMessage::kEstop:
       if (session->info().role == v1::ROLE_QUERY) {
         session->send_error(v1::ERROR_NOT_ALLOWED, "estop",
                             "query sessions may not send estop; connect as a driver, controller or observer",
-                            message.estop().request_id());
+                            message.request_id());
         return;
       }
-      handle_estop(session, message.estop());
+      handle_estop(session, message.request_id(), message.estop());
       return;
     case v1::ClientMessage::kWatch:
       if (session->info().role != v1::ROLE_OBSERVER && session->info().role != v1::ROLE_CONTROLLER) {
         session->send_error(v1::ERROR_NOT_ALLOWED, "watch",
                             "only ROLE_OBSERVER and ROLE_CONTROLLER sessions may watch; this session is " +
                                 v1::Role_Name(session->info().role),
-                            message.watch().request_id());
+                            message.request_id());
         return;
       }
-      session->watch(message.watch());
+      session->watch(message.request_id(), message.watch());
       return;
     default:
-      session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message");
+      session->send_error(v1::ERROR_UNKNOWN_MESSAGE, "", "unhandled message", message.request_id());
   }
 }
 

@@ -6,9 +6,8 @@
 
 namespace occgeo::service {
 
-void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& request) {
+void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, const v1::DriveRequest& request) {
   const SessionInfo& info = session->info();
-  const std::uint64_t request_id = request.request_id();
   if (!known_behaviour(request.behaviour())) {
     session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.behaviour",
                         "must be \"bearcat\", \"bearcat_seed\", \"stop\", \"teleop\", \"wander\", \"goto\" or "
@@ -112,7 +111,7 @@ void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& req
   }
   v1::ServerMessage reply;
   auto* out = reply.mutable_drive();
-  out->set_request_id(request_id);
+  reply.set_request_id(request_id);
   out->set_robot_id(request.robot_id());
   out->set_behaviour(request.behaviour());
   out->set_linear_mps(velocity.body.linear_mps);

@@ -3,9 +3,8 @@
 
 namespace occgeo::service {
 
-void handle_estop(const SessionPtr& session, const v1::EStop& request) {
+void handle_estop(const SessionPtr& session, std::uint64_t request_id, const v1::EStop& request) {
   const SessionInfo& info = session->info();
-  const std::uint64_t request_id = request.request_id();
   auto robot = find_named_robot(session, request.robot_id(), "estop", request_id);
   if (!robot) return;
   const auto now = std::chrono::steady_clock::now();
@@ -37,7 +36,7 @@ void handle_estop(const SessionPtr& session, const v1::EStop& request) {
   }
   v1::ServerMessage reply;
   auto* out = reply.mutable_estop();
-  out->set_request_id(request_id);
+  reply.set_request_id(request_id);
   out->set_robot_id(request.robot_id());
   out->set_engaged(request.engage());
   if (lease) fill_holder(lease, *out->mutable_holder());

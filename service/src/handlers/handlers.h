@@ -60,7 +60,7 @@ class SessionContext {
   // The server's hello throttle; nullptr where there is none (handler tests).
   virtual HelloThrottle* hello_throttle() { return nullptr; }
   // Subscribes this session to WatchEvents (role already checked). Network strand only.
-  virtual void watch(const v1::WatchRequest& request);
+  virtual void watch(std::uint64_t request_id, const v1::WatchRequest& request);
   // Observers that asked for data (WatchRequest.with_data): whether there are any (lock-free, any thread; the ingest
   // path builds an event only then), and handing one event of this driver's robot to those whose filter matches (world
   // and robot_id are filled in). Any thread; never waits for an observer.
@@ -76,7 +76,8 @@ void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t
                  const std::function<void()>& work);
 
 // Routes one decoded client message to its handler after the session checks (hello first,
-// role allowed to send it). Sensor data may be moved out of `message`; nothing refers to it after the call.
+// role allowed to send it). A request's handler gets the envelope's request_id and puts it on its answer. Sensor data
+// may be moved out of `message`; nothing refers to it after the call.
 void dispatch_message(const SessionPtr& session, v1::ClientMessage& message);
 // The same for a message the caller gives away.
 inline void dispatch(const SessionPtr& session, v1::ClientMessage message) { dispatch_message(session, message); }
@@ -96,22 +97,22 @@ void handle_range_array(const SessionPtr& session, v1::RangeArray message);
 void handle_servo_range(const SessionPtr& session, v1::ServoRange message);
 void handle_wheel_encoders(const SessionPtr& session, const v1::WheelEncoders& message);
 void handle_point_cloud(const SessionPtr& session, v1::PointCloud message);
-void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query);
-void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query);
-void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQuery& query);
-void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQuery& query);
-void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& query);
-void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery& query);
-void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query);
-void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& request);
-void handle_octree_window(const SessionPtr& session, const v1::OctreeWindowRequest& request);
-void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request);
-void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request);
-void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query);
-void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& request);
-void handle_lease_request(const SessionPtr& session, const v1::LeaseRequest& request);
-void handle_drive_request(const SessionPtr& session, const v1::DriveRequest& request);
-void handle_estop(const SessionPtr& session, const v1::EStop& request);
+void handle_collision_query(const SessionPtr& session, std::uint64_t request_id, const v1::CollisionQuery& query);
+void handle_clearance_query(const SessionPtr& session, std::uint64_t request_id, const v1::ClearanceQuery& query);
+void handle_collision_batch(const SessionPtr& session, std::uint64_t request_id, const v1::CollisionBatchQuery& query);
+void handle_clearance_batch(const SessionPtr& session, std::uint64_t request_id, const v1::ClearanceBatchQuery& query);
+void handle_raycast_query(const SessionPtr& session, std::uint64_t request_id, const v1::RaycastQuery& query);
+void handle_occupancy_query(const SessionPtr& session, std::uint64_t request_id, const v1::OccupancyQuery& query);
+void handle_swept_query(const SessionPtr& session, std::uint64_t request_id, const v1::SweptQuery& query);
+void handle_grid_window(const SessionPtr& session, std::uint64_t request_id, const v1::GridWindowRequest& request);
+void handle_octree_window(const SessionPtr& session, std::uint64_t request_id, const v1::OctreeWindowRequest& request);
+void handle_status_request(const SessionPtr& session, std::uint64_t request_id, const v1::StatusRequest& request);
+void handle_grid_request(const SessionPtr& session, std::uint64_t request_id, const v1::GridRequest& request);
+void handle_ptem_query(const SessionPtr& session, std::uint64_t request_id, const v1::PtemQuery& query);
+void handle_octree_request(const SessionPtr& session, std::uint64_t request_id, const v1::OctreeRequest& request);
+void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, const v1::LeaseRequest& request);
+void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, const v1::DriveRequest& request);
+void handle_estop(const SessionPtr& session, std::uint64_t request_id, const v1::EStop& request);
 
 // Called by the session when its connection ends (any thread-safe cleanup, e.g. robot offline, a
 // controller's leases freed and their robots stopped).

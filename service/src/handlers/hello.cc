@@ -1,13 +1,14 @@
 #include "../secret_compare.h"
 #include "../validation.h"
 #include "handlers.h"
+#include "occgeo/proto/protocol.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
 namespace occgeo::service {
 
 namespace {
-constexpr std::uint32_t kProtocolVersion = 1;
+using proto::kProtocolVersion;
 constexpr const char* kServerVersion = "occgeod 0.1.0";
 
 // The token a role must present; empty leaves the role open.
@@ -84,7 +85,9 @@ void handle_hello(const SessionPtr& session, const v1::Hello& hello) {
   if (hello.protocol_version() != kProtocolVersion) {
     session->send_error(v1::ERROR_PROTOCOL_VERSION, "hello.protocol_version",
                         "this server speaks protocol version " + std::to_string(kProtocolVersion) + ", not " +
-                            std::to_string(hello.protocol_version()));
+                            std::to_string(hello.protocol_version()) +
+                            ": version 2 carries request_id on the ClientMessage / ServerMessage envelope; upgrade the "
+                            "client");
     return;
   }
   switch (hello.role()) {

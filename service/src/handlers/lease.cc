@@ -5,10 +5,9 @@
 
 namespace occgeo::service {
 
-void handle_lease_request(const SessionPtr& session, const v1::LeaseRequest& request) {
+void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, const v1::LeaseRequest& request) {
   const SessionInfo& info = session->info();
   const ControlConfig& config = session->core().config().control;
-  const std::uint64_t request_id = request.request_id();
   const auto action = request.action();
   if (action != v1::LeaseRequest::ACQUIRE && action != v1::LeaseRequest::RETAIN && action != v1::LeaseRequest::RETURN &&
       action != v1::LeaseRequest::TAKE) {
@@ -83,7 +82,7 @@ void handle_lease_request(const SessionPtr& session, const v1::LeaseRequest& req
 
   v1::ServerMessage reply;
   auto* out = reply.mutable_lease();
-  out->set_request_id(request_id);
+  reply.set_request_id(request_id);
   out->set_robot_id(request.robot_id());
   out->set_granted(granted);
   if (lease) fill_holder(lease, *out->mutable_holder());

@@ -21,8 +21,7 @@ bool finite_within(double value, double limit) { return std::isfinite(value) && 
 
 }  // namespace
 
-void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& request) {
-  const std::uint64_t request_id = request.request_id();
+void handle_grid_window(const SessionPtr& session, std::uint64_t request_id, const v1::GridWindowRequest& request) {
   auto world = resolve_world(session, "grid_window", request_id, request.world());
   if (!world) return;
   const LimitsConfig& limits = session->core().config().limits;
@@ -59,7 +58,7 @@ void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& 
       }
       v1::ServerMessage reply;
       auto* out = reply.mutable_grid_window();
-      out->set_request_id(request_id);
+      reply.set_request_id(request_id);
       out->set_world(world->name());
       out->set_cell_size_m(snapshot->cell_size());
       out->set_version(snapshot->version());
@@ -90,8 +89,7 @@ void handle_grid_window(const SessionPtr& session, const v1::GridWindowRequest& 
   });
 }
 
-void handle_octree_window(const SessionPtr& session, const v1::OctreeWindowRequest& request) {
-  const std::uint64_t request_id = request.request_id();
+void handle_octree_window(const SessionPtr& session, std::uint64_t request_id, const v1::OctreeWindowRequest& request) {
   auto world = resolve_world(session, "octree_window", request_id, request.world());
   if (!world) return;
   const double limit = session->core().config().limits.max_abs_coordinate_m;
@@ -114,7 +112,7 @@ void handle_octree_window(const SessionPtr& session, const v1::OctreeWindowReque
       const WorldSnapshot snapshot = world->snapshots();
       v1::ServerMessage reply;
       auto* out = reply.mutable_octree_window();
-      out->set_request_id(request_id);
+      reply.set_request_id(request_id);
       out->set_world(world->name());
       out->set_version(snapshot.octomap->version());
       out->set_resolution_m(snapshot.octomap->resolution());

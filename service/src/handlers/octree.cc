@@ -28,18 +28,17 @@ std::filesystem::path export_path(const std::string& world) {
 // snapshot API has no writer), so it publishes a snapshot (O(nodes)), writes the tree to a
 // temporary file (O(nodes)) and reads it back. Ingest of that world waits meanwhile (about the
 // cost of two publishes); queries do not.
-void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& request) {
+void handle_octree_request(const SessionPtr& session, std::uint64_t request_id, const v1::OctreeRequest& request) {
   const ServerConfig& config = session->core().config();
   const std::string name = request.world().empty() ? config.default_world : request.world();
   auto world = session->core().find_world(name);
   if (!world) {
-    session->send_error(v1::ERROR_UNKNOWN_WORLD, "octree.world", "no world '" + name + "' exists",
-                        request.request_id());
+    session->send_error(v1::ERROR_UNKNOWN_WORLD, "octree.world", "no world '" + name + "' exists", request_id);
     return;
   }
   // A reply must also fit in the client's send queue, with room for the replies around it.
   const std::size_t max_bytes = std::min(config.limits.max_octree_reply_bytes, config.limits.max_send_queue_bytes / 2);
-  asio::post(world->strand(), [session, world, request_id = request.request_id(), max_bytes] {
+  asio::post(world->strand(), [session, world, request_id, max_bytes] {
     run_guarded(session, "octree", request_id, [&] {
       const auto snapshot = world->publish_octomap_on_strand();
       const std::filesystem::path path = export_path(world->name());
@@ -66,7 +65,7 @@ void handle_octree_request(const SessionPtr& session, const v1::OctreeRequest& r
       std::filesystem::remove(path);
       v1::ServerMessage reply;
       auto* out = reply.mutable_octree();
-      out->set_request_id(request_id);
+      reply.set_request_id(request_id);
       out->set_world(world->name());
       out->set_version(snapshot->version());
       out->set_resolution_m(snapshot->resolution());

@@ -8,9 +8,8 @@
 
 namespace occgeo::service {
 
-void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query) {
+void handle_ptem_query(const SessionPtr& session, std::uint64_t request_id, const v1::PtemQuery& query) {
   const ServerConfig& config = session->core().config();
-  const std::uint64_t request_id = query.request_id();
   const std::string name = query.world().empty() ? config.default_world : query.world();
   auto world = session->core().find_world(name);
   if (!world) {
@@ -57,7 +56,7 @@ void handle_ptem_query(const SessionPtr& session, const v1::PtemQuery& query) {
               const mapping::PtemSnapshot& ptem = *snapshot.ptem;
               v1::ServerMessage reply;
               auto* out = reply.mutable_ptem();
-              out->set_request_id(request_id);
+              reply.set_request_id(request_id);
               out->set_world(world->name());
               out->set_version(snapshot.grid->version());
               out->set_threshold_f_r(ptem.restricted_threshold().value_or(0.0));

@@ -112,10 +112,10 @@ struct PoseQuery {
 // Validates the fields the four pose queries share, in this order: robot and footprint, the poses (one, or a list of
 // 1..limits.max_batch_queries), max_distance_m (clearance only), models. `kind` names the request in error fields.
 template <typename Query>
-std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std::string& kind, const Query& query) {
+std::optional<PoseQuery> resolve_pose_query(const SessionPtr& session, const std::string& kind,
+                                            std::uint64_t request_id, const Query& query) {
   constexpr bool kBatch = requires(const Query& q) { q.poses(); };
   constexpr bool kClearance = requires(const Query& q) { q.max_distance_m(); };
-  const std::uint64_t request_id = query.request_id();
   bool leaves_thread = false;
   if constexpr (kBatch) leaves_thread = static_cast<std::size_t>(query.poses_size()) > kMaxInlineEntries;
   auto target = resolve_robot_footprint(session, kind, request_id, query.robot_id(), query.has_footprint(),
@@ -198,64 +198,61 @@ void answer_pose_query(const SessionPtr& session, const char* kind, std::uint64_
 
 }  // namespace
 
-void handle_collision_query(const SessionPtr& session, const v1::CollisionQuery& query) {
-  auto resolved = resolve_pose_query(session, "collision", query);
+void handle_collision_query(const SessionPtr& session, std::uint64_t request_id, const v1::CollisionQuery& query) {
+  auto resolved = resolve_pose_query(session, "collision", request_id, query);
   if (!resolved) return;
-  answer_pose_query(
-      session, "collision", query.request_id(), std::move(*resolved),
-      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
-        auto* out = reply.mutable_collision();
-        out->set_request_id(request_id);
-        answer_collision(snapshot, q.target.footprint(), geometry::bounding_radius(q.target.footprint()), q.pose,
-                         q.models, *out);
-      });
+  answer_pose_query(session, "collision", request_id, std::move(*resolved),
+                    [request_id](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+                      auto* out = reply.mutable_collision();
+                      reply.set_request_id(request_id);
+                      answer_collision(snapshot, q.target.footprint(), geometry::bounding_radius(q.target.footprint()),
+                                       q.pose, q.models, *out);
+                    });
 }
 
-void handle_clearance_query(const SessionPtr& session, const v1::ClearanceQuery& query) {
-  auto resolved = resolve_pose_query(session, "clearance", query);
+void handle_clearance_query(const SessionPtr& session, std::uint64_t request_id, const v1::ClearanceQuery& query) {
+  auto resolved = resolve_pose_query(session, "clearance", request_id, query);
   if (!resolved) return;
-  answer_pose_query(
-      session, "clearance", query.request_id(), std::move(*resolved),
-      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
-        auto* out = reply.mutable_clearance();
-        out->set_request_id(request_id);
-        answer_clearance(snapshot, q.target.footprint(), q.pose, q.max_distance_m, q.models, *out);
-      });
+  answer_pose_query(session, "clearance", request_id, std::move(*resolved),
+                    [request_id](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+                      auto* out = reply.mutable_clearance();
+                      reply.set_request_id(request_id);
+                      answer_clearance(snapshot, q.target.footprint(), q.pose, q.max_distance_m, q.models, *out);
+                    });
 }
 
-void handle_collision_batch(const SessionPtr& session, const v1::CollisionBatchQuery& query) {
-  auto resolved = resolve_pose_query(session, "collision_batch", query);
+void handle_collision_batch(const SessionPtr& session, std::uint64_t request_id, const v1::CollisionBatchQuery& query) {
+  auto resolved = resolve_pose_query(session, "collision_batch", request_id, query);
   if (!resolved) return;
-  answer_pose_query(
-      session, "collision_batch", query.request_id(), std::move(*resolved),
-      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
-        auto* out = reply.mutable_collision_batch();
-        out->set_request_id(request_id);
-        const double radius = geometry::bounding_radius(q.target.footprint());
-        out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
-        std::uint32_t hits = 0;
-        for (const geometry::Pose2& pose : q.poses) {
-          v1::CollisionReply* result = out->add_results();
-          answer_collision(snapshot, q.target.footprint(), radius, pose, q.models, *result);
-          hits += result->hit() ? 1 : 0;
-        }
-        out->set_hits(hits);
-      });
+  answer_pose_query(session, "collision_batch", request_id, std::move(*resolved),
+                    [request_id](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+                      auto* out = reply.mutable_collision_batch();
+                      reply.set_request_id(request_id);
+                      const double radius = geometry::bounding_radius(q.target.footprint());
+                      out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
+                      std::uint32_t hits = 0;
+                      for (const geometry::Pose2& pose : q.poses) {
+                        v1::CollisionReply* result = out->add_results();
+                        answer_collision(snapshot, q.target.footprint(), radius, pose, q.models, *result);
+                        hits += result->hit() ? 1 : 0;
+                      }
+                      out->set_hits(hits);
+                    });
 }
 
-void handle_clearance_batch(const SessionPtr& session, const v1::ClearanceBatchQuery& query) {
-  auto resolved = resolve_pose_query(session, "clearance_batch", query);
+void handle_clearance_batch(const SessionPtr& session, std::uint64_t request_id, const v1::ClearanceBatchQuery& query) {
+  auto resolved = resolve_pose_query(session, "clearance_batch", request_id, query);
   if (!resolved) return;
-  answer_pose_query(
-      session, "clearance_batch", query.request_id(), std::move(*resolved),
-      [request_id = query.request_id()](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
-        auto* out = reply.mutable_clearance_batch();
-        out->set_request_id(request_id);
-        out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
-        for (const geometry::Pose2& pose : q.poses) {
-          answer_clearance(snapshot, q.target.footprint(), pose, q.max_distance_m, q.models, *out->add_results());
-        }
-      });
+  answer_pose_query(session, "clearance_batch", request_id, std::move(*resolved),
+                    [request_id](const WorldSnapshot& snapshot, const PoseQuery& q, v1::ServerMessage& reply) {
+                      auto* out = reply.mutable_clearance_batch();
+                      reply.set_request_id(request_id);
+                      out->mutable_results()->Reserve(static_cast<int>(q.poses.size()));
+                      for (const geometry::Pose2& pose : q.poses) {
+                        answer_clearance(snapshot, q.target.footprint(), pose, q.max_distance_m, q.models,
+                                         *out->add_results());
+                      }
+                    });
 }
 
 namespace {
@@ -265,11 +262,11 @@ void set_cell(const geometry::CellIndex& cell, v1::CellIndex& out) {
 }
 }  // namespace
 
-void handle_status_request(const SessionPtr& session, const v1::StatusRequest& request) {
+void handle_status_request(const SessionPtr& session, std::uint64_t request_id, const v1::StatusRequest& request) {
   ServerCore& core = session->core();
   v1::ServerMessage reply;
   auto* status = reply.mutable_status();
-  status->set_request_id(request.request_id());
+  reply.set_request_id(request_id);
   status->set_server_version("occgeod 0.1.0");
   status->set_clients(core.sessions.load());
   status->set_uptime_s(core.uptime_s());
@@ -344,20 +341,20 @@ void handle_status_request(const SessionPtr& session, const v1::StatusRequest& r
   session->send(reply);
 }
 
-void handle_grid_request(const SessionPtr& session, const v1::GridRequest& request) {
+void handle_grid_request(const SessionPtr& session, std::uint64_t request_id, const v1::GridRequest& request) {
   const std::string name = request.world().empty() ? session->core().config().default_world : request.world();
   auto world = session->core().find_world(name);
   if (!world) {
-    session->send_error(v1::ERROR_UNKNOWN_WORLD, "grid.world", "no world '" + name + "' exists", request.request_id());
+    session->send_error(v1::ERROR_UNKNOWN_WORLD, "grid.world", "no world '" + name + "' exists", request_id);
     return;
   }
   const std::size_t max_cells = session->core().config().limits.max_grid_reply_cells;
-  asio::post(session->core().query_pool(), [session, world, request_id = request.request_id(), max_cells] {
+  asio::post(session->core().query_pool(), [session, world, request_id, max_cells] {
     run_guarded(session, "grid", request_id, [&] {
       const auto snapshot = world->snapshot();
       v1::ServerMessage reply;
       auto* out = reply.mutable_grid();
-      out->set_request_id(request_id);
+      reply.set_request_id(request_id);
       out->set_world(world->name());
       out->set_cell_size_m(snapshot->cell_size());
       out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot->occupied_threshold()));

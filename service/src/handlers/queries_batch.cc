@@ -11,8 +11,7 @@
 
 namespace occgeo::service {
 
-void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& query) {
-  const std::uint64_t request_id = query.request_id();
+void handle_raycast_query(const SessionPtr& session, std::uint64_t request_id, const v1::RaycastQuery& query) {
   auto world = resolve_world(session, "raycast", request_id, query.world());
   if (!world) return;
   if (!check_count(session, static_cast<std::size_t>(query.rays_size()),
@@ -51,7 +50,7 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
                   answer_inline ? world->snapshots_for_this_thread() : (own = world->snapshots());
               v1::ServerMessage reply;
               auto* out = reply.mutable_raycast();
-              out->set_request_id(request_id);
+              reply.set_request_id(request_id);
               out->set_version(snapshot.grid->version());
               out->mutable_results()->Reserve(static_cast<int>(rays.size()));
               for (const geometry::Pose2& ray : rays) {
@@ -61,8 +60,7 @@ void handle_raycast_query(const SessionPtr& session, const v1::RaycastQuery& que
             });
 }
 
-void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery& query) {
-  const std::uint64_t request_id = query.request_id();
+void handle_occupancy_query(const SessionPtr& session, std::uint64_t request_id, const v1::OccupancyQuery& query) {
   auto world = resolve_world(session, "occupancy", request_id, query.world());
   if (!world) return;
   if (!check_count(session, static_cast<std::size_t>(query.points_size()),
@@ -92,7 +90,7 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
                   answer_inline ? world->snapshots_for_this_thread() : (own = world->snapshots());
               v1::ServerMessage reply;
               auto* out = reply.mutable_occupancy();
-              out->set_request_id(request_id);
+              reply.set_request_id(request_id);
               out->set_world(world->name());
               out->set_version(snapshot.grid->version());
               out->set_occupied_threshold(static_cast<std::uint32_t>(snapshot.grid->occupied_threshold()));
@@ -104,8 +102,7 @@ void handle_occupancy_query(const SessionPtr& session, const v1::OccupancyQuery&
             });
 }
 
-void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) {
-  const std::uint64_t request_id = query.request_id();
+void handle_swept_query(const SessionPtr& session, std::uint64_t request_id, const v1::SweptQuery& query) {
   auto target = resolve_robot_footprint(session, "swept", request_id, query.robot_id(), query.has_footprint(),
                                         query.footprint(), /*leaves_thread=*/true);
   if (!target) return;
@@ -160,7 +157,7 @@ void handle_swept_query(const SessionPtr& session, const v1::SweptQuery& query) 
               const WorldSnapshot snapshot = target.world->snapshots();
               v1::ServerMessage reply;
               auto* out = reply.mutable_swept();
-              out->set_request_id(request_id);
+              reply.set_request_id(request_id);
               for (const v1::SweptMotion& motion : query.motions()) {
                 answer_swept(snapshot, target.footprint(), models, motion, *out->add_results());
               }

@@ -39,11 +39,11 @@ geometry::CollisionResult grid_collision(const mapping::GridSnapshot& grid, cons
                                          const geometry::Footprint& footprint, double bounding_radius_m,
                                          const geometry::Pose2& X_WB);
 
-// CollisionReply for one pose (request_id left unset); models in the order to check.
+// CollisionReply for one pose; models in the order to check.
 void answer_collision(const WorldSnapshot& snapshot, const geometry::Footprint& footprint, double bounding_radius_m,
                       const geometry::Pose2& X_WB, std::span<const v1::Model> models, v1::CollisionReply& out);
 
-// ClearanceReply for one pose, with its gradient (request_id left unset).
+// ClearanceReply for one pose, with its gradient.
 void answer_clearance(const WorldSnapshot& snapshot, const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
                       double max_distance_m, std::span<const v1::Model> models, v1::ClearanceReply& out);
 

@@ -14,10 +14,11 @@
 #include <cstdint>
 #include <cstring>
 #include <optional>
-#include <regex>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "../core.h"
 #include "live_view.h"
@@ -63,30 +64,61 @@ struct Subscription {
   std::uint32_t channel = 0;
 };
 
-// The subscriptions of {"op":"subscribe","subscriptions":[{"id":I,"channelId":C},...]} (either key order).
-inline std::vector<Subscription> parse_subscribe(const std::string& text) {
-  std::vector<Subscription> out;
-  static const std::regex id_first(R"re(\{\s*"id"\s*:\s*(\d+)\s*,\s*"channelId"\s*:\s*(\d+)\s*\})re");
-  static const std::regex channel_first(R"re(\{\s*"channelId"\s*:\s*(\d+)\s*,\s*"id"\s*:\s*(\d+)\s*\})re");
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), id_first); it != std::sregex_iterator(); ++it) {
-    out.push_back({static_cast<std::uint32_t>(std::stoul((*it)[1])), static_cast<std::uint32_t>(std::stoul((*it)[2]))});
-  }
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), channel_first); it != std::sregex_iterator(); ++it) {
-    out.push_back({static_cast<std::uint32_t>(std::stoul((*it)[2])), static_cast<std::uint32_t>(std::stoul((*it)[1]))});
-  }
-  return out;
-}
+// What a client's text message asks for: {"op":"subscribe","subscriptions":[{"id":I,"channelId":C},...]} or
+// {"op":"unsubscribe","subscriptionIds":[I,...]}, parsed as JSON (any key order, extra keys ignored as the protocol
+// allows). Other ops are returned with nothing to do; `problem` says why a message was not understood.
+struct ClientRequest {
+  std::string op;
+  std::vector<Subscription> subscribe;
+  std::vector<std::uint32_t> unsubscribe;
+  std::string problem;
+};
 
-// The ids of {"op":"unsubscribe","subscriptionIds":[I,...]}.
-inline std::vector<std::uint32_t> parse_unsubscribe(const std::string& text) {
-  std::vector<std::uint32_t> out;
-  const auto list = text.find("\"subscriptionIds\"");
-  if (list == std::string::npos) return out;
-  static const std::regex number(R"(\d+)");
-  const auto end = text.find(']', list);
-  const std::string ids = text.substr(list, end == std::string::npos ? std::string::npos : end - list);
-  for (auto it = std::sregex_iterator(ids.begin(), ids.end(), number); it != std::sregex_iterator(); ++it) {
-    out.push_back(static_cast<std::uint32_t>(std::stoul(it->str())));
+inline ClientRequest parse_client_request(const std::string& text) {
+  ClientRequest out;
+  const nlohmann::json message = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (message.is_discarded() || !message.is_object()) {
+    out.problem = "not a JSON object";
+    return out;
+  }
+  const auto op = message.find("op");
+  if (op == message.end() || !op->is_string()) {
+    out.problem = "no \"op\" string";
+    return out;
+  }
+  out.op = op->get<std::string>();
+  const auto id_of = [](const nlohmann::json& value) -> std::optional<std::uint32_t> {
+    if (!value.is_number_unsigned() || value.get<std::uint64_t>() > UINT32_MAX) return std::nullopt;
+    return static_cast<std::uint32_t>(value.get<std::uint64_t>());
+  };
+  if (out.op == "subscribe") {
+    const auto list = message.find("subscriptions");
+    if (list == message.end() || !list->is_array()) {
+      out.problem = "subscribe without a \"subscriptions\" array";
+      return out;
+    }
+    for (const nlohmann::json& entry : *list) {
+      const auto id = entry.is_object() && entry.contains("id") ? id_of(entry["id"]) : std::nullopt;
+      const auto channel = entry.is_object() && entry.contains("channelId") ? id_of(entry["channelId"]) : std::nullopt;
+      if (!id || !channel) {
+        out.problem = "a subscription without unsigned \"id\" and \"channelId\"";
+        continue;
+      }
+      out.subscribe.push_back({*id, *channel});
+    }
+  } else if (out.op == "unsubscribe") {
+    const auto list = message.find("subscriptionIds");
+    if (list == message.end() || !list->is_array()) {
+      out.problem = "unsubscribe without a \"subscriptionIds\" array";
+      return out;
+    }
+    for (const nlohmann::json& entry : *list) {
+      if (const auto id = id_of(entry)) {
+        out.unsubscribe.push_back(*id);
+      } else {
+        out.problem = "a subscription id that is not an unsigned number";
+      }
+    }
   }
   return out;
 }

@@ -271,18 +271,19 @@ class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
   }
 
   void on_message(const std::string& text) {
-    if (text.find("\"unsubscribe\"") != std::string::npos) {
-      for (const std::uint32_t id : foxglove::parse_unsubscribe(text)) {
-        std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == id; });
-      }
-    } else if (text.find("\"subscribe\"") != std::string::npos) {
-      for (const auto& subscription : foxglove::parse_subscribe(text)) {
-        if (subscription.channel != foxglove::kMapChannel && subscription.channel != foxglove::kScansChannel) continue;
-        std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == subscription.id; });
-        subscriptions_.push_back({subscription.id, subscription.channel, {}, {}});
-      }
-      publish();
+    const foxglove::ClientRequest request = foxglove::parse_client_request(text);
+    if (!request.problem.empty()) {
+      log::warn("foxglove_message_not_understood", {{"op", request.op}, {"problem", request.problem}});
     }
+    for (const std::uint32_t id : request.unsubscribe) {
+      std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == id; });
+    }
+    for (const auto& subscription : request.subscribe) {
+      if (subscription.channel != foxglove::kMapChannel && subscription.channel != foxglove::kScansChannel) continue;
+      std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == subscription.id; });
+      subscriptions_.push_back({subscription.id, subscription.channel, {}, {}});
+    }
+    if (request.op == "subscribe") publish();
   }
 
   void on_tick() { publish(); }

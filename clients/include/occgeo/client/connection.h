@@ -49,8 +49,8 @@ class Connection {
   // ClientError when the server closed the connection or sent an undecodable frame.
   std::optional<v1::ServerMessage> receive(std::chrono::milliseconds timeout);
 
-  // Sends `request` and waits for the reply whose request_id matches, skipping unrelated
-  // messages; a server Error with that request_id is thrown as ClientError.
+  // Sends `request` (its envelope's request_id set to `request_id`) and waits for the reply whose request_id matches,
+  // skipping unrelated messages; a server Error with that request_id is thrown as ClientError.
   v1::ServerMessage call(const v1::ClientMessage& request, std::uint64_t request_id,
                          std::chrono::milliseconds timeout = std::chrono::seconds(10));
 

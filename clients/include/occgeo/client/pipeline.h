@@ -44,8 +44,8 @@ using ReplyHandler = std::function<void(Reply&&)>;
 //    from one thread.
 //  - blocking: submit() / next() / wait_all() / call() / run_batch() run the io_context themselves until their
 //    condition holds. Call them only from the thread that owns the io_context and never from inside a handler.
-// The connection assigns request_ids (1, 2, 3 ...) and writes them into the request; any request_id already set is
-// overwritten. Messages that answer no request (ScanAck, MotionCommand, an Error with request_id 0) go to the
+// The connection assigns request_ids (1, 2, 3 ...) and writes them on the request's envelope; any request_id already
+// set is overwritten. Messages that answer no request (ScanAck, MotionCommand, an Error with request_id 0) go to the
 // unsolicited handler if one is set, else to a queue read with take_unsolicited().
 class PipelinedConnection {
  public:
@@ -109,7 +109,8 @@ class PipelinedConnection {
   std::shared_ptr<Impl> impl_;
 };
 
-// Writes request_id into whichever request `message` carries; false when that kind has no request_id field.
+// Writes request_id on `message`'s envelope; false when its body is no request (a body numbered below 10: hello,
+// robot_spec, odometry, sensor data), which no reply would answer.
 bool set_request_id(v1::ClientMessage& message, std::uint64_t request_id);
 
 }  // namespace occgeo::client

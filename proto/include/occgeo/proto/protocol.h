@@ -1,0 +1,12 @@
+#pragma once
+
+#include <cstdint>
+
+namespace occgeo::proto {
+
+// The version of the occgeo.v1 protocol this build speaks, sent in Hello.protocol_version and Welcome; the server
+// refuses any other with ERROR_PROTOCOL_VERSION. Version 2 carries request_id on the ClientMessage / ServerMessage
+// envelope instead of inside each request and reply body.
+inline constexpr std::uint32_t kProtocolVersion = 2;
+
+}  // namespace occgeo::proto
