@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "occgeo/geometry/checks.h"
 #include "occgeo/geometry/convex_polygon.h"
 
 // Distances in the brushfire are integers: the squared distance from a cell's centre to an occupied cell's square in
@@ -33,13 +34,6 @@ std::int32_t squared_half_cells(std::int32_t dx, std::int32_t dy) {
   const std::int32_t ax = std::max(2 * std::abs(dx) - 1, 0);
   const std::int32_t ay = std::max(2 * std::abs(dy) - 1, 0);
   return ax * ax + ay * ay;
-}
-
-void require(bool ok, const char* field, const char* rule, double value) {
-  if (!ok) {
-    throw std::invalid_argument(std::string("DistanceFieldParams.") + field + " must be " + rule + ", got " +
-                                std::to_string(value));
-  }
 }
 
 std::optional<CellBox> intersect(const CellBox& a, const CellBox& b) {
@@ -219,7 +213,8 @@ std::optional<std::pair<std::int32_t, std::int32_t>> cell_range(double lo, doubl
 }  // namespace
 
 void DistanceFieldParams::validate() const {
-  require(std::isfinite(max_distance_m) && max_distance_m > 0.0, "max_distance_m", "finite and > 0", max_distance_m);
+  geometry::require(std::isfinite(max_distance_m) && max_distance_m > 0.0, "DistanceFieldParams.max_distance_m",
+                    "must be finite and > 0", max_distance_m);
 }
 
 // The incremental brushfire of Lau, Sprunk & Burgard (2013), 2D, without the Voronoi part: cells hold a reference to

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "format_number.h"
 #include "himm_tile_writer.h"
+#include "occgeo/geometry/checks.h"
 #include "occgeo/geometry/grid_ray.h"
 
 namespace occgeo::mapping {
@@ -50,7 +50,7 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   if (!std::isfinite(angle_increment)) throw std::invalid_argument("insert_scan: angle_increment is not finite");
   if (!std::isfinite(range_max) || range_max <= 0.0F) {
     throw std::invalid_argument("insert_scan: range_max must be finite and > 0, got " +
-                                format_number(static_cast<double>(range_max)));
+                                geometry::number_text(static_cast<double>(range_max)));
   }
   const double max_range = static_cast<double>(range_max);
   // Every beam end lies within max_range of the sensor on both axes.
@@ -60,7 +60,7 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (std::isnan(ranges[i]) || ranges[i] < 0.0F) {
       throw std::invalid_argument("insert_scan: ranges[" + std::to_string(i) + "] is NaN or negative (" +
-                                  format_number(static_cast<double>(ranges[i])) + ")");
+                                  geometry::number_text(static_cast<double>(ranges[i])) + ")");
     }
   }
 

@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "format_number.h"
 #include "himm_tile_writer.h"
+#include "occgeo/geometry/checks.h"
 #include "occgeo/geometry/grid_ray.h"
 #include "occgeo/mapfile/certainty_image.h"
 #include "occgeo/mapping/himm_grid.h"
@@ -20,11 +20,11 @@ namespace {
 
 void check_convertible(const mapfile::OccupancyImage& image, const HimmParams& params) {
   if (!(std::abs(image.resolution - params.cell_size_m) <= 1e-9 * params.cell_size_m)) {
-    throw std::invalid_argument("from_image: image resolution " + format_number(image.resolution) +
-                                " differs from cell_size_m " + format_number(params.cell_size_m));
+    throw std::invalid_argument("from_image: image resolution " + geometry::number_text(image.resolution) +
+                                " differs from cell_size_m " + geometry::number_text(params.cell_size_m));
   }
   if (image.origin_yaw != 0.0) {
-    throw std::invalid_argument("from_image: origin_yaw " + format_number(image.origin_yaw) +
+    throw std::invalid_argument("from_image: origin_yaw " + geometry::number_text(image.origin_yaw) +
                                 " is not supported (only 0)");
   }
   if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height) {

@@ -1,4 +1,5 @@
 #include "occgeo/mapping/ptem.h"
+#include "occgeo/geometry/checks.h"
 #include "occgeo/geometry/fnv1a.h"
 
 #include <CGAL/Min_sphere_of_spheres_d.h>
@@ -17,8 +18,6 @@
 #include <type_traits>
 #include <utility>
 
-#include "format_number.h"
-
 namespace occgeo::mapping {
 
 namespace {
@@ -30,16 +29,8 @@ using MinCircle = CGAL::Min_sphere_of_spheres_d<MinCircleTraits>;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-[[noreturn]] void fail(const std::string& what, const std::string& rule, const std::string& value) {
-  throw std::invalid_argument(what + " must be " + rule + ", got " + value);
-}
-
-void require(bool condition, const std::string& what, const std::string& rule, const std::string& value) {
-  if (!condition) fail(what, rule, value);
-}
-
 std::string format_point(const Eigen::Vector2d& p) {
-  return "(" + format_number(p.x()) + ", " + format_number(p.y()) + ")";
+  return "(" + geometry::number_text(p.x()) + ", " + geometry::number_text(p.y()) + ")";
 }
 
 // Distance from q (relative to a segment's start) to the segment of the given length along unit direction u.
@@ -97,22 +88,28 @@ bool circles_overlap(const PtemCluster& a, const PtemCluster& b) {
 
 // Checks each field before its value is formatted for the message: a valid scan costs no string work.
 void validate_scan(const PtemScan& scan, const std::optional<double>& latest_stamp_s) {
-  if (!std::isfinite(scan.stamp_s)) fail("PtemScan.stamp_s", "finite", format_number(scan.stamp_s));
+  if (!std::isfinite(scan.stamp_s))
+    geometry::fail_requirement("PtemScan.stamp_s", "must be finite", geometry::number_text(scan.stamp_s));
   if (latest_stamp_s && !(scan.stamp_s >= *latest_stamp_s)) {
-    fail("PtemScan.stamp_s", ">= the previous scan's stamp " + format_number(*latest_stamp_s),
-         format_number(scan.stamp_s));
+    geometry::fail_requirement("PtemScan.stamp_s",
+                               "must be >= the previous scan's stamp " + geometry::number_text(*latest_stamp_s),
+                               geometry::number_text(scan.stamp_s));
   }
-  if (!scan.p_WS.allFinite()) fail("PtemScan.p_WS", "finite", format_point(scan.p_WS));
-  if (!std::isfinite(scan.yaw_WS)) fail("PtemScan.yaw_WS", "finite", format_number(scan.yaw_WS));
+  if (!scan.p_WS.allFinite()) geometry::fail_requirement("PtemScan.p_WS", "must be finite", format_point(scan.p_WS));
+  if (!std::isfinite(scan.yaw_WS))
+    geometry::fail_requirement("PtemScan.yaw_WS", "must be finite", geometry::number_text(scan.yaw_WS));
   if (!(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi)) {
-    fail("PtemScan.field_of_view_rad", "in (0, 2pi]", format_number(scan.field_of_view_rad));
+    geometry::fail_requirement("PtemScan.field_of_view_rad", "must be in (0, 2pi]",
+                               geometry::number_text(scan.field_of_view_rad));
   }
   if (!(std::isfinite(scan.max_range_m) && scan.max_range_m > 0.0)) {
-    fail("PtemScan.max_range_m", "a finite number > 0", format_number(scan.max_range_m));
+    geometry::fail_requirement("PtemScan.max_range_m", "must be a finite number > 0",
+                               geometry::number_text(scan.max_range_m));
   }
   for (std::size_t i = 0; i < scan.points_W.size(); ++i) {
     if (!scan.points_W[i].allFinite()) {
-      fail("PtemScan.points_W[" + std::to_string(i) + "]", "finite", format_point(scan.points_W[i]));
+      geometry::fail_requirement("PtemScan.points_W[" + std::to_string(i) + "]", "must be finite",
+                                 format_point(scan.points_W[i]));
     }
   }
 }
@@ -120,22 +117,24 @@ void validate_scan(const PtemScan& scan, const std::optional<double>& latest_sta
 }  // namespace
 
 void PtemParams::validate() const {
-  require(std::isfinite(cluster_distance_m) && cluster_distance_m >= 0.0, "PtemParams.cluster_distance_m",
-          "a finite number >= 0", format_number(cluster_distance_m));
-  require(std::isfinite(initial_cluster_radius_m) && initial_cluster_radius_m > 0.0,
-          "PtemParams.initial_cluster_radius_m", "a finite number > 0", format_number(initial_cluster_radius_m));
-  require(std::isfinite(max_cluster_radius_m) &&
-              (max_cluster_radius_m == 0.0 || max_cluster_radius_m >= initial_cluster_radius_m),
-          "PtemParams.max_cluster_radius_m", "0 (unbounded) or a finite number >= initial_cluster_radius_m",
-          format_number(max_cluster_radius_m));
-  require(std::isfinite(restricted_threshold) && restricted_threshold > 0.0, "PtemParams.restricted_threshold",
-          "a finite number > 0", format_number(restricted_threshold));
+  geometry::require(std::isfinite(cluster_distance_m) && cluster_distance_m >= 0.0, "PtemParams.cluster_distance_m",
+                    "must be a finite number >= 0", cluster_distance_m);
+  geometry::require(std::isfinite(initial_cluster_radius_m) && initial_cluster_radius_m > 0.0,
+                    "PtemParams.initial_cluster_radius_m", "must be a finite number > 0", initial_cluster_radius_m);
+  geometry::require(std::isfinite(max_cluster_radius_m) &&
+                        (max_cluster_radius_m == 0.0 || max_cluster_radius_m >= initial_cluster_radius_m),
+                    "PtemParams.max_cluster_radius_m",
+                    "must be 0 (unbounded) or a finite number >= initial_cluster_radius_m", max_cluster_radius_m);
+  geometry::require(std::isfinite(restricted_threshold) && restricted_threshold > 0.0,
+                    "PtemParams.restricted_threshold", "must be a finite number > 0", restricted_threshold);
   if (first_cluster_sigma_m) {
-    require(std::isfinite(*first_cluster_sigma_m) && *first_cluster_sigma_m > 0.0, "PtemParams.first_cluster_sigma_m",
-            "a finite number > 0 when set", format_number(*first_cluster_sigma_m));
+    geometry::require(std::isfinite(*first_cluster_sigma_m) && *first_cluster_sigma_m > 0.0,
+                      "PtemParams.first_cluster_sigma_m", "must be a finite number > 0 when set",
+                      *first_cluster_sigma_m);
   }
-  require(construction == PtemConstruction::kCumulative || construction == PtemConstruction::kSingleScan,
-          "PtemParams.construction", "kCumulative or kSingleScan", std::to_string(static_cast<int>(construction)));
+  geometry::require(construction == PtemConstruction::kCumulative || construction == PtemConstruction::kSingleScan,
+                    "PtemParams.construction", "must be kCumulative or kSingleScan",
+                    std::to_string(static_cast<int>(construction)));
 }
 
 PtemCircle enclose_circle_and_point(const PtemCircle& circle, const Eigen::Vector2d& p_W) {

@@ -1,4 +1,5 @@
 #include "occgeo/mapping/terrain.h"
+#include "occgeo/geometry/checks.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,10 +11,6 @@
 namespace occgeo::mapping {
 
 namespace {
-
-void require(bool ok, const std::string& field, const std::string& what) {
-  if (!ok) throw std::invalid_argument(field + " " + what);
-}
 
 // The slope is fitted over this many cells on each side.
 constexpr int kFitReach = 2;
@@ -38,12 +35,12 @@ struct ColumnPiece {
 }  // namespace
 
 void TerrainParams::validate() const {
-  require(std::isfinite(ground_band_m) && ground_band_m >= 0.0 && ground_band_m <= 0.5, "ground_band_m",
-          "must be in [0, 0.5] metres");
-  require(std::isfinite(max_slope_rad) && max_slope_rad >= 0.0 && max_slope_rad <= 1.0, "max_slope_rad",
-          "must be in [0, 1] radians");
-  require(std::isfinite(max_step_m) && max_step_m >= 0.0 && max_step_m <= 1.0, "max_step_m",
-          "must be in [0, 1] metres");
+  geometry::require(std::isfinite(ground_band_m) && ground_band_m >= 0.0 && ground_band_m <= 0.5, "ground_band_m",
+                    "must be in [0, 0.5] metres", ground_band_m);
+  geometry::require(std::isfinite(max_slope_rad) && max_slope_rad >= 0.0 && max_slope_rad <= 1.0, "max_slope_rad",
+                    "must be in [0, 1] radians", max_slope_rad);
+  geometry::require(std::isfinite(max_step_m) && max_step_m >= 0.0 && max_step_m <= 1.0, "max_step_m",
+                    "must be in [0, 1] metres", max_step_m);
 }
 
 TerrainMap::TerrainMap(const OctoMapSnapshot& octomap, double cell_size_m, geometry::CellIndex min,
@@ -51,14 +48,14 @@ TerrainMap::TerrainMap(const OctoMapSnapshot& octomap, double cell_size_m, geome
                        const std::optional<Eigen::Vector2d>& robot_W)
     : params_(params), cell_size_m_(cell_size_m) {
   params.validate();
-  require(std::isfinite(cell_size_m) && cell_size_m >= 0.001 && cell_size_m <= 10.0, "cell_size_m",
-          "must be in [0.001, 10] metres");
-  require(std::isfinite(robot_height_m) && robot_height_m > 0.0 && robot_height_m <= 100.0, "robot_height_m",
-          "must be in (0, 100] metres");
-  require(min.ix <= max.ix && min.iy <= max.iy, "min", "must not exceed max");
-  require(
+  geometry::require(std::isfinite(cell_size_m) && cell_size_m >= 0.001 && cell_size_m <= 10.0, "cell_size_m",
+                    "must be in [0.001, 10] metres", cell_size_m);
+  geometry::require(std::isfinite(robot_height_m) && robot_height_m > 0.0 && robot_height_m <= 100.0, "robot_height_m",
+                    "must be in (0, 100] metres", robot_height_m);
+  geometry::require(min.ix <= max.ix && min.iy <= max.iy, "min must not exceed max");
+  geometry::require(
       static_cast<std::int64_t>(max.ix) - min.ix < kMaxCells && static_cast<std::int64_t>(max.iy) - min.iy < kMaxCells,
-      "max", "must lie within 4096 cells of min");
+      "max must lie within 4096 cells of min");
   if (!params.enabled) return;
   origin_ = {min.ix - kFitReach, min.iy - kFitReach};
   width_ = max.ix - min.ix + 1 + 2 * kFitReach;
@@ -278,7 +275,8 @@ bool TerrainMap::may_explain_returns(geometry::CellIndex index) const {
 }
 
 void TerrainMap::bridge_unseen_gaps(double max_gap_m) {
-  require(std::isfinite(max_gap_m) && max_gap_m >= 0.0 && max_gap_m <= 10.0, "max_gap_m", "must be in [0, 10] metres");
+  geometry::require(std::isfinite(max_gap_m) && max_gap_m >= 0.0 && max_gap_m <= 10.0, "max_gap_m",
+                    "must be in [0, 10] metres", max_gap_m);
   if (!any_drivable_) return;
   const int reach = static_cast<int>(std::floor(max_gap_m / cell_size_m_)) + 1;
   const double tan_max_slope = std::tan(params_.max_slope_rad);

@@ -1,4 +1,5 @@
 #include "height_band_layer.h"
+#include "occgeo/geometry/checks.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,16 +17,12 @@ constexpr double kUnseenGap_m = 2.0;
 // Cell indices beyond this are refused, as the grid planner refuses them.
 constexpr double kMaxCellIndex = 1073741824.0;  // 2^30
 
-void require(bool ok, const std::string& field, const std::string& what) {
-  if (!ok) throw std::invalid_argument(field + " " + what);
-}
-
 }  // namespace
 
 HeightBandLayer::HeightBandLayer(const mapping::OctoMapSnapshot& octomap, double robot_height_m, double terrain_cell_m)
     : octomap_(octomap), robot_height_m_(robot_height_m), terrain_cell_m_(terrain_cell_m) {
-  require(std::isfinite(terrain_cell_m) && terrain_cell_m >= 0.001 && terrain_cell_m <= 10.0, "terrain_cell_m",
-          "must be in [0.001, 10] metres");
+  geometry::require(std::isfinite(terrain_cell_m) && terrain_cell_m >= 0.001 && terrain_cell_m <= 10.0,
+                    "terrain_cell_m", "must be in [0.001, 10] metres", terrain_cell_m);
 }
 
 std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window,
@@ -86,14 +83,15 @@ std::size_t HeightBandLayer::mark_occupied(PlanningWindow& window,
 }
 
 bool HeightBandLayer::segment_clear(const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W, double radius_m) const {
-  require(a_W.allFinite(), "a_W", "must be finite");
-  require(b_W.allFinite(), "b_W", "must be finite");
-  require(std::isfinite(radius_m) && radius_m >= 0.0 && radius_m <= 5.0, "radius_m", "must be in [0, 5] metres");
+  geometry::require(a_W.allFinite(), "a_W must be finite");
+  geometry::require(b_W.allFinite(), "b_W must be finite");
+  geometry::require(std::isfinite(radius_m) && radius_m >= 0.0 && radius_m <= 5.0, "radius_m",
+                    "must be in [0, 5] metres", radius_m);
   const double column_m = octomap_.resolution();
   const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - column_m;
   const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + column_m;
   for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
-    require(std::abs(value / column_m) < kMaxCellIndex, "a_W", "must lie within 2^30 cells of the origin");
+    geometry::require(std::abs(value / column_m) < kMaxCellIndex, "a_W must lie within 2^30 cells of the origin");
   }
   // A column's square reaches half a diagonal beyond its centre.
   const double reach_m = radius_m + column_m * kSqrt2 / 2.0;
@@ -135,15 +133,15 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Heigh
                                   const GlobalPathParams& params) {
   if (band == nullptr) return plan_global_path(grid, start_W, goal_W, params);
   params.validate();
-  require(start_W.allFinite(), "start_W", "must be finite");
-  require(goal_W.allFinite(), "goal_W", "must be finite");
+  geometry::require(start_W.allFinite(), "start_W must be finite");
+  geometry::require(goal_W.allFinite(), "goal_W must be finite");
   // The same window as the grid overload: the cells around start and goal, grown by window_margin_m.
   const double cell_m = grid.cell_size();
   const double margin_cells = std::ceil(params.window_margin_m / cell_m);
   const Eigen::Vector2d start_cell = (start_W / cell_m).array().floor();
   const Eigen::Vector2d goal_cell = (goal_W / cell_m).array().floor();
   for (const double value : {start_cell.x(), start_cell.y(), goal_cell.x(), goal_cell.y()}) {
-    require(std::abs(value) < kMaxCellIndex, "start_W", "and goal_W must lie within 2^30 cells of the origin");
+    geometry::require(std::abs(value) < kMaxCellIndex, "start_W and goal_W must lie within 2^30 cells of the origin");
   }
   const Eigen::Vector2d lo = start_cell.cwiseMin(goal_cell).array() - margin_cells;
   const Eigen::Vector2d hi = start_cell.cwiseMax(goal_cell).array() + margin_cells;

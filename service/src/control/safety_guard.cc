@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "model_geometry.h"
+#include "occgeo/geometry/checks.h"
 
 namespace occgeo::service::control {
 
@@ -16,10 +17,6 @@ namespace {
 
 // The terrain around the swept footprint reaches this much farther, so the cells it reads have their neighbours.
 constexpr double kTerrainMargin_m = 0.3;
-
-void require(bool ok, const char* field, const char* what) {
-  if (!ok) throw std::invalid_argument(std::string(field) + " " + what);
-}
 
 double footprint_height(const geometry::Footprint& footprint) {
   return std::visit([](const auto& shape) { return shape.height; }, footprint);
@@ -208,23 +205,28 @@ std::optional<double> predicted_contact_s(std::span<const TrackedObstacle> movin
 }
 
 void GuardParams::validate() const {
-  require(std::isfinite(horizon_s) && horizon_s > 0.0 && horizon_s <= 10.0, "horizon_s", "must be in (0, 10] seconds");
-  require(std::isfinite(step_m) && step_m >= 0.005 && step_m <= 1.0, "step_m", "must be in [0.005, 1] metres");
-  require(std::isfinite(step_rad) && step_rad >= 0.005 && step_rad <= 1.0, "step_rad", "must be in [0.005, 1] radians");
-  require(std::isfinite(stop_time_s) && stop_time_s >= 0.0 && stop_time_s <= horizon_s, "stop_time_s",
-          "must be in [0, horizon_s] seconds");
-  require(std::isfinite(stop_distance_m) && stop_distance_m >= 0.0 && stop_distance_m <= 10.0, "stop_distance_m",
-          "must be in [0, 10] metres");
-  require(std::isfinite(slowdown_ratio) && slowdown_ratio > 0.0 && slowdown_ratio <= 1.0, "slowdown_ratio",
-          "must be in (0, 1]");
-  require(std::isfinite(limit_distance_m) && limit_distance_m >= 0.0 && limit_distance_m <= 10.0, "limit_distance_m",
-          "must be in [0, 10] metres");
-  require(std::isfinite(predict_horizon_s) && predict_horizon_s >= 0.0 && predict_horizon_s <= 10.0,
-          "predict_horizon_s", "must be in [0, 10] seconds");
-  require(std::isfinite(predict_margin_m) && predict_margin_m >= 0.0 && predict_margin_m <= 2.0, "predict_margin_m",
-          "must be in [0, 2] metres");
-  require(std::isfinite(limit_linear_mps) && limit_linear_mps > 0.0, "limit_linear_mps", "must be positive");
-  require(std::isfinite(limit_angular_radps) && limit_angular_radps > 0.0, "limit_angular_radps", "must be positive");
+  geometry::require(std::isfinite(horizon_s) && horizon_s > 0.0 && horizon_s <= 10.0, "horizon_s",
+                    "must be in (0, 10] seconds", horizon_s);
+  geometry::require(std::isfinite(step_m) && step_m >= 0.005 && step_m <= 1.0, "step_m", "must be in [0.005, 1] metres",
+                    step_m);
+  geometry::require(std::isfinite(step_rad) && step_rad >= 0.005 && step_rad <= 1.0, "step_rad",
+                    "must be in [0.005, 1] radians", step_rad);
+  geometry::require(std::isfinite(stop_time_s) && stop_time_s >= 0.0 && stop_time_s <= horizon_s, "stop_time_s",
+                    "must be in [0, horizon_s] seconds", stop_time_s);
+  geometry::require(std::isfinite(stop_distance_m) && stop_distance_m >= 0.0 && stop_distance_m <= 10.0,
+                    "stop_distance_m", "must be in [0, 10] metres", stop_distance_m);
+  geometry::require(std::isfinite(slowdown_ratio) && slowdown_ratio > 0.0 && slowdown_ratio <= 1.0, "slowdown_ratio",
+                    "must be in (0, 1]", slowdown_ratio);
+  geometry::require(std::isfinite(limit_distance_m) && limit_distance_m >= 0.0 && limit_distance_m <= 10.0,
+                    "limit_distance_m", "must be in [0, 10] metres", limit_distance_m);
+  geometry::require(std::isfinite(predict_horizon_s) && predict_horizon_s >= 0.0 && predict_horizon_s <= 10.0,
+                    "predict_horizon_s", "must be in [0, 10] seconds", predict_horizon_s);
+  geometry::require(std::isfinite(predict_margin_m) && predict_margin_m >= 0.0 && predict_margin_m <= 2.0,
+                    "predict_margin_m", "must be in [0, 2] metres", predict_margin_m);
+  geometry::require(std::isfinite(limit_linear_mps) && limit_linear_mps > 0.0, "limit_linear_mps", "must be positive",
+                    limit_linear_mps);
+  geometry::require(std::isfinite(limit_angular_radps) && limit_angular_radps > 0.0, "limit_angular_radps",
+                    "must be positive", limit_angular_radps);
 }
 
 std::string_view guard_action_name(GuardAction action) {
