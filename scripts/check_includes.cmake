@@ -2,11 +2,12 @@
 # layer may read: the layer rules of docs/ARCHITECTURE.md, checked at build time (occgeo_enforce_layer in the top-level
 # CMakeLists.txt makes every layered target depend on this check, so a wrong-way include does not build).
 #
-#   cmake -DTARGET=name -DFILES=a.cc;b.h -DINCLUDE_ROOTS=d1;d2 -DALLOWED=d1;d2 -DPROJECT_DIR=dir [-DSTAMP=file]
-#     -P check_includes.cmake
+#   cmake -DTARGET=name -DFILES=a.cc;b.h -DINCLUDE_ROOTS=d1;d2 -DALLOWED=d1;d2 [-DFORBIDDEN=d3;f4] -DPROJECT_DIR=dir
+#     [-DSTAMP=file] -P check_includes.cmake
 #
 # An `#include "x"` resolves as the compiler does it: next to the including file first, then in each include root. A
-# header found inside PROJECT_DIR but under none of ALLOWED is an error naming the file, the line and the header.
+# header found inside PROJECT_DIR but under none of ALLOWED, or at or under one of FORBIDDEN (the layers above that
+# share an allowed folder, e.g. service/src/http above the server's core), is an error naming the file and the header.
 # Headers found nowhere (generated ones in the build tree, system headers) are not the check's business.
 cmake_minimum_required(VERSION 3.25)
 
@@ -16,8 +17,11 @@ foreach(required TARGET FILES ALLOWED PROJECT_DIR)
   endif()
 endforeach()
 
+if(NOT DEFINED FORBIDDEN)
+  set(FORBIDDEN "")
+endif()
 # Lists arrive joined with '|' (a ';' would split the command line).
-foreach(list_var FILES ALLOWED INCLUDE_ROOTS)
+foreach(list_var FILES ALLOWED INCLUDE_ROOTS FORBIDDEN)
   string(REPLACE "|" ";" ${list_var} "${${list_var}}")
 endforeach()
 
@@ -52,6 +56,12 @@ foreach(file IN LISTS FILES)
         break()
       endif()
     endforeach()
+    foreach(above IN LISTS FORBIDDEN)
+      string(FIND "${found}" "${above}/" under)
+      if(under EQUAL 0 OR found STREQUAL above)
+        set(allowed_here FALSE)
+      endif()
+    endforeach()
     if(NOT allowed_here)
       file(RELATIVE_PATH file_rel "${PROJECT_DIR}" "${file}")
       file(RELATIVE_PATH header_rel "${PROJECT_DIR}" "${found}")
@@ -67,8 +77,18 @@ if(NOT errors STREQUAL "")
     list(APPEND allowed_rel "${rel}/")
   endforeach()
   list(JOIN allowed_rel ", " allowed_text)
-  message(FATAL_ERROR "layer rule broken:\n${errors}${TARGET} may include headers from: ${allowed_text}\n"
-                      "(see docs/ARCHITECTURE.md, Layers)")
+  set(forbidden_text "")
+  if(NOT FORBIDDEN STREQUAL "")
+    set(forbidden_rel "")
+    foreach(path IN LISTS FORBIDDEN)
+      file(RELATIVE_PATH rel "${PROJECT_DIR}" "${path}")
+      list(APPEND forbidden_rel "${rel}")
+    endforeach()
+    list(JOIN forbidden_rel ", " forbidden_list)
+    set(forbidden_text " except ${forbidden_list}")
+  endif()
+  message(FATAL_ERROR "layer rule broken:\n${errors}${TARGET} may include headers from: ${allowed_text}"
+                      "${forbidden_text}\n(see docs/ARCHITECTURE.md, Layers)")
 endif()
 if(DEFINED STAMP)
   file(TOUCH "${STAMP}")
