@@ -33,7 +33,7 @@
 #include <vector>
 
 #include "core.h"
-#include "handlers/sensor_ingest.h"
+#include "ingest/model_ingest.h"
 #include "occgeo/service/config.h"
 
 namespace occgeo::service {

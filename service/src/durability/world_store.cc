@@ -15,7 +15,7 @@
 #include <stdexcept>
 
 #include "../core.h"
-#include "../handlers/sensor_ingest.h"
+#include "../ingest/model_ingest.h"
 #include "../validation.h"
 #include "occgeo/mapfile/map_file.h"
 #include "occgeo/service/log.h"

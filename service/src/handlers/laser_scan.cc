@@ -5,6 +5,7 @@
 #include <variant>
 #include <vector>
 
+#include "../ingest/model_ingest.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 #include "sensor_ingest.h"
@@ -12,93 +13,6 @@
 namespace occgeo::service {
 
 namespace {
-
-// The sensor's pose projected on the ground plane, and whether it is mounted upside down (its
-// beams then sweep clockwise in the world).
-struct PlanarSensorPose {
-  geometry::Pose2 X_WS;
-  bool mirrored = false;
-};
-
-PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserModel& laser) {
-  const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
-  return {X_WS.to_pose2(), X_WS.transform.linear()(2, 2) < 0.0};
-}
-
-// Inserts the scan's readings into the grid; readings below the sensor's minimum range carry no
-// information and are skipped.
-void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const LaserModel& laser,
-                 const v1::LaserScan& scan) {
-  const double sign = sensor.mirrored ? -1.0 : 1.0;
-  const auto angle_min = static_cast<float>(sign * laser.angle_min_rad);
-  const auto angle_increment = static_cast<float>(sign * laser.angle_increment_rad);
-  const std::span<const float> ranges(scan.ranges().data(), static_cast<std::size_t>(scan.ranges_size()));
-  const auto range_min = static_cast<float>(laser.range_min_m);
-  const bool all_valid = std::all_of(ranges.begin(), ranges.end(), [&](float r) { return r >= range_min; });
-  if (all_valid) {
-    grid.insert_scan(sensor.X_WS, angle_min, angle_increment, ranges, static_cast<float>(laser.range_max_m),
-                     laser.beam_limits);
-    return;
-  }
-  const Eigen::Vector2d origin = sensor.X_WS.position();
-  for (std::size_t i = 0; i < ranges.size(); ++i) {
-    if (ranges[i] < range_min) continue;
-    const double bearing =
-        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    insert_limited_ray(grid, origin, Eigen::Vector2d(std::cos(bearing), std::sin(bearing)),
-                       static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
-  }
-}
-
-// Inserts the scan into the world's OctoMap from the laser's full 6-DoF pose X_WS = X_WB (at z = 0)
-// ∘ mount, so a pitched or rolled laser maps what it sees in 3D (an upside-down mount needs no
-// mirroring here: the rotation does it). Readings below range_min_m become 0, which the model skips.
-void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
-                    const v1::LaserScan& scan) {
-  const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
-  target.touch(X_WS.translation().head<2>(), laser.beam_limits.reach_m(laser.range_max_m));
-  std::vector<float> ranges(scan.ranges().begin(), scan.ranges().end());
-  const auto range_min = static_cast<float>(laser.range_min_m);
-  for (float& r : ranges) {
-    if (r < range_min) r = 0.0F;
-  }
-  target.octree_work.emplace_back([X_WS, angle_min = static_cast<float>(laser.angle_min_rad),
-                                   angle_increment = static_cast<float>(laser.angle_increment_rad),
-                                   range_max = static_cast<float>(laser.range_max_m), limits = laser.beam_limits,
-                                   ranges = std::move(ranges)](mapping::OctoMapModel& octomap) {
-    octomap.insert_scan(X_WS, angle_min, angle_increment, ranges, range_max, limits);
-  });
-}
-
-// Feeds the scan's returns to the world's PTEM (seed 004 §4.2): the end points of the beams whose
-// reading lies in [range_min_m, range_max_m) and within the laser's max_insert_range_m, placed in the
-// world frame from the sensor's ground pose exactly as the grid insertion places them, with the sector
-// the scan covered (centred on the middle beam, one angle increment per beam wide, out to the shorter
-// of range_max_m and max_insert_range_m) for the single-scan rule.
-void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel& laser, const v1::LaserScan& scan) {
-  constexpr double kTwoPi = 2.0 * M_PI;
-  const double sign = sensor.mirrored ? -1.0 : 1.0;
-  const Eigen::Vector2d origin = sensor.X_WS.position();
-  std::vector<Eigen::Vector2d> points_W;
-  points_W.reserve(static_cast<std::size_t>(scan.ranges_size()));
-  const double insert_range_m = laser.beam_limits.max_insert_range_m;
-  for (int i = 0; i < scan.ranges_size(); ++i) {
-    const double reading = static_cast<double>(scan.ranges(i));
-    if (reading < laser.range_min_m || reading >= laser.range_max_m || reading > insert_range_m) continue;
-    const double bearing =
-        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    points_W.push_back(origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)));
-  }
-  const double beams = static_cast<double>(laser.beam_count);
-  mapping::PtemScan ptem_scan;
-  ptem_scan.stamp_s = scan.stamp_s();
-  ptem_scan.p_WS = origin;
-  ptem_scan.yaw_WS = sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * (beams - 1.0) / 2.0);
-  ptem_scan.field_of_view_rad = std::clamp(std::abs(laser.angle_increment_rad) * beams, 1e-9, kTwoPi);
-  ptem_scan.max_range_m = std::min(laser.range_max_m, insert_range_m);
-  ptem_scan.points_W = points_W;
-  world.insert_ptem_on_strand(ptem_scan);
-}
 
 // Viewers draw at most this many returns of a scan (a Hokuyo UTM-30LX's 1081 beams); denser scans are thinned.
 constexpr std::size_t kMaxViewedScanPoints = 1081;
@@ -161,14 +75,6 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
 }
 
 }  // namespace
-
-void insert_laser_scan(World& world, IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
-                       const v1::LaserScan& scan) {
-  const PlanarSensorPose sensor = planar_sensor_pose(X_WB, laser);
-  insert_ptem(world, sensor, laser, scan);
-  insert_scan(target.grid, sensor, laser, scan);
-  insert_scan_3d(target, X_WB, laser, scan);
-}
 
 void handle_laser_scan(const SessionPtr& session, v1::LaserScan scan) {
   auto robot = session->info().robot;

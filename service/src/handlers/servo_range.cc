@@ -1,21 +1,10 @@
 #include <boost/asio/post.hpp>
 
+#include "../ingest/model_ingest.h"
 #include "robot_control.h"
 #include "sensor_ingest.h"
 
 namespace occgeo::service {
-
-void insert_servo_range(IngestTarget& target, const geometry::Pose2& X_WB, const ServoRangeModel& servo,
-                        const v1::ServoRange& message) {
-  // The servo turns the beam about the sensor frame's z axis.
-  const geometry::Pose2 X_SE{0.0, 0.0, message.servo_angle_rad()};
-  const geometry::Pose2 X_WE = planar_beam_pose(X_WB, servo.X_BS, X_SE);
-  const auto reading = static_cast<double>(message.range_m());
-  insert_beam(target.grid, X_WE, reading, servo.range_min_m, servo.range_max_m, servo.beam_limits);
-  const geometry::Pose3 X_WE3 =
-      geometry::Pose3::from_pose2(X_WB).compose(servo.X_BS).compose(geometry::Pose3::from_pose2(X_SE));
-  insert_beam_3d(target, X_WE3, reading, servo.range_min_m, servo.range_max_m, servo.beam_limits);
-}
 
 void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
   auto robot = session->info().robot;
