@@ -6,6 +6,7 @@
 #include <numbers>
 #include <vector>
 
+#include "bearcat_shape.h"
 #include "occgeo/service/control/behaviour.h"
 
 namespace occgeo::service::control {
@@ -18,14 +19,6 @@ struct OpenScan {
   std::vector<float> ranges = std::vector<float>(181, 8.0F);
   [[nodiscard]] ScanView view() const { return {-kPi / 2, kPi / 180, ranges, 8.0}; }
 };
-
-RobotShape bearcat_shape() {
-  RobotShape shape;
-  shape.footprint = geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
-  shape.laser_x_m = 0.45;
-  shape.max_linear_mps = 1.2;
-  return shape;
-}
 
 // Integrates a body velocity for dt (unicycle).
 geometry::Pose2 step(const geometry::Pose2& pose, const BehaviourCommand& command, double dt) {

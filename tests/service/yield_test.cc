@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "bearcat_shape.h"
 #include "occgeo/service/control/behaviour.h"
 #include "occgeo/service/control/cluster_tracker.h"
 #include "occgeo/service/control/safety_guard.h"
@@ -176,14 +177,6 @@ class Straight final : public Behaviour {
  private:
   double speed_mps_;
 };
-
-RobotShape bearcat_shape() {
-  RobotShape shape;
-  shape.footprint = geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
-  shape.laser_x_m = 0.45;
-  shape.max_linear_mps = 1.2;
-  return shape;
-}
 
 struct DriveRun {
   std::set<std::string> states;
