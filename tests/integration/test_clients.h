@@ -27,7 +27,9 @@ inline client::Connection open_query_session(const std::string& address) {
 // The Bearcat's RobotSpec exactly as the simulator sends it (its preset table is the one source).
 inline v1::RobotSpec bearcat_spec() { return sim::make_robot_spec(*sim::find_robot_preset("bearcat")); }
 
-// A driver session that has said hello and sent the Bearcat spec.
+// A driver session that has said hello and sent the Bearcat spec, which the server has registered: the status request
+// after it is answered only once the session's earlier messages were handled, so another session's query that follows
+// finds the robot (without the round trip it could reach the server first and be told ERROR_UNKNOWN_ROBOT).
 inline client::Connection open_driver_session(const std::string& address, const std::string& robot_id) {
   auto connection = client::Connection::open(client::Endpoint::parse(address));
   v1::Hello hello;
@@ -39,6 +41,11 @@ inline client::Connection open_driver_session(const std::string& address, const 
   v1::ClientMessage spec;
   *spec.mutable_robot_spec() = bearcat_spec();
   connection.send(spec);
+  constexpr std::uint64_t kSpecHandled = 1;
+  v1::ClientMessage status;
+  status.mutable_status();
+  status.set_request_id(kSpecHandled);
+  connection.call(status, kSpecHandled);
   return connection;
 }
 
