@@ -16,6 +16,7 @@
 
 #include "occgeo/client/pipeline.h"
 #include "occgeo/proto/framing.h"
+#include "occgeo/proto/protocol.h"
 
 namespace occgeo::client {
 
@@ -35,8 +36,6 @@ const google::protobuf::FieldDescriptor* body_field(const google::protobuf::Mess
   return field;
 }
 
-// The schema's rule (session.proto): client bodies numbered from this on are requests, each answered once.
-constexpr int kFirstRequestField = 10;
 }  // namespace
 
 Endpoint Endpoint::parse(std::string_view text) {
@@ -220,7 +219,7 @@ void Connection::close() {
 }
 
 bool set_request_id(v1::ClientMessage& message, std::uint64_t request_id) {
-  if (static_cast<int>(message.body_case()) < kFirstRequestField) return false;
+  if (static_cast<int>(message.body_case()) < proto::kFirstRequestBodyField) return false;
   message.set_request_id(request_id);
   return true;
 }

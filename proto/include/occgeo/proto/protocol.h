@@ -9,4 +9,9 @@ namespace occgeo::proto {
 // envelope instead of inside each request and reply body.
 inline constexpr std::uint32_t kProtocolVersion = 2;
 
+// ClientMessage bodies numbered from this field on are requests, each answered by one ServerMessage (the reply of the
+// same number, or an Error) carrying the request's request_id; those below (hello, spec, odometry, sensor data) are
+// not (session.proto).
+inline constexpr int kFirstRequestBodyField = 10;
+
 }  // namespace occgeo::proto
