@@ -260,10 +260,18 @@ bool RobotModel::has_sensor(const std::string& name) const {
          find_point_cloud(name) != nullptr;
 }
 
+RobotCounters robot_counters(metrics::Registry& registry, const std::string& robot_id) {
+  const metrics::Labels robot = {{"robot", robot_id}};
+  return RobotCounters{registry.counter("occgeo_scans_rejected_total", robot),
+                       registry.counter("occgeo_scans_duplicate_total", robot),
+                       registry.counter("occgeo_guard_interventions_total", robot)};
+}
+
 Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat,
-             std::shared_ptr<RobotControl> control)
+             RobotCounters counters, std::shared_ptr<RobotControl> control)
     : model_(std::move(model)),
       world_(std::move(world)),
+      counters_(counters),
       control_(control ? std::move(control) : std::make_shared<RobotControl>()),
       watchdog_(world_->strand()),
       behaviour_(bearcat) {
@@ -346,7 +354,7 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
     slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), world_params(name),
                                    asio::make_strand(ingest_pool_.get_executor()),
                                    asio::make_strand(octree_pool_.get_executor()));
-    slot->attach_journal(durability::make_world_journal(config_, name));
+    slot->attach_journal(durability::make_world_journal(config_, metrics_, name));
   }
   return slot;
 }
@@ -438,7 +446,7 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
     control->update([&](ControlState& c) { c.behaviour = initial; });
   }
   auto robot = std::make_shared<Robot>(model, std::move(target_world), bearcat_params_for(*model, config_.bearcat),
-                                       std::move(control));
+                                       robot_counters(metrics_, model->id), std::move(control));
   robots_[model->id] = robot;
   robots_generation_.store(next_snapshot_generation(), std::memory_order_release);
   return robot;

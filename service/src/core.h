@@ -14,6 +14,7 @@
 #include <variant>
 #include <vector>
 
+#include "metrics.h"
 #include "occgeo/geometry/dead_reckoning.h"
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
@@ -345,15 +346,24 @@ struct RobotState {
   }
 };
 
+// A robot's own counters in its server's registry, found once when it registers (a lookup takes the registry's mutex).
+struct RobotCounters {
+  metrics::Counter& scans_rejected;
+  metrics::Counter& scans_duplicate;
+  metrics::Counter& guard_interventions;
+};
+[[nodiscard]] RobotCounters robot_counters(metrics::Registry& registry, const std::string& robot_id);
+
 class Robot : public std::enable_shared_from_this<Robot> {
  public:
   Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat,
-        std::shared_ptr<RobotControl> control = nullptr);
+        RobotCounters counters, std::shared_ptr<RobotControl> control = nullptr);
 
   [[nodiscard]] const RobotModel& model() const { return *model_; }
   [[nodiscard]] std::shared_ptr<const RobotModel> model_ptr() const { return model_; }
   [[nodiscard]] World& world() const { return *world_; }
   [[nodiscard]] std::shared_ptr<World> world_ptr() const { return world_; }
+  [[nodiscard]] const RobotCounters& counters() const { return counters_; }
   // The obstacle-avoidance behaviour; used only from the world's strand.
   control::BearcatBehaviour& behaviour_on_strand() { return behaviour_; }
   // Dead reckoning from wheel ticks, present when the spec declares encoders; used only from the
@@ -389,6 +399,7 @@ class Robot : public std::enable_shared_from_this<Robot> {
  private:
   std::shared_ptr<const RobotModel> model_;
   std::shared_ptr<World> world_;
+  RobotCounters counters_;
   std::shared_ptr<RobotControl> control_;
   asio::steady_timer watchdog_;
   std::optional<std::chrono::steady_clock::time_point> watchdog_deadline_;  // when the armed timer fires
@@ -412,6 +423,9 @@ struct RobotQueryView {
 // or for the network thread.
 class ServerCore {
  public:
+  // Above every ClientMessage body's field number (NumberedFamily's table size).
+  static constexpr std::size_t kBodyFieldCount = 64;
+
   explicit ServerCore(ServerConfig config);
   ~ServerCore();
   ServerCore(const ServerCore&) = delete;
@@ -419,6 +433,13 @@ class ServerCore {
 
   [[nodiscard]] const ServerConfig& config() const { return config_; }
   asio::thread_pool& query_pool() { return query_pool_; }
+  // This server's metrics (GET /metrics); another ServerCore in the process counts apart.
+  metrics::Registry& metrics() { return metrics_; }
+  // occgeo_queries_total and occgeo_query_duration_seconds per request kind, by the ClientMessage body's field number.
+  metrics::NumberedFamily<metrics::Counter, kBodyFieldCount>& query_counts() { return query_counts_; }
+  metrics::NumberedFamily<metrics::Histogram, kBodyFieldCount>& query_durations() { return query_durations_; }
+  // Queries answered ERROR_BUSY (kept at hand: a flood refuses many).
+  metrics::Counter& queries_busy() { return queries_busy_; }
 
   // The world with this name, created empty on first use.
   std::shared_ptr<World> world(const std::string& name);
@@ -455,6 +476,13 @@ class ServerCore {
   void drain();
 
  private:
+  // First, so that it outlives everything holding references to its metrics (journals, sessions' gauges).
+  metrics::Registry metrics_;
+  metrics::NumberedFamily<metrics::Counter, kBodyFieldCount> query_counts_{metrics_, "occgeo_queries_total", "kind"};
+  metrics::NumberedFamily<metrics::Histogram, kBodyFieldCount> query_durations_{
+      metrics_, "occgeo_query_duration_seconds", "kind"};
+  metrics::Counter& queries_busy_{metrics_.counter("occgeo_queries_busy_total", {},
+                                                   "Queries answered ERROR_BUSY: the server's query backlog was full")};
   ServerConfig config_;
   asio::thread_pool ingest_pool_{1};
   // The worlds' octree lanes (see World): one thread, so that a scan's octree insertion never delays a robot's command.

@@ -32,6 +32,8 @@ const std::map<std::string, std::string, std::less<>>& builtin_help() {
   static const std::map<std::string, std::string, std::less<>> help = {
       {"occgeo_scans_ingested_total", "Sensor messages accepted into a world's models, per robot, world and kind."},
       {"occgeo_scans_rejected_total", "Sensor messages refused (validation or order), per robot."},
+      {"occgeo_scans_duplicate_total",
+       "Sensor messages resent after they were journalled: acknowledged again, not applied twice, per robot."},
       {"occgeo_queries_total", "Queries received, per kind."},
       {"occgeo_query_duration_seconds",
        "Time a query takes on the query pool, from its snapshot to its reply being queued, per kind."},
@@ -123,23 +125,7 @@ struct Entry {
   std::unique_ptr<Histogram> histogram;
 };
 
-struct Family {
-  Type type = Type::counter;
-  std::string help;
-  std::map<std::string, Entry> entries;  // by label text
-};
-
-struct Registry {
-  std::mutex mutex;
-  std::map<std::string, Family, std::less<>> families;
-};
-
-Registry& registry() {
-  static Registry instance;
-  return instance;
-}
-
-Entry& find_or_add(std::string_view name, const Labels& labels, std::string_view help, Type type) {
+void check_names(std::string_view name, const Labels& labels) {
   if (!valid_name(name))
     throw std::logic_error("metric name '" + std::string(name) + "' is not a valid Prometheus name");
   for (const auto& [label, value] : labels) {
@@ -147,25 +133,49 @@ Entry& find_or_add(std::string_view name, const Labels& labels, std::string_view
       throw std::logic_error("metric '" + std::string(name) + "': label name '" + label + "' is not allowed");
     }
   }
-  Registry& reg = registry();
-  const std::lock_guard lock(reg.mutex);
-  auto family_it = reg.families.find(name);
-  if (family_it == reg.families.end()) {
-    Family family;
+}
+
+}  // namespace
+
+struct Registry::Family {
+  Type type = Type::counter;
+  std::string help;
+  std::map<std::string, Entry> entries;  // by label text
+
+  // The entry of these labels, created on first use; the caller holds the registry's mutex.
+  Entry& entry(const Labels& labels, Type entry_type);
+};
+
+Registry::Registry() = default;
+Registry::~Registry() = default;
+
+namespace {
+
+template <class Families>
+Entry& find_or_add(Families& families, std::string_view name, const Labels& labels, std::string_view help, Type type) {
+  check_names(name, labels);
+  auto family_it = families.find(name);
+  if (family_it == families.end()) {
+    typename Families::mapped_type family;
     family.type = type;
     const auto known = builtin_help().find(name);
     family.help =
         help.empty() ? (known != builtin_help().end() ? known->second : std::string(name)) : std::string(help);
-    family_it = reg.families.emplace(std::string(name), std::move(family)).first;
+    family_it = families.emplace(std::string(name), std::move(family)).first;
   } else if (family_it->second.type != type) {
     throw std::logic_error("metric '" + std::string(name) + "' is a " + type_name(family_it->second.type) + ", not a " +
                            type_name(type));
   }
-  Family& family = family_it->second;
-  auto [entry_it, added] = family.entries.try_emplace(label_text(labels));
+  return family_it->second.entry(labels, type);
+}
+
+}  // namespace
+
+Entry& Registry::Family::entry(const Labels& labels, Type entry_type) {
+  auto [entry_it, added] = entries.try_emplace(label_text(labels));
   if (added) {
     entry_it->second.labels = labels;
-    switch (type) {
+    switch (entry_type) {
       case Type::counter:
         entry_it->second.counter = std::make_unique<Counter>();
         break;
@@ -179,8 +189,6 @@ Entry& find_or_add(std::string_view name, const Labels& labels, std::string_view
   }
   return entry_it->second;
 }
-
-}  // namespace
 
 std::size_t detail::this_thread_slot() {
   static std::atomic<std::size_t> next{0};
@@ -226,23 +234,25 @@ double Histogram::sum() const {
   return total;
 }
 
-Counter& counter(std::string_view name, const Labels& labels, std::string_view help) {
-  return *find_or_add(name, labels, help, Type::counter).counter;
+Counter& Registry::counter(std::string_view name, const Labels& labels, std::string_view help) {
+  const std::lock_guard lock(mutex_);
+  return *find_or_add(families_, name, labels, help, Type::counter).counter;
 }
 
-Gauge& gauge(std::string_view name, const Labels& labels, std::string_view help) {
-  return *find_or_add(name, labels, help, Type::gauge).gauge;
+Gauge& Registry::gauge(std::string_view name, const Labels& labels, std::string_view help) {
+  const std::lock_guard lock(mutex_);
+  return *find_or_add(families_, name, labels, help, Type::gauge).gauge;
 }
 
-Histogram& histogram(std::string_view name, const Labels& labels, std::string_view help) {
-  return *find_or_add(name, labels, help, Type::histogram).histogram;
+Histogram& Registry::histogram(std::string_view name, const Labels& labels, std::string_view help) {
+  const std::lock_guard lock(mutex_);
+  return *find_or_add(families_, name, labels, help, Type::histogram).histogram;
 }
 
-std::string render() {
-  Registry& reg = registry();
-  const std::lock_guard lock(reg.mutex);
+std::string Registry::render() const {
+  const std::lock_guard lock(mutex_);
   std::string out;
-  for (const auto& [name, family] : reg.families) {
+  for (const auto& [name, family] : families_) {
     out += "# HELP " + name + " " + escape_help(family.help) + "\n";
     out += "# TYPE " + name + " " + type_name(family.type) + "\n";
     for (const auto& [key, entry] : family.entries) {

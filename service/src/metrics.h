@@ -1,14 +1,15 @@
 #pragma once
 
-// Process-wide metrics in the Prometheus text exposition format (served at GET /metrics).
+// A server's metrics in the Prometheus text exposition format (served at GET /metrics). Each ServerCore owns its
+// registry, so two servers in one process count apart:
 //
-//   metrics::counter("occgeo_guard_interventions_total", {{"robot", id}}).inc();
-//   metrics::histogram("occgeo_query_duration_seconds", {{"kind", "collision"}}).observe(seconds);
+//   core.metrics().counter("occgeo_guard_interventions_total", {{"robot", id}}).inc();
+//   core.metrics().histogram("occgeo_query_duration_seconds", {{"kind", "collision"}}).observe(seconds);
 //
-// Looking a metric up takes a mutex (once per name and label set: keep the reference where it is hot);
+// Looking a metric up takes the registry's mutex (keep the reference where it is hot, or use a NumberedFamily);
 // updating it is a relaxed atomic on a slot of the updating thread's own (one cache line per slot, summed when read),
 // so ingest and query threads never wait for a scrape nor bounce a cache line between them. References stay
-// valid for the life of the process. Names follow Prometheus conventions: counters end in _total,
+// valid for the life of the registry. Names follow Prometheus conventions: counters end in _total,
 // durations are in seconds.
 
 #include <array>
@@ -16,8 +17,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -81,15 +86,65 @@ class Histogram {
   std::array<Slot, detail::kSlots> slots_{};
 };
 
-// The metric with this name and labels, created (at zero) on first use. `help` describes the family the
-// first time it is given (known families have their description built in). Throws std::logic_error when
-// the name is already used by a metric of another type, or is not a valid Prometheus name.
-Counter& counter(std::string_view name, const Labels& labels = {}, std::string_view help = {});
-Gauge& gauge(std::string_view name, const Labels& labels = {}, std::string_view help = {});
-Histogram& histogram(std::string_view name, const Labels& labels = {}, std::string_view help = {});
+// Every metric of one server. Not copyable: metrics hold references into it.
+class Registry {
+ public:
+  Registry();
+  ~Registry();
+  Registry(const Registry&) = delete;
+  Registry& operator=(const Registry&) = delete;
 
-// Every metric in the text exposition format 0.0.4, families sorted by name.
-[[nodiscard]] std::string render();
+  // The metric with this name and labels, created (at zero) on first use. `help` describes the family the first time
+  // it is given (known families have their description built in). Throws std::logic_error when the name is already
+  // used by a metric of another type, or is not a valid Prometheus name.
+  Counter& counter(std::string_view name, const Labels& labels = {}, std::string_view help = {});
+  Gauge& gauge(std::string_view name, const Labels& labels = {}, std::string_view help = {});
+  Histogram& histogram(std::string_view name, const Labels& labels = {}, std::string_view help = {});
+
+  // Every metric in the text exposition format 0.0.4, families sorted by name.
+  [[nodiscard]] std::string render() const;
+
+ private:
+  struct Family;
+  mutable std::mutex mutex_;
+  std::map<std::string, Family, std::less<>> families_;
+};
+
+// Counters or histograms of one family told apart by one label whose values are numbered below Count (a message
+// body's field number): after a number's first use its metric is found without the registry's mutex, for updates
+// on every request.
+template <class Metric, std::size_t Count>
+class NumberedFamily {
+ public:
+  NumberedFamily(Registry& registry, std::string name, std::string label)
+      : registry_(registry), name_(std::move(name)), label_(std::move(label)) {}
+
+  // The metric of `number`, whose label value is `label_value`; numbers at or above Count are looked up each time.
+  Metric& at(std::size_t number, std::string_view label_value) {
+    if (number >= Count) return lookup(label_value);
+    Metric* metric = slots_[number].load(std::memory_order_acquire);
+    if (metric == nullptr) {
+      metric = &lookup(label_value);  // racing threads find the same metric
+      slots_[number].store(metric, std::memory_order_release);
+    }
+    return *metric;
+  }
+
+ private:
+  Metric& lookup(std::string_view label_value) {
+    const Labels labels = {{label_, std::string(label_value)}};
+    if constexpr (std::is_same_v<Metric, Counter>) {
+      return registry_.counter(name_, labels);
+    } else {
+      return registry_.histogram(name_, labels);
+    }
+  }
+
+  Registry& registry_;
+  std::string name_;
+  std::string label_;
+  std::array<std::atomic<Metric*>, Count> slots_{};
+};
 
 // Measures from construction to destruction into a histogram (seconds).
 class ScopedTimer {

@@ -172,7 +172,7 @@ void Session::start() {
   boost::system::error_code ignored;
   tcp_socket().set_option(asio::ip::tcp::no_delay(true), ignored);
   log::info("session_open", {{"session", info_.id}, {"peer", info_.peer}, {"tls", tls_ != nullptr}});
-  metrics::counter("occgeo_sessions_opened_total").inc();
+  core_.metrics().counter("occgeo_sessions_opened_total").inc();
   // A connection that never says hello must not hold a session slot for good.
   hello_timer_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(core_.config().limits.hello_timeout_s)));
@@ -343,7 +343,7 @@ bool Session::dispatch_frames() {
     dispatch_message(self, message);
     arena.end_message();
     if (!was_greeted && info_.greeted) {
-      metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
+      core_.metrics().gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).inc();
       greeted_.store(true, std::memory_order_release);
       hello_timer_.cancel();
       if (should_move_to_driver_loop()) {
@@ -390,9 +390,7 @@ void Session::send(const v1::ServerMessage& message) {
 }
 
 void Session::refuse_busy(const v1::ClientMessage& message, std::size_t backlog) {
-  static metrics::Counter& refused = metrics::counter(
-      "occgeo_queries_busy_total", {}, "Queries answered ERROR_BUSY: the server's query backlog was full");
-  refused.inc();
+  core_.queries_busy().inc();
   v1::ServerMessage reply;
   v1::Error& error = *reply.mutable_error();
   error.set_code(v1::ERROR_BUSY);
@@ -480,7 +478,7 @@ void Session::after_enqueue() {
   if (outbox_bytes_ > core_.config().limits.max_send_queue_bytes) {
     log::warn("session_slow_client_dropped",
               {{"session", info_.id}, {"peer", info_.peer}, {"unsent_bytes", outbox_bytes_}});
-    metrics::counter("occgeo_slow_clients_dropped_total").inc();
+    core_.metrics().counter("occgeo_slow_clients_dropped_total").inc();
     shutdown();
     return;
   }
@@ -580,7 +578,7 @@ void Session::shutdown() {
   outbox_bytes_ = 0;
   watch_queue_.clear();
   handle_disconnect(core_, info_);
-  if (info_.greeted) metrics::gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).dec();
+  if (info_.greeted) core_.metrics().gauge("occgeo_sessions", {{"role", v1::Role_Name(info_.role)}}).dec();
   log::info("session_closed", {{"session", info_.id}, {"peer", info_.peer}});
 }
 

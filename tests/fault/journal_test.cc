@@ -37,8 +37,9 @@ std::uint64_t append_one(WorldJournal& journal, const std::shared_ptr<const void
 // driver waiting for each ack in turn skipped an overtaken one and waited forever.
 TEST(JournalTest, BatchCallbacksRunInRecordOrderEvenWhenALaterRecordIsAlreadyDurable) {
   TempDir dir;
+  service::metrics::Registry metrics;
   WorldJournal journal(dir.path() / "journal" / "ordering.journal", SyncPolicy::kBatch, std::chrono::milliseconds(2), 1,
-                       0);
+                       0, metrics);
   const auto spec_identity = std::make_shared<int>(0);
   std::mutex order_mutex;
   std::vector<std::uint64_t> order;
@@ -72,8 +73,9 @@ TEST(JournalTest, BatchCallbacksRunInRecordOrderEvenWhenALaterRecordIsAlreadyDur
 // Many records pipelined from one thread while the batch thread commits: every callback runs once, in lsn order.
 TEST(JournalTest, PipelinedBatchCallbacksAllRunInOrder) {
   TempDir dir;
+  service::metrics::Registry metrics;
   WorldJournal journal(dir.path() / "journal" / "pipelined.journal", SyncPolicy::kBatch, std::chrono::microseconds(200),
-                       1, 0);
+                       1, 0, metrics);
   const auto spec_identity = std::make_shared<int>(0);
   std::mutex order_mutex;
   std::vector<std::uint64_t> order;
@@ -104,25 +106,26 @@ TEST(JournalTest, PipelinedBatchCallbacksAllRunInOrder) {
 // the sync thread leaves nothing unsynced once the acks are out, and each fsync is timed.
 TEST(JournalTest, LagMetricsCountWhatNoFsyncCoveredYet) {
   TempDir dir;
+  service::metrics::Registry metrics;
   {
     WorldJournal journal(dir.path() / "journal" / "lagnone.journal", SyncPolicy::kNone, std::chrono::milliseconds(5), 1,
-                         0);
+                         0, metrics);
     const auto spec_identity = std::make_shared<int>(0);
     for (std::uint64_t seq = 1; seq <= 5; ++seq) append_one(journal, spec_identity, seq);
     // Five sensor records and the robot record before the first.
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_unsynced_records", {{"world", "lagnone"}}).value(), 6);
-    EXPECT_GT(service::metrics::gauge("occgeo_journal_unsynced_bytes", {{"world", "lagnone"}}).value(), 5 * 20);
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_bytes", {{"world", "lagnone"}}).value(),
+    EXPECT_EQ(metrics.gauge("occgeo_journal_unsynced_records", {{"world", "lagnone"}}).value(), 6);
+    EXPECT_GT(metrics.gauge("occgeo_journal_unsynced_bytes", {{"world", "lagnone"}}).value(), 5 * 20);
+    EXPECT_EQ(metrics.gauge("occgeo_journal_bytes", {{"world", "lagnone"}}).value(),
               static_cast<std::int64_t>(journal.size_bytes()));
     journal.compact();
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_unsynced_records", {{"world", "lagnone"}}).value(), 0);
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_unsynced_bytes", {{"world", "lagnone"}}).value(), 0);
+    EXPECT_EQ(metrics.gauge("occgeo_journal_unsynced_records", {{"world", "lagnone"}}).value(), 0);
+    EXPECT_EQ(metrics.gauge("occgeo_journal_unsynced_bytes", {{"world", "lagnone"}}).value(), 0);
   }
   {
     WorldJournal journal(dir.path() / "journal" / "lagevery.journal", SyncPolicy::kEvery, std::chrono::milliseconds(5),
-                         1, 0);
+                         1, 0, metrics);
     const auto spec_identity = std::make_shared<int>(0);
-    auto& syncs = service::metrics::histogram("occgeo_journal_sync_seconds", {{"world", "lagevery"}});
+    auto& syncs = metrics.histogram("occgeo_journal_sync_seconds", {{"world", "lagevery"}});
     std::atomic<int> acked{0};
     std::atomic<bool> synced_before_every_ack{true};
     for (std::uint64_t seq = 1; seq <= 5; ++seq) {
@@ -136,14 +139,13 @@ TEST(JournalTest, LagMetricsCountWhatNoFsyncCoveredYet) {
     }
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
     while (std::chrono::steady_clock::now() < deadline &&
-           (acked < 5 ||
-            service::metrics::gauge("occgeo_journal_unsynced_records", {{"world", "lagevery"}}).value() != 0)) {
+           (acked < 5 || metrics.gauge("occgeo_journal_unsynced_records", {{"world", "lagevery"}}).value() != 0)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     EXPECT_EQ(acked, 5);
     EXPECT_TRUE(synced_before_every_ack);
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_unsynced_records", {{"world", "lagevery"}}).value(), 0);
-    EXPECT_EQ(service::metrics::gauge("occgeo_journal_unsynced_bytes", {{"world", "lagevery"}}).value(), 0);
+    EXPECT_EQ(metrics.gauge("occgeo_journal_unsynced_records", {{"world", "lagevery"}}).value(), 0);
+    EXPECT_EQ(metrics.gauge("occgeo_journal_unsynced_bytes", {{"world", "lagevery"}}).value(), 0);
     // Records written during one fsync share the next: at least one, at most one per record (and the robot record's).
     EXPECT_GE(syncs.count(), 1U);
     EXPECT_LE(syncs.count(), 6U);

@@ -8,6 +8,7 @@
 #include "core.h"
 #include "model_geometry.h"
 #include "occgeo/service/config.h"
+#include "occgeo/v1/session.pb.h"
 
 namespace occgeo::service {
 namespace {
@@ -80,6 +81,32 @@ TEST(ServerInstances, EveryRobotsBearcatUsesItsOwnWheelSeparation) {
   EXPECT_DOUBLE_EQ(tracked_robot->behaviour_on_strand().params().wheel_separation_m, 0.55);
   EXPECT_DOUBLE_EQ(bearcat_params_for(*small, core.config().bearcat).wheel_separation_m, 0.3);
   EXPECT_DOUBLE_EQ(core.config().bearcat.wheel_separation_m, 0.7) << "the configuration itself is left alone";
+}
+
+// Each server counts into its own registry: a robot of the same name on two servers has two sets of counters, and
+// one server's /metrics shows only what happened on it.
+TEST(ServerInstances, TwoServersInOneProcessCountTheirOwnMetrics) {
+  ServerCore first{ServerConfig{}};
+  ServerCore second{ServerConfig{}};
+  auto model = std::make_shared<RobotModel>();
+  model->id = "alpha";
+  std::string error;
+  const auto on_first = first.register_robot(model, "default", error);
+  const auto on_second = second.register_robot(model, "default", error);
+  ASSERT_TRUE(on_first && on_second) << error;
+  for (int i = 0; i < 3; ++i) on_first->counters().scans_rejected.inc();
+  on_second->counters().guard_interventions.inc();
+  const std::string status_kind = "status";
+  first.query_counts().at(v1::ClientMessage::kStatus, status_kind).inc();
+
+  const std::string first_text = first.metrics().render();
+  const std::string second_text = second.metrics().render();
+  EXPECT_NE(first_text.find("occgeo_scans_rejected_total{robot=\"alpha\"} 3\n"), std::string::npos) << first_text;
+  EXPECT_NE(second_text.find("occgeo_scans_rejected_total{robot=\"alpha\"} 0\n"), std::string::npos) << second_text;
+  EXPECT_NE(first_text.find("occgeo_guard_interventions_total{robot=\"alpha\"} 0\n"), std::string::npos);
+  EXPECT_NE(second_text.find("occgeo_guard_interventions_total{robot=\"alpha\"} 1\n"), std::string::npos);
+  EXPECT_NE(first_text.find("occgeo_queries_total{kind=\"status\"} 1\n"), std::string::npos);
+  EXPECT_EQ(second_text.find("occgeo_queries_total"), std::string::npos) << "no query reached the second server";
 }
 
 }  // namespace

@@ -168,7 +168,7 @@ JournalContents read_journal(const std::filesystem::path& file) {
 }
 
 WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::chrono::microseconds batch_interval,
-                           std::uint64_t next_lsn, std::uint64_t snapshot_lsn)
+                           std::uint64_t next_lsn, std::uint64_t snapshot_lsn, metrics::Registry& metrics)
     : file_(std::move(file)),
       policy_(policy),
       batch_interval_(batch_interval),
@@ -177,14 +177,14 @@ WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::c
       durable_lsn_(next_lsn - 1),
       synced_lsn_(next_lsn - 1),
       snapshot_lsn_(snapshot_lsn),
-      unsynced_records_(metrics::gauge("occgeo_journal_unsynced_records", world_label(file_),
-                                       "Journal records written to the file that no fsync has covered yet")),
-      unsynced_bytes_(metrics::gauge("occgeo_journal_unsynced_bytes", world_label(file_),
-                                     "Journal bytes written to the file that no fsync has covered yet")),
-      journal_bytes_(metrics::gauge("occgeo_journal_bytes", world_label(file_),
-                                    "Size of the world's journal file (emptied by each snapshot)")),
-      sync_seconds_(metrics::histogram("occgeo_journal_sync_seconds", world_label(file_),
-                                       "Time one fdatasync of the world's journal took")) {
+      unsynced_records_(metrics.gauge("occgeo_journal_unsynced_records", world_label(file_),
+                                      "Journal records written to the file that no fsync has covered yet")),
+      unsynced_bytes_(metrics.gauge("occgeo_journal_unsynced_bytes", world_label(file_),
+                                    "Journal bytes written to the file that no fsync has covered yet")),
+      journal_bytes_(metrics.gauge("occgeo_journal_bytes", world_label(file_),
+                                   "Size of the world's journal file (emptied by each snapshot)")),
+      sync_seconds_(metrics.histogram("occgeo_journal_sync_seconds", world_label(file_),
+                                      "Time one fdatasync of the world's journal took")) {
   // The fsyncs run on a thread of their own: the world's strand, which appends, also computes the robots' commands, and
   // must not wait for the disk (an fdatasync takes from a few hundred microseconds to tens of milliseconds).
   if (policy_ != SyncPolicy::kNone) sync_thread_ = std::thread([this] { sync_loop(); });

@@ -40,6 +40,7 @@ class MessageLite;
 namespace occgeo::service::metrics {
 class Gauge;
 class Histogram;
+class Registry;
 }  // namespace occgeo::service::metrics
 
 namespace occgeo::service::durability {
@@ -93,8 +94,9 @@ class WorldJournal {
   // `next_lsn` continues the numbering of what the file (or the snapshot) already holds; `snapshot_lsn` is the last
   // record the world's snapshot holds. The file is opened on the first append, so a world that never ingests never
   // creates one.
+  // Its gauges and the fsync histogram go to `metrics`, which must outlive it.
   WorldJournal(std::filesystem::path file, SyncPolicy policy, std::chrono::microseconds batch_interval,
-               std::uint64_t next_lsn, std::uint64_t snapshot_lsn);
+               std::uint64_t next_lsn, std::uint64_t snapshot_lsn, metrics::Registry& metrics);
   ~WorldJournal();
   WorldJournal(const WorldJournal&) = delete;
   WorldJournal& operator=(const WorldJournal&) = delete;

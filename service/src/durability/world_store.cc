@@ -215,12 +215,13 @@ std::filesystem::path world_journal_file(const std::filesystem::path& data_dir, 
   return data_dir / "journal" / (world + ".journal");
 }
 
-std::shared_ptr<WorldJournal> make_world_journal(const ServerConfig& config, const std::string& world,
-                                                 std::uint64_t next_lsn, std::uint64_t snapshot_lsn) {
+std::shared_ptr<WorldJournal> make_world_journal(const ServerConfig& config, metrics::Registry& metrics,
+                                                 const std::string& world, std::uint64_t next_lsn,
+                                                 std::uint64_t snapshot_lsn) {
   const auto policy = parse_sync_policy(config.durability.policy).value_or(SyncPolicy::kEvery);
   const auto interval = std::chrono::microseconds(static_cast<std::int64_t>(config.durability.batch_interval_s * 1e6));
   return std::make_shared<WorldJournal>(world_journal_file(config.data_dir, world), policy, interval, next_lsn,
-                                        snapshot_lsn);
+                                        snapshot_lsn, metrics);
 }
 
 void restore_worlds(ServerCore& core) {
@@ -267,7 +268,7 @@ void restore_worlds(ServerCore& core) {
     if (const auto journal = world_journal_file(config.data_dir, name); std::filesystem::exists(journal)) {
       replay = replay_journal(core, *world, journal, base_lsn, delivered);
     }
-    auto journal = make_world_journal(config, name, replay.last_lsn + 1, base_lsn);
+    auto journal = make_world_journal(config, core.metrics(), name, replay.last_lsn + 1, base_lsn);
     journal->restore_delivered(std::move(delivered));
     world->attach_journal(std::move(journal));
     world->publish_on_strand();

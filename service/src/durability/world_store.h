@@ -24,8 +24,8 @@ namespace occgeo::service::durability {
 
 // The journal of a world under the configured policy; `next_lsn` continues what the data directory holds, whose
 // snapshot holds the records up to `snapshot_lsn`.
-[[nodiscard]] std::shared_ptr<WorldJournal> make_world_journal(const ServerConfig& config, const std::string& world,
-                                                               std::uint64_t next_lsn = 1,
+[[nodiscard]] std::shared_ptr<WorldJournal> make_world_journal(const ServerConfig& config, metrics::Registry& metrics,
+                                                               const std::string& world, std::uint64_t next_lsn = 1,
                                                                std::uint64_t snapshot_lsn = 0);
 
 // Restores every world of the data directory: its snapshot, then the journal records after it, replayed through the

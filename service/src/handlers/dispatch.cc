@@ -76,40 +76,11 @@ bool is_sensor_work(std::string_view what) {
          what == "odometry" || what == "wheel_encoders";
 }
 
-// occgeo_query_duration_seconds of one kind. Looking a metric up takes the registry's mutex, so the query kinds'
-// histograms are looked up once (every query would otherwise contend for it).
-metrics::Histogram& query_histogram(std::string_view what) {
-  static const auto known = [] {
-    std::vector<std::pair<std::string, metrics::Histogram*>> histograms;
-    const auto* body = v1::ClientMessage::descriptor()->FindOneofByName("body");
-    for (int i = 0; i < body->field_count(); ++i) {
-      const auto body_case = static_cast<v1::ClientMessage::BodyCase>(body->field(i)->number());
-      if (!is_request(body_case)) continue;
-      const std::string& name = body->field(i)->name();
-      histograms.emplace_back(name, &metrics::histogram("occgeo_query_duration_seconds", {{"kind", name}}));
-    }
-    return histograms;
-  }();
-  for (const auto& [name, histogram] : known) {
-    if (name == what) return *histogram;
-  }
-  return metrics::histogram("occgeo_query_duration_seconds", {{"kind", std::string(what)}});
-}
-
-// occgeo_queries_total of one request kind, looked up once per kind.
-metrics::Counter& query_counter(v1::ClientMessage::BodyCase body_case) {
-  static const auto counters = [] {
-    std::map<int, metrics::Counter*> out;
-    const auto* body = v1::ClientMessage::descriptor()->FindOneofByName("body");
-    for (int i = 0; i < body->field_count(); ++i) {
-      const auto kind = static_cast<v1::ClientMessage::BodyCase>(body->field(i)->number());
-      if (is_request(kind)) {
-        out[kind] = &metrics::counter("occgeo_queries_total", {{"kind", body->field(i)->name()}});
-      }
-    }
-    return out;
-  }();
-  return *counters.at(body_case);
+// occgeo_query_duration_seconds of one kind, named as the ClientMessage body's field.
+metrics::Histogram& query_histogram(ServerCore& core, std::string_view what) {
+  const auto* field = v1::ClientMessage::descriptor()->FindFieldByName(std::string(what));
+  return core.query_durations().at(
+      field != nullptr ? static_cast<std::size_t>(field->number()) : ServerCore::kBodyFieldCount, what);
 }
 
 }  // namespace
@@ -118,7 +89,7 @@ void run_guarded(const SessionPtr& session, std::string_view what, std::uint64_t
                  const std::function<void()>& work) {
   try {
     std::optional<metrics::ScopedTimer> timer;
-    if (!is_sensor_work(what)) timer.emplace(query_histogram(what));
+    if (!is_sensor_work(what)) timer.emplace(query_histogram(session->core(), what));
     work();
   } catch (const std::exception& e) {
     log::error("handler_failed", {{"handler", what}, {"error", e.what()}});
@@ -169,7 +140,13 @@ void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
                         message.request_id());
     return;
   }
-  if (is_request(message.body_case())) query_counter(message.body_case()).inc();
+  if (is_request(message.body_case())) {
+    const int body_case = message.body_case();
+    session->core()
+        .query_counts()
+        .at(static_cast<std::size_t>(body_case), v1::ClientMessage::descriptor()->FindFieldByNumber(body_case)->name())
+        .inc();
+  }
   switch (message.body_case()) {
     case v1::ClientMessage::kRobotSpec:
       if (session->info().role != v1::ROLE_DRIVER) {

@@ -289,7 +289,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);
     if (decision.action != control::GuardAction::kPass) {
       velocity = clamp_velocity(model, decision.linear_mps, decision.angular_radps);
-      metrics::counter("occgeo_guard_interventions_total", {{"robot", model.id}}).inc();
+      robot.counters().guard_interventions.inc();
     }
   }
   if (model.encoders && model.spec.command_units() == v1::COMMAND_UNITS_ACTIVITYBOT_TICKS) {

@@ -13,7 +13,7 @@ namespace occgeo::service {
 
 void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldError& error, std::uint64_t seq) {
   robot.update_state([](RobotState& state) { ++state.scans_rejected; });
-  metrics::counter("occgeo_scans_rejected_total", {{"robot", robot.model().id}}).inc();
+  robot.counters().scans_rejected.inc();
   session->send_error(v1::ERROR_INVALID_ARGUMENT, error.field, error.message + "; the message was discarded", 0, seq);
 }
 
@@ -69,9 +69,7 @@ bool ingest_sensor_message_on_strand(
       state.last_scan_seq = std::max(state.last_scan_seq.value_or(0), header.seq);
       state.last_scan_stamp_s = std::max(state.last_scan_stamp_s.value_or(header.stamp_s), header.stamp_s);
     });
-    metrics::counter("occgeo_scans_duplicate_total", {{"robot", robot.model().id}},
-                     "Sensor messages resent after they were journalled: acknowledged again, not applied twice")
-        .inc();
+    robot.counters().scans_duplicate.inc();
     v1::ServerMessage ack;
     ack.mutable_scan_ack()->set_seq(header.seq);
     ack.mutable_scan_ack()->set_world_version(world_of_robot.grid_on_strand().version());
@@ -103,7 +101,7 @@ bool ingest_sensor_message_on_strand(
   }
   if (!order_error.empty()) {
     robot.update_state([](RobotState& state) { ++state.scans_rejected; });
-    metrics::counter("occgeo_scans_rejected_total", {{"robot", robot.model().id}}).inc();
+    robot.counters().scans_rejected.inc();
     auto send_rejection = [session, order_field, message = order_error + "; the message was discarded",
                            seq = header.seq](const std::string* /*sync_error*/) {
       session->send_error(v1::ERROR_OUT_OF_ORDER, order_field, message, 0, seq);
@@ -150,8 +148,9 @@ bool ingest_sensor_message_on_strand(
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
-  metrics::counter("occgeo_scans_ingested_total",
-                   {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
+  session->core()
+      .metrics()
+      .counter("occgeo_scans_ingested_total", {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
       .inc();
   note_sensor_message_on_strand(robot, session->core().config().control);
 

@@ -65,13 +65,15 @@ void record_memory_metrics(ServerCore& core) {
     for (const auto& [model, bytes] :
          {std::pair{"grid", memory.grid_bytes}, std::pair{"distance_field", memory.distance_field_bytes},
           std::pair{"octomap", memory.octomap_bytes}, std::pair{"ptem", memory.ptem_bytes}}) {
-      metrics::gauge("occgeo_world_model_bytes", {{"world", world->name()}, {"model", model}},
-                     "Heap bytes of a world's model as of its latest snapshot, counted by the server")
+      core.metrics()
+          .gauge("occgeo_world_model_bytes", {{"world", world->name()}, {"model", model}},
+                 "Heap bytes of a world's model as of its latest snapshot, counted by the server")
           .set(static_cast<std::int64_t>(bytes));
     }
   }
   if (const auto resident = process_resident_bytes()) {
-    metrics::gauge("occgeo_process_resident_bytes", {}, "Resident memory of the server process (/proc/self/statm)")
+    core.metrics()
+        .gauge("occgeo_process_resident_bytes", {}, "Resident memory of the server process (/proc/self/statm)")
         .set(static_cast<std::int64_t>(*resident));
   }
 }
@@ -87,7 +89,8 @@ Response route(ServerCore& core, const Request& request) {
   }
   if (target == "/metrics") {
     record_memory_metrics(core);
-    return make_response(request, bhttp::status::ok, "text/plain; version=0.0.4; charset=utf-8", metrics::render());
+    return make_response(request, bhttp::status::ok, "text/plain; version=0.0.4; charset=utf-8",
+                         core.metrics().render());
   }
   const std::string_view asset_path = target == "/" ? "/index.html" : target;
   for (const auto& asset : web_assets()) {
@@ -121,9 +124,13 @@ struct Outgoing {
 template <typename Derived>
 class WebSocketSession : public std::enable_shared_from_this<Derived> {
  public:
-  explicit WebSocketSession(tcp::socket socket) : ws_(std::move(socket)), timer_(ws_.get_executor()) {}
+  WebSocketSession(metrics::Registry& metrics, tcp::socket socket)
+      : metrics_(metrics),
+        web_clients_(metrics.gauge("occgeo_web_clients")),
+        ws_(std::move(socket)),
+        timer_(ws_.get_executor()) {}
   ~WebSocketSession() {
-    if (accepted_) metrics::gauge("occgeo_web_clients").dec();
+    if (accepted_) web_clients_.dec();
   }
 
   // subprotocol: answered in Sec-WebSocket-Protocol when not empty. slot: the connection's place, kept while open.
@@ -141,7 +148,7 @@ class WebSocketSession : public std::enable_shared_from_this<Derived> {
     ws_.async_accept(request_, [self = this->shared_from_this()](const beast::error_code& error) {
       if (error) return;
       self->accepted_ = true;
-      metrics::gauge("occgeo_web_clients").inc();
+      self->web_clients_.inc();
       self->read();
       self->on_accepted();
       self->tick();
@@ -197,6 +204,14 @@ class WebSocketSession : public std::enable_shared_from_this<Derived> {
     timer_.cancel();
   }
 
+ protected:
+  metrics::Registry& metrics() { return metrics_; }
+
+ private:
+  metrics::Registry& metrics_;
+  metrics::Gauge& web_clients_;
+
+ protected:
   websocket::stream<beast::tcp_stream> ws_;
   asio::steady_timer timer_;
   ConnectionSlot slot_;
@@ -213,7 +228,8 @@ class WebSocketSession : public std::enable_shared_from_this<Derived> {
 // dropped and counted) and never misses a map change (tile differences are computed against what it was sent).
 class LiveViewSocket final : public WebSocketSession<LiveViewSocket> {
  public:
-  LiveViewSocket(ServerCore& core, tcp::socket socket) : WebSocketSession(std::move(socket)), state_(core) {}
+  LiveViewSocket(ServerCore& core, tcp::socket socket)
+      : WebSocketSession(core.metrics(), std::move(socket)), state_(core) {}
 
  private:
   friend class WebSocketSession<LiveViewSocket>;
@@ -227,13 +243,13 @@ class LiveViewSocket final : public WebSocketSession<LiveViewSocket> {
     if (replies_.size() < kMaxQueuedReplies) {
       replies_.push_back(state_.handle_message(text));
     } else {
-      metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+      metrics().counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
     }
     pump();
   }
 
   void on_tick() {
-    if (frame_waiting_) metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
+    if (frame_waiting_) metrics().counter("occgeo_observer_messages_dropped_total", {{"channel", "web"}}).inc();
     frame_waiting_ = true;
     pump();
   }
@@ -259,7 +275,8 @@ class LiveViewSocket final : public WebSocketSession<LiveViewSocket> {
 // waits, replaced by a newer one (counted as dropped), so a slow client costs no queue.
 class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
  public:
-  FoxgloveSocket(ServerCore& core, tcp::socket socket) : WebSocketSession(std::move(socket)), core_(core) {}
+  FoxgloveSocket(ServerCore& core, tcp::socket socket)
+      : WebSocketSession(core.metrics(), std::move(socket)), core_(core) {}
 
  private:
   friend class WebSocketSession<FoxgloveSocket>;
@@ -299,7 +316,7 @@ class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
     if (subscription) {
       for (auto& waiting : outgoing_) {
         if (waiting.subscription == subscription) {
-          metrics::counter("occgeo_observer_messages_dropped_total", {{"channel", "foxglove"}}).inc();
+          metrics().counter("occgeo_observer_messages_dropped_total", {{"channel", "foxglove"}}).inc();
           waiting.bytes = std::move(bytes);
           return;
         }
@@ -416,8 +433,9 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     const std::string_view target(request.target().data(), request.target().size());
     if (auto refusal = refuse(request)) {
       auto response = std::make_shared<Response>(std::move(*refusal));
-      metrics::counter("occgeo_http_requests_total",
-                       {{"path", path_label(path_of(target))}, {"code", std::to_string(response->result_int())}})
+      core_.metrics()
+          .counter("occgeo_http_requests_total",
+                   {{"path", path_label(path_of(target))}, {"code", std::to_string(response->result_int())}})
           .inc();
       bhttp::async_write(stream_, *response,
                          [self = shared_from_this(), response](const beast::error_code&, std::size_t) {
@@ -427,19 +445,20 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       return;
     }
     if (websocket::is_upgrade(request) && wants_foxglove(request)) {
-      metrics::counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
+      core_.metrics().counter("occgeo_http_requests_total", {{"path", "foxglove"}, {"code", "101"}}).inc();
       std::make_shared<FoxgloveSocket>(core_, stream_.release_socket())
           ->run(std::move(request), slot_, foxglove::kSubprotocol);
       return;
     }
     if (websocket::is_upgrade(request) && path_of(target) == "/ws") {
-      metrics::counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
+      core_.metrics().counter("occgeo_http_requests_total", {{"path", "/ws"}, {"code", "101"}}).inc();
       std::make_shared<LiveViewSocket>(core_, stream_.release_socket())->run(std::move(request), slot_);
       return;
     }
     auto response = std::make_shared<Response>(route(core_, request));
-    metrics::counter("occgeo_http_requests_total",
-                     {{"path", path_label(target)}, {"code", std::to_string(response->result_int())}})
+    core_.metrics()
+        .counter("occgeo_http_requests_total",
+                 {{"path", path_label(target)}, {"code", std::to_string(response->result_int())}})
         .inc();
     bhttp::async_write(stream_, *response,
                        [self = shared_from_this(), response](const beast::error_code& write_error, std::size_t) {
@@ -523,9 +542,9 @@ struct HttpServer::Impl {
         if (error == asio::error::operation_aborted) return;
         log::warn("http_accept_failed", {{"error", error.message()}});
       } else if (open_connections->load() >= core.config().http.max_connections) {
-        static metrics::Counter& refused = metrics::counter(
-            "occgeo_http_refused_total", {}, "HTTP connections closed at once: http.max_connections were open");
-        refused.inc();
+        core.metrics()
+            .counter("occgeo_http_refused_total", {}, "HTTP connections closed at once: http.max_connections were open")
+            .inc();
         log::warn("http_connection_refused",
                   {{"open", open_connections->load()}, {"max_connections", core.config().http.max_connections}});
         beast::error_code ignored;
