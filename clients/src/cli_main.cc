@@ -1,5 +1,5 @@
 // occgeo: command-line client for occgeod. This file is its command line (commands, options, help); the commands
-// themselves are in cli_commands.cc.
+// themselves (cli_commands.h) are in cli_queries.cc, cli_maps.cc and cli_robot.cc.
 #include <cstdio>
 #include <iostream>
 #include <string>

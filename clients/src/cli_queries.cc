@@ -1,0 +1,343 @@
+// occgeo's status and query commands: collision, clearance, ptem, raycast, occupancy, swept and window.
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <sstream>
+#include <string>
+
+#include "cli_common.h"
+
+namespace occgeo::cli {
+
+int run_status(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  request.mutable_status();
+  request.set_request_id(1);
+  const bool detailed = options.switches.contains("detailed");
+  request.mutable_status()->set_detailed(detailed);
+  const v1::StatusReply status = connection.call(request, 1).status();
+  const auto json_points = [](const google::protobuf::RepeatedPtrField<v1::Point2D>& points) {
+    std::string out = "[";
+    for (int k = 0; k < points.size(); ++k) {
+      out += (k ? ",[" : "[") + fmt(points[k].x()) + "," + fmt(points[k].y()) + "]";
+    }
+    return out + "]";
+  };
+  if (options.json) {
+    std::ostringstream out;
+    out << "{\"server_version\":" << json_string(status.server_version()) << ",\"clients\":" << status.clients()
+        << ",\"uptime_s\":" << fmt(status.uptime_s()) << ",\"robots\":[";
+    for (int i = 0; i < status.robots_size(); ++i) {
+      const auto& r = status.robots(i);
+      out << (i ? "," : "") << "{\"id\":" << json_string(r.id()) << ",\"world\":" << json_string(r.world())
+          << ",\"model\":" << json_string(r.model()) << ",\"connected\":" << (r.connected() ? "true" : "false")
+          << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
+          << ",\"theta\":" << fmt(r.pose().theta()) << "},\"scans_ingested\":" << r.scans_ingested()
+          << ",\"scans_rejected\":" << r.scans_rejected() << ",\"behaviour\":" << json_string(r.behaviour())
+          << ",\"behaviour_state\":" << json_string(r.behaviour_state())
+          << ",\"estop\":" << (r.estop() ? "true" : "false")
+          << ",\"sensor_stale\":" << (r.sensor_stale() ? "true" : "false") << ",\"lease_holder\":";
+      if (r.has_lease_holder()) {
+        out << "{\"session_id\":" << r.lease_holder().session_id()
+            << ",\"client_name\":" << json_string(r.lease_holder().client_name())
+            << ",\"expires_in_s\":" << fmt(r.lease_expires_in_s()) << "}";
+      } else {
+        out << "null";
+      }
+      if (detailed) {
+        out << ",\"path\":" << json_points(r.path()) << ",\"scan\":" << json_points(r.scan())
+            << ",\"scan_stamp_s\":" << fmt(r.scan_stamp_s());
+      }
+      out << "}";
+    }
+    out << "],\"worlds\":[";
+    for (int i = 0; i < status.worlds_size(); ++i) {
+      const auto& w = status.worlds(i);
+      out << (i ? "," : "") << "{\"name\":" << json_string(w.name()) << ",\"cell_size_m\":" << fmt(w.cell_size_m())
+          << ",\"version\":" << w.version() << ",\"tiles\":" << w.tiles()
+          << ",\"occupied_cells\":" << w.occupied_cells() << ",\"octomap_version\":" << w.octomap_version()
+          << ",\"octomap_nodes\":" << w.octomap_nodes() << ",\"octomap_leaves\":" << w.octomap_leaves() << "}";
+    }
+    out << "]}";
+    std::cout << out.str() << "\n";
+    return 0;
+  }
+  std::cout << status.server_version() << ", up " << fmt(status.uptime_s()) << " s, " << status.clients()
+            << " client(s)\n";
+  std::cout << "robots:\n";
+  for (const auto& r : status.robots()) {
+    std::cout << "  " << r.id() << " (" << r.model() << ") world " << r.world() << ", "
+              << (r.connected() ? "connected" : "offline") << ", pose (" << fmt(r.pose().x()) << ", "
+              << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << "), scans " << r.scans_ingested() << " ("
+              << r.scans_rejected() << " rejected), " << r.behaviour() << ": " << r.behaviour_state()
+              << (r.estop() ? ", E-STOP" : "") << (r.sensor_stale() ? ", sensors stale" : "");
+    if (r.has_lease_holder()) {
+      std::cout << ", lease: session " << r.lease_holder().session_id() << " (" << r.lease_holder().client_name()
+                << ")";
+    }
+    std::cout << "\n";
+    if (detailed) {
+      std::cout << "    path: " << r.path_size() << " point(s)";
+      for (const auto& p : r.path()) std::cout << " (" << fmt(p.x()) << ", " << fmt(p.y()) << ")";
+      std::cout << "\n    scan: " << r.scan_size() << " return(s) at " << fmt(r.scan_stamp_s()) << " s\n";
+    }
+  }
+  std::cout << "worlds:\n";
+  for (const auto& w : status.worlds()) {
+    std::cout << "  " << w.name() << ": " << w.occupied_cells() << " occupied cells of " << fmt(w.cell_size_m())
+              << " m in " << w.tiles() << " tiles, version " << w.version() << "; octree " << w.octomap_leaves()
+              << " leaves of " << fmt(w.octomap_resolution_m()) << " m, version " << w.octomap_version() << "\n";
+  }
+  return 0;
+}
+
+int run_query_collision(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_collision();
+  request.set_request_id(1);
+  query->set_robot_id(options.required("robot"));
+  *query->mutable_pose() = pose_from(options);
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
+  const v1::CollisionReply reply = connection.call(request, 1).collision();
+  if (options.json) {
+    std::cout << "{\"hit\":" << (reply.hit() ? "true" : "false");
+    if (reply.hit()) {
+      std::cout << ",\"model\":" << json_string(model_name(reply.model()))
+                << ",\"contact\":{\"x\":" << fmt(reply.contact().x()) << ",\"y\":" << fmt(reply.contact().y())
+                << ",\"z\":" << fmt(reply.contact().z()) << "}";
+      if (reply.has_cell()) {
+        std::cout << ",\"cell\":{\"ix\":" << reply.cell().ix() << ",\"iy\":" << reply.cell().iy()
+                  << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x())
+                  << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
+      }
+    }
+    if (reply.keep_out()) {
+      std::cout << ",\"keep_out\":true,\"keep_out_point\":{\"x\":" << fmt(reply.keep_out_point().x())
+                << ",\"y\":" << fmt(reply.keep_out_point().y()) << "}";
+    }
+    std::cout << ",\"cells_tested\":" << reply.cells_tested() << "}\n";
+  } else if (reply.hit()) {
+    std::cout << "hit (" << model_name(reply.model()) << ") at (" << fmt(reply.contact().x()) << ", "
+              << fmt(reply.contact().y()) << ", " << fmt(reply.contact().z()) << ")";
+    if (reply.has_cell()) std::cout << ": occupied cell (" << reply.cell().ix() << ", " << reply.cell().iy() << ")";
+    std::cout << "\n";
+  } else {
+    std::cout << "free\n";
+  }
+  if (!options.json && reply.keep_out()) {
+    std::cout << "keep-out: reaches into the PTEM's restricted region at (" << fmt(reply.keep_out_point().x()) << ", "
+              << fmt(reply.keep_out_point().y()) << ")\n";
+  }
+  return 0;
+}
+
+int run_query_clearance(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_clearance();
+  request.set_request_id(1);
+  query->set_robot_id(options.required("robot"));
+  *query->mutable_pose() = pose_from(options);
+  query->set_max_distance_m(options.number("max-distance", 0.0));
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  const v1::ClearanceReply reply = connection.call(request, 1).clearance();
+  if (options.json) {
+    std::cout << "{\"clearance_m\":" << fmt(reply.clearance_m()) << ",\"found\":" << (reply.found() ? "true" : "false");
+    if (reply.found()) {
+      std::cout << ",\"model\":" << json_string(model_name(reply.model()));
+      if (reply.has_nearest_cell()) {
+        std::cout << ",\"nearest_cell\":{\"ix\":" << reply.nearest_cell().ix()
+                  << ",\"iy\":" << reply.nearest_cell().iy() << "}";
+      }
+      std::cout << ",\"nearest_point\":{\"x\":" << fmt(reply.nearest_point().x())
+                << ",\"y\":" << fmt(reply.nearest_point().y()) << "}";
+    }
+    if (reply.has_restricted_clearance_m()) {
+      std::cout << ",\"keep_out\":" << (reply.keep_out() ? "true" : "false")
+                << ",\"restricted_clearance_m\":" << fmt(reply.restricted_clearance_m());
+    }
+    std::cout << "}\n";
+  } else if (reply.found()) {
+    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to the " << model_name(reply.model()) << " at ("
+              << fmt(reply.nearest_point().x()) << ", " << fmt(reply.nearest_point().y()) << ")\n";
+  } else {
+    std::cout << "clearance at least " << fmt(reply.clearance_m())
+              << " m (nothing occupied within the search radius)\n";
+  }
+  if (!options.json && reply.has_restricted_clearance_m()) {
+    if (reply.keep_out()) {
+      std::cout << "keep-out: inside the PTEM's restricted region\n";
+    } else {
+      std::cout << "keep-out: " << fmt(reply.restricted_clearance_m()) << " m to the PTEM's restricted region\n";
+    }
+  }
+  return 0;
+}
+
+int run_query_ptem(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_ptem();
+  request.set_request_id(1);
+  query->set_world(options.required("world"));
+  auto* point = query->add_points();
+  point->set_x(options.number("x"));
+  point->set_y(options.number("y"));
+  const v1::PtemReply reply = connection.call(request, 1).ptem();
+  if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
+  const v1::PtemSample& sample = reply.samples(0);
+  if (options.json) {
+    std::cout << "{\"world\":" << json_string(reply.world()) << ",\"version\":" << reply.version()
+              << ",\"threat\":" << fmt(sample.threat()) << ",\"gradient\":{\"x\":" << fmt(sample.gradient().x())
+              << ",\"y\":" << fmt(sample.gradient().y())
+              << "},\"restricted\":" << (sample.restricted() ? "true" : "false")
+              << ",\"threshold_f_r\":" << fmt(reply.threshold_f_r()) << ",\"clusters\":" << reply.cluster_count()
+              << ",\"scans\":" << reply.scans() << ",\"construction\":" << json_string(reply.construction()) << "}\n";
+  } else {
+    std::cout << "threat " << fmt(sample.threat()) << " /m^2 (f_r " << fmt(reply.threshold_f_r()) << "), gradient ("
+              << fmt(sample.gradient().x()) << ", " << fmt(sample.gradient().y()) << ") /m^3, "
+              << (sample.restricted() ? "restricted" : "not restricted") << "; " << reply.cluster_count()
+              << " cluster(s) from " << reply.scans() << " scan(s), " << reply.construction() << "\n";
+  }
+  return 0;
+}
+
+int run_query_raycast(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_raycast();
+  request.set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  *query->add_rays() = pose_from(options);
+  query->set_max_range_m(options.number("max-range"));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  const v1::RaycastReply reply = connection.call(request, 1).raycast();
+  if (reply.results_size() != 1) throw ClientError("the server answered with no result for the ray");
+  const v1::RaycastResult& result = reply.results(0);
+  if (options.json) {
+    std::cout << "{\"hit\":" << (result.hit() ? "true" : "false") << ",\"range_m\":" << fmt(result.range_m())
+              << ",\"model\":" << json_string(model_name(result.model())) << ",\"per_model\":[";
+    for (int i = 0; i < result.per_model_size(); ++i) {
+      const v1::RaycastHit& hit = result.per_model(i);
+      std::cout << (i > 0 ? "," : "") << "{\"model\":" << json_string(model_name(hit.model()))
+                << ",\"hit\":" << (hit.hit() ? "true" : "false") << ",\"range_m\":" << fmt(hit.range_m())
+                << ",\"point\":{\"x\":" << fmt(hit.point().x()) << ",\"y\":" << fmt(hit.point().y()) << "}}";
+    }
+    std::cout << "]}\n";
+  } else if (result.hit()) {
+    std::cout << "hit the " << model_name(result.model()) << " at " << fmt(result.range_m()) << " m\n";
+  } else {
+    std::cout << "nothing within " << fmt(result.range_m()) << " m\n";
+  }
+  return 0;
+}
+
+int run_query_occupancy(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_occupancy();
+  request.set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  auto* point = query->add_points();
+  point->set_x(options.number("x"));
+  point->set_y(options.number("y"));
+  point->set_z(options.number("z", 0.3));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  const v1::OccupancyReply reply = connection.call(request, 1).occupancy();
+  if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
+  const v1::OccupancySample& s = reply.samples(0);
+  if (options.json) {
+    std::cout << "{\"version\":" << reply.version() << ",\"cell\":{\"ix\":" << s.cell().ix()
+              << ",\"iy\":" << s.cell().iy() << "},\"observed\":" << (s.observed() ? "true" : "false")
+              << ",\"certainty\":" << s.certainty() << ",\"occupied\":" << (s.occupied() ? "true" : "false")
+              << ",\"octree_known\":" << (s.octree_known() ? "true" : "false")
+              << ",\"octree_probability\":" << fmt(s.octree_probability()) << ",\"threat\":" << fmt(s.threat())
+              << ",\"restricted\":" << (s.restricted() ? "true" : "false") << "}\n";
+  } else {
+    std::cout << "grid certainty " << s.certainty() << (s.occupied() ? " (occupied)" : "")
+              << (s.observed() ? "" : " (never observed)") << ", octree "
+              << (s.octree_known() ? fmt(s.octree_probability()) : std::string("unknown")) << ", threat "
+              << fmt(s.threat()) << (s.restricted() ? " (restricted)" : "") << "\n";
+  }
+  return 0;
+}
+
+int run_query_swept(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_swept();
+  request.set_request_id(1);
+  query->set_robot_id(options.required("robot"));
+  for (const v1::Model model : models_from(options)) query->add_models(model);
+  auto* motion = query->add_motions();
+  *motion->mutable_start() = pose_from(options);
+  motion->set_linear_mps(options.number("v"));
+  motion->set_angular_radps(options.number("w"));
+  motion->set_duration_s(options.number("duration"));
+  if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
+  const v1::SweptReply reply = connection.call(request, 1).swept();
+  if (reply.results_size() != 1) throw ClientError("the server answered with no result for the motion");
+  const v1::SweptResult& r = reply.results(0);
+  if (options.json) {
+    std::cout << "{\"hit\":" << (r.hit() ? "true" : "false") << ",\"time_s\":" << fmt(r.time_s())
+              << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
+              << ",\"theta\":" << fmt(r.pose().theta()) << "}";
+    if (r.hit()) {
+      std::cout << ",\"model\":" << json_string(model_name(r.model())) << ",\"contact\":{\"x\":" << fmt(r.contact().x())
+                << ",\"y\":" << fmt(r.contact().y()) << "}";
+    }
+    std::cout << "}\n";
+  } else if (r.hit()) {
+    std::cout << "contact with the " << model_name(r.model()) << " after " << fmt(r.time_s()) << " s at ("
+              << fmt(r.pose().x()) << ", " << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << ")\n";
+  } else {
+    std::cout << "free for the whole " << fmt(r.time_s()) << " s\n";
+  }
+  return 0;
+}
+
+int run_query_window(const Options& options) {
+  Connection connection = connect_query(options);
+  v1::ClientMessage request;
+  auto* query = request.mutable_grid_window();
+  request.set_request_id(1);
+  if (options.values.contains("world")) query->set_world(options.required("world"));
+  query->mutable_min_corner()->set_x(options.number("min-x"));
+  query->mutable_min_corner()->set_y(options.number("min-y"));
+  query->mutable_max_corner()->set_x(options.number("max-x"));
+  query->mutable_max_corner()->set_y(options.number("max-y"));
+  const double since = options.number("since", 0.0);
+  if (since < 0.0 || since != std::floor(since)) throw UsageError("option '--since' takes a version number (>= 0)");
+  query->set_since_version(static_cast<std::uint64_t>(since));
+  const v1::GridWindowReply reply = connection.call(request, 1, std::chrono::seconds(60)).grid_window();
+  std::size_t changed_cells = 0;
+  for (const v1::GridBlock& block : reply.changed()) changed_cells += block.cells().size();
+  if (options.json) {
+    std::cout << "{\"version\":" << reply.version() << ",\"min_cell\":{\"ix\":" << reply.min_cell().ix()
+              << ",\"iy\":" << reply.min_cell().iy() << "},\"width\":" << reply.width()
+              << ",\"height\":" << reply.height() << ",\"cell_size_m\":" << fmt(reply.cell_size_m());
+    if (!reply.cells().empty()) {
+      std::cout << ",\"cells\":[";
+      for (std::size_t i = 0; i < reply.cells().size(); ++i) {
+        std::cout << (i > 0 ? "," : "") << static_cast<unsigned>(static_cast<std::uint8_t>(reply.cells()[i]));
+      }
+      std::cout << "]";
+    }
+    std::cout << ",\"changed_blocks\":" << reply.changed_size() << ",\"changed_cells\":" << changed_cells << "}\n";
+  } else {
+    std::cout << "window " << reply.width() << " x " << reply.height() << " cells from (" << reply.min_cell().ix()
+              << ", " << reply.min_cell().iy() << ") at version " << reply.version();
+    if (query->since_version() > 0 && reply.cells().empty()) {
+      std::cout << ": " << reply.changed_size() << " changed block(s), " << changed_cells << " cells";
+    }
+    std::cout << "\n";
+  }
+  return 0;
+}
+
+}  // namespace occgeo::cli
