@@ -2,8 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <variant>
 
 namespace occgeo::geometry {
+
+double footprint_height(const Footprint& footprint) {
+  return std::visit([](const auto& shape) { return shape.height; }, footprint);
+}
 
 double bounding_radius(const Footprint& footprint) {
   if (const auto* box = std::get_if<BoxFootprint>(&footprint)) {

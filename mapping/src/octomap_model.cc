@@ -238,7 +238,7 @@ namespace {
 // first hit answers. With no tile in reach the empty tile answers, which still checks the footprint's dimensions.
 OctoCollision collide_tiles(const OctoTileTable& tiles, const OctoTile& empty, const geometry::Footprint& footprint,
                             const geometry::Pose3& X_WB, bool with_columns) {
-  const double height = std::visit([](const auto& f) { return f.height; }, footprint);
+  const double height = geometry::footprint_height(footprint);
   const double radius = std::hypot(geometry::bounding_radius(footprint), height);
   if (!std::isfinite(radius) || !X_WB.transform.matrix().allFinite() || tiles.empty()) {
     return collide_footprint(*empty.fcl_view, with_columns ? &empty.columns : nullptr, footprint, X_WB);

@@ -620,6 +620,17 @@ TEST(GlobalPath, RejectsBadInputNamingTheField) {
   } catch (const std::invalid_argument& error) {
     EXPECT_NE(std::string(error.what()).find("goal_W"), std::string::npos) << error.what();
   }
+  // On a grid, a point with no cell (2^30 cells out, not finite) is refused by name, not wrapped to another cell.
+  const auto grid = world.snapshot();
+  for (const Eigen::Vector2d& far : {Eigen::Vector2d(1.0e12, 0.5), Eigen::Vector2d(0.5, -1.0e12)}) {
+    try {
+      plan_global_path(*grid, far, {0.7, 0.5}, GlobalPathParams{});
+      ADD_FAILURE() << "accepted";
+    } catch (const std::invalid_argument& error) {
+      EXPECT_NE(std::string(error.what()).find("start_W"), std::string::npos) << error.what();
+    }
+  }
+  EXPECT_THROW(static_cast<void>(segment_clear(*grid, {0.5, 0.5}, {1.0e12, 0.5}, 0.2)), std::invalid_argument);
   try {
     pure_pursuit(Pose2{}, std::vector<Eigen::Vector2d>{}, PurePursuitParams{});
     ADD_FAILURE() << "accepted";

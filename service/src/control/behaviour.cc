@@ -398,7 +398,7 @@ class EscapeWrapper final : public Behaviour {
       : rebuild_(std::move(rebuild)),
         inner_(rebuild_()),
         detector_(detector_params()),
-        height_m_(std::visit([](const auto& shape) { return shape.height; }, robot.footprint)) {
+        height_m_(geometry::footprint_height(robot.footprint)) {
     // Hard limit at the inscribed radius, so a gap the body fits through aligned stays open; a cost gradient out to
     // the circumscribed radius keeps the path off walls where there is room (the guard checks the real footprint).
     planner_.footprint_radius_m = inscribed_radius(robot.footprint);
@@ -528,9 +528,7 @@ class EscapeWrapper final : public Behaviour {
 class MapEscapeWrapper final : public Behaviour {
  public:
   MapEscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
-      : rebuild_(std::move(rebuild)),
-        inner_(rebuild_()),
-        height_m_(std::visit([](const auto& shape) { return shape.height; }, robot.footprint)) {
+      : rebuild_(std::move(rebuild)), inner_(rebuild_()), height_m_(geometry::footprint_height(robot.footprint)) {
     // No goal to squeeze through to: the way out keeps the whole turning circle clear, and more where there is room.
     planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint);
     planner_.cost_radius_m = planner_.footprint_radius_m + 0.4;

@@ -20,8 +20,6 @@ using detail::require_positive;
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr double kSqrt2 = std::numbers::sqrt2;
-// Cells this far from the origin are refused, as everywhere else in the grid code (2^30).
-constexpr double kMaxCellIndex = 1073741824.0;
 
 using geometry::wrap_angle;
 
@@ -127,7 +125,10 @@ class SearchGrid {
     const double ay = a_W.y() / cell_size() - window_.origin.iy;
     const double dx = b_W.x() / cell_size() - window_.origin.ix - ax;
     const double dy = b_W.y() / cell_size() - window_.origin.iy - ay;
-    if (!(std::abs(ax) < kMaxCellIndex && std::abs(ay) < kMaxCellIndex)) return std::nullopt;
+    if (!(std::abs(ax) < geometry::GridGeometry::kMaxCellIndex &&
+          std::abs(ay) < geometry::GridGeometry::kMaxCellIndex)) {
+      return std::nullopt;
+    }
     const double length_m = (b_W - a_W).norm();
     double cost_m = 0.0;
     const bool clear = walk_cells(ax, ay, dx, dy, [&](Local c, double fraction) {
@@ -555,36 +556,37 @@ std::optional<double> path_cost(const PlanningWindow& window, std::span<const Ei
   return grid.polyline_cost(path_W);
 }
 
+std::optional<PlanningWindow> window_around(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,
+                                            const Eigen::Vector2d& goal_W, const GlobalPathParams& params) {
+  params.validate();
+  const geometry::GridGeometry cells(grid.cell_size());
+  const std::optional<geometry::CellIndex> start = cells.checked_cell_of(start_W);
+  const std::optional<geometry::CellIndex> goal = cells.checked_cell_of(goal_W);
+  require(start.has_value(), "start_W", "must be finite and within 2^30 cells of the origin", start_W.x());
+  require(goal.has_value(), "goal_W", "must be finite and within 2^30 cells of the origin", goal_W.x());
+  // In doubles: the margin may take a cell near the limit beyond int32.
+  const double margin_cells = std::ceil(params.window_margin_m / grid.cell_size());
+  const double min_x = std::min(start->ix, goal->ix) - margin_cells;
+  const double min_y = std::min(start->iy, goal->iy) - margin_cells;
+  const double max_x = std::max(start->ix, goal->ix) + margin_cells;
+  const double max_y = std::max(start->iy, goal->iy) + margin_cells;
+  if (max_x - min_x + 1.0 > params.max_window_cells || max_y - min_y + 1.0 > params.max_window_cells) {
+    return std::nullopt;
+  }
+  return planning_window(grid, {static_cast<std::int32_t>(min_x), static_cast<std::int32_t>(min_y)},
+                         {static_cast<std::int32_t>(max_x), static_cast<std::int32_t>(max_y)},
+                         params.occupied_threshold);
+}
+
 GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,
                                   const Eigen::Vector2d& goal_W, const GlobalPathParams& params) {
-  params.validate();
-  require(start_W.allFinite(), "start_W", "must be finite", start_W.x());
-  require(goal_W.allFinite(), "goal_W", "must be finite", goal_W.x());
-  const double cell_size_m = grid.cell_size();
-  const double margin_cells = std::ceil(params.window_margin_m / cell_size_m);
-  const double start_x = std::floor(start_W.x() / cell_size_m);
-  const double start_y = std::floor(start_W.y() / cell_size_m);
-  const double goal_x = std::floor(goal_W.x() / cell_size_m);
-  const double goal_y = std::floor(goal_W.y() / cell_size_m);
-  for (const double value : {start_x, start_y}) {
-    require(std::abs(value) < kMaxCellIndex, "start_W", "must lie within 2^30 cells of the origin", value);
-  }
-  for (const double value : {goal_x, goal_y}) {
-    require(std::abs(value) < kMaxCellIndex, "goal_W", "must lie within 2^30 cells of the origin", value);
-  }
-  const double min_x = std::min(start_x, goal_x) - margin_cells;
-  const double min_y = std::min(start_y, goal_y) - margin_cells;
-  const double max_x = std::max(start_x, goal_x) + margin_cells;
-  const double max_y = std::max(start_y, goal_y) + margin_cells;
-  if (max_x - min_x + 1.0 > params.max_window_cells || max_y - min_y + 1.0 > params.max_window_cells) {
+  const std::optional<PlanningWindow> window = window_around(grid, start_W, goal_W, params);
+  if (!window) {
     GlobalPathResult result;
     result.status = GlobalPathStatus::kWindowTooLarge;
     return result;
   }
-  const PlanningWindow window =
-      planning_window(grid, {static_cast<std::int32_t>(min_x), static_cast<std::int32_t>(min_y)},
-                      {static_cast<std::int32_t>(max_x), static_cast<std::int32_t>(max_y)}, params.occupied_threshold);
-  return plan_global_path(window, start_W, goal_W, params);
+  return plan_global_path(*window, start_W, goal_W, params);
 }
 
 bool segment_clear(const mapping::GridSnapshot& grid, const Eigen::Vector2d& a_W, const Eigen::Vector2d& b_W,
@@ -596,19 +598,16 @@ bool segment_clear(const mapping::GridSnapshot& grid, const Eigen::Vector2d& a_W
   const double cell_m = grid.cell_size();
   const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - cell_m;
   const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + cell_m;
-  for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
-    require(std::abs(value / cell_m) < kMaxCellIndex, "a_W", "must lie within 2^30 cells of the origin", value);
-  }
-  const geometry::CellIndex min{static_cast<std::int32_t>(std::floor(lo.x() / cell_m)),
-                                static_cast<std::int32_t>(std::floor(lo.y() / cell_m))};
-  const geometry::CellIndex max{static_cast<std::int32_t>(std::floor(hi.x() / cell_m)),
-                                static_cast<std::int32_t>(std::floor(hi.y() / cell_m))};
+  const geometry::GridGeometry cells(cell_m);
+  const std::optional<geometry::CellIndex> min = cells.checked_cell_of(lo);
+  const std::optional<geometry::CellIndex> max = cells.checked_cell_of(hi);
+  require(min && max, "a_W", "must lie within 2^30 cells of the origin", a_W.x());
   const Eigen::Vector2d along = b_W - a_W;
   const double length_sq = along.squaredNorm();
   // A cell's square reaches half a diagonal beyond its centre.
   const double reach_m = radius_m + cell_m * kSqrt2 / 2.0;
   bool clear = true;
-  grid.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+  grid.for_each_occupied(*min, *max, [&](const geometry::CellIndex& c) {
     const Eigen::Vector2d centre((c.ix + 0.5) * cell_m, (c.iy + 0.5) * cell_m);
     const double t = length_sq > 0.0 ? std::clamp((centre - a_W).dot(along) / length_sq, 0.0, 1.0) : 0.0;
     if ((a_W + t * along - centre).norm() < reach_m) clear = false;

@@ -14,8 +14,6 @@ namespace {
 constexpr double kSqrt2 = 1.4142135623730951;
 // The longest unseen stretch the planner bridges between surfaces a drivable slope could join, metres.
 constexpr double kUnseenGap_m = 2.0;
-// Cell indices beyond this are refused, as the grid planner refuses them.
-constexpr double kMaxCellIndex = 1073741824.0;  // 2^30
 
 }  // namespace
 
@@ -91,7 +89,8 @@ bool HeightBandLayer::segment_clear(const Eigen::Vector2d& a_W, const Eigen::Vec
   const Eigen::Vector2d lo = a_W.cwiseMin(b_W).array() - radius_m - column_m;
   const Eigen::Vector2d hi = a_W.cwiseMax(b_W).array() + radius_m + column_m;
   for (const double value : {lo.x(), lo.y(), hi.x(), hi.y()}) {
-    geometry::require(std::abs(value / column_m) < kMaxCellIndex, "a_W must lie within 2^30 cells of the origin");
+    geometry::require(std::abs(value / column_m) < geometry::GridGeometry::kMaxCellIndex,
+                      "a_W must lie within 2^30 cells of the origin");
   }
   // A column's square reaches half a diagonal beyond its centre.
   const double reach_m = radius_m + column_m * kSqrt2 / 2.0;
@@ -133,28 +132,15 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Heigh
                                   const GlobalPathParams& params) {
   if (band == nullptr) return plan_global_path(grid, start_W, goal_W, params);
   params.validate();
-  geometry::require(start_W.allFinite(), "start_W must be finite");
-  geometry::require(goal_W.allFinite(), "goal_W must be finite");
-  // The same window as the grid overload: the cells around start and goal, grown by window_margin_m.
-  const double cell_m = grid.cell_size();
-  const double margin_cells = std::ceil(params.window_margin_m / cell_m);
-  const Eigen::Vector2d start_cell = (start_W / cell_m).array().floor();
-  const Eigen::Vector2d goal_cell = (goal_W / cell_m).array().floor();
-  for (const double value : {start_cell.x(), start_cell.y(), goal_cell.x(), goal_cell.y()}) {
-    geometry::require(std::abs(value) < kMaxCellIndex, "start_W and goal_W must lie within 2^30 cells of the origin");
-  }
-  const Eigen::Vector2d lo = start_cell.cwiseMin(goal_cell).array() - margin_cells;
-  const Eigen::Vector2d hi = start_cell.cwiseMax(goal_cell).array() + margin_cells;
-  if (hi.x() - lo.x() + 1.0 > params.max_window_cells || hi.y() - lo.y() + 1.0 > params.max_window_cells) {
+  // The same window as the grid overload.
+  std::optional<PlanningWindow> window = window_around(grid, start_W, goal_W, params);
+  if (!window) {
     GlobalPathResult result;
     result.status = GlobalPathStatus::kWindowTooLarge;
     return result;
   }
-  PlanningWindow window = planning_window(grid, {static_cast<std::int32_t>(lo.x()), static_cast<std::int32_t>(lo.y())},
-                                          {static_cast<std::int32_t>(hi.x()), static_cast<std::int32_t>(hi.y())},
-                                          params.occupied_threshold);
-  band->mark_occupied(window, start_W);
-  return plan_global_path(window, start_W, goal_W, params);
+  band->mark_occupied(*window, start_W);
+  return plan_global_path(*window, start_W, goal_W, params);
 }
 
 }  // namespace occgeo::service::control

@@ -18,10 +18,6 @@ namespace {
 // The terrain around the swept footprint reaches this much farther, so the cells it reads have their neighbours.
 constexpr double kTerrainMargin_m = 0.3;
 
-double footprint_height(const geometry::Footprint& footprint) {
-  return std::visit([](const auto& shape) { return shape.height; }, footprint);
-}
-
 // The terrain the guard reads within reach_m of base_link (world frame), when there is an octree to estimate it
 // from: the surfaces the robot can drive on, where neither the grid's returns nor the octree's voxels of the surface
 // are obstacles (the robot climbing a ramp its laser reads as a wall).
@@ -34,8 +30,8 @@ std::optional<mapping::TerrainMap> terrain_near(const GuardModels& models, const
   const double cell_m = models.grid != nullptr ? models.grid->cell_size() : 2.0 * models.octomap->resolution();
   const Eigen::Vector2d position_W = X_WB.position();
   const Eigen::Vector2d reach(reach_m, reach_m);
-  return terrain_around(*models.octomap, cell_m, position_W - reach, position_W + reach, footprint_height(footprint),
-                        position_W);
+  return terrain_around(*models.octomap, cell_m, position_W - reach, position_W + reach,
+                        geometry::footprint_height(footprint), position_W);
 }
 
 // model_in_contact with the terrain's exceptions (none when terrain is null).
@@ -51,11 +47,12 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
   if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
   if (params.check_octomap && models.octomap != nullptr) {
     // With a terrain the band follows the surface, which FCL's straight prism cannot: the same voxels as columns.
-    const bool hit = terrain != nullptr
-                         ? geometry::check_collision(
-                               {footprint, X_WB}, OctoMapColumns(*models.octomap, footprint_height(footprint), terrain))
-                               .hit
-                         : collide_octomap(*models.octomap, footprint, X_WB).hit;
+    const bool hit =
+        terrain != nullptr
+            ? geometry::check_collision({footprint, X_WB},
+                                        OctoMapColumns(*models.octomap, geometry::footprint_height(footprint), terrain))
+                  .hit
+            : collide_octomap(*models.octomap, footprint, X_WB).hit;
     if (hit) return "octomap";
   }
   return "";
@@ -79,7 +76,7 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
     }
   }
   if (params.check_octomap && models.octomap != nullptr) {
-    const OctoMapColumns columns(*models.octomap, footprint_height(footprint), terrain);
+    const OctoMapColumns columns(*models.octomap, geometry::footprint_height(footprint), terrain);
     const auto clearance = geometry::compute_clearance({footprint, X_WB, max_distance_m}, columns);
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;

@@ -31,10 +31,6 @@ void set_point(const Eigen::Vector2d& p, v1::Point2D& out) {
   out.set_y(p.y());
 }
 
-double footprint_height(const geometry::Footprint& footprint) {
-  return std::visit([](const auto& shape) { return shape.height; }, footprint);
-}
-
 bool contains_origin(const geometry::Footprint& footprint) {
   if (const auto* box = std::get_if<geometry::BoxFootprint>(&footprint)) {
     return std::abs(box->center_x) <= box->length / 2;
@@ -66,7 +62,7 @@ ModelClearance model_clearance(const WorldSnapshot& snapshot, v1::Model model,
     return {r.found, r.clearance_m, r.nearest_point_W, r.nearest_cell};
   }
   if (model == v1::MODEL_OCTOMAP) {
-    const double top_m = footprint_height(request.footprint);
+    const double top_m = geometry::footprint_height(request.footprint);
     if (const OctreeBandSnapshot* band = find_octree_band(snapshot.octree_bands.get(), top_m)) {
       // The band's field: within one voxel of the walk below (exactly it where the query reaches beyond the field).
       const geometry::ClearanceResult r = band->field->compute_clearance(request);
@@ -393,7 +389,7 @@ SweptClearance swept_clearance(const WorldSnapshot& snapshot, const geometry::Fo
     }
     if (model == v1::MODEL_OCTOMAP) {
       // As for the grid: the band's field gives an upper bound at most a voxel above the walk's answer.
-      const double top_m = footprint_height(footprint);
+      const double top_m = geometry::footprint_height(footprint);
       if (const OctreeBandSnapshot* band = find_octree_band(snapshot.octree_bands.get(), top_m)) {
         const geometry::ClearanceResult upper = band->field->compute_clearance(request);
         const double lower = (upper.found ? upper.clearance_m : max_distance_m) - snapshot.octomap->resolution();

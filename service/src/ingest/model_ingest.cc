@@ -87,10 +87,6 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   world.insert_ptem_on_strand(ptem_scan);
 }
 
-double footprint_height_m(const geometry::Footprint& footprint) {
-  return std::visit([](const auto& shape) { return shape.height; }, footprint);
-}
-
 }  // namespace
 
 PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserModel& laser) {
@@ -145,7 +141,7 @@ void insert_point_cloud(IngestTarget& target, const geometry::Pose2& X_WB, const
   const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(cloud.X_BS);
   const Eigen::Vector2d origin_W = X_WS.translation().head<2>();
   target.touch(origin_W, cloud.beam_limits.reach_m(cloud.range_max_m));
-  const double top_m = footprint_height_m(model.footprint);
+  const double top_m = geometry::footprint_height(model.footprint);
   // Points lower than this above the ground are the ground itself (noise on a flat floor), not obstacles.
   const double ground_band_m = target.octomap_params.terrain.ground_band_m;
   std::vector<Eigen::Vector3f> points_S;

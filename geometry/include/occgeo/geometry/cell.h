@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <optional>
 
 namespace occgeo::geometry {
 
@@ -26,11 +27,24 @@ struct CellIndexHash {
 // Conversion between metric points and cells for one cell size (metres).
 class GridGeometry {
  public:
+  // Cells at or beyond this many from the origin on either axis are outside every map (and near where a cell's index
+  // would overflow its int32).
+  static constexpr double kMaxCellIndex = 1073741824.0;  // 2^30
+
   explicit GridGeometry(double cell_size) : cell_size_(cell_size) {}
   [[nodiscard]] double cell_size() const { return cell_size_; }
+  // The cell of p, which the caller knows to be finite and within kMaxCellIndex cells of the origin (a checked
+  // message's coordinates are); otherwise use checked_cell_of.
   [[nodiscard]] CellIndex cell_of(const Eigen::Vector2d& p) const {
     return {static_cast<std::int32_t>(std::floor(p.x() / cell_size_)),
             static_cast<std::int32_t>(std::floor(p.y() / cell_size_))};
+  }
+  // The cell of p, or nullopt when p is not finite or lies kMaxCellIndex cells or more from the origin.
+  [[nodiscard]] std::optional<CellIndex> checked_cell_of(const Eigen::Vector2d& p) const {
+    const double x = std::floor(p.x() / cell_size_);
+    const double y = std::floor(p.y() / cell_size_);
+    if (!(std::abs(x) < kMaxCellIndex && std::abs(y) < kMaxCellIndex)) return std::nullopt;  // NaN fails too
+    return CellIndex{static_cast<std::int32_t>(x), static_cast<std::int32_t>(y)};
   }
   [[nodiscard]] Eigen::Vector2d center_of(const CellIndex& c) const {
     return {(c.ix + 0.5) * cell_size_, (c.iy + 0.5) * cell_size_};

@@ -34,6 +34,9 @@ using Footprint = std::variant<BoxFootprint, CylinderFootprint, ConvexPolygonFoo
 // Radius of the smallest circle about the base_link origin that holds the footprint, metres.
 double bounding_radius(const Footprint& footprint);
 
+// Height of the footprint's top above base_link's ground plane, metres, whatever its shape.
+double footprint_height(const Footprint& footprint);
+
 // A polygon footprint as a closed convex mesh in base_link, in FCL's fcl::Convex encoding (kept free of FCL types so
 // this header stays FCL-free): vertices_B[0, n) is the ring at z = 0, vertices_B[n, 2n) the ring at z = height;
 // faces holds, per face, its vertex count then its vertex indices, counter-clockwise seen from outside.

@@ -111,7 +111,13 @@ struct GlobalPathResult {
 GlobalPathResult plan_global_path(const PlanningWindow& window, const Eigen::Vector2d& start_W,
                                   const Eigen::Vector2d& goal_W, const GlobalPathParams& params);
 
-// Same on a grid snapshot: the window is the box around start and goal grown by window_margin_m.
+// The window plan_global_path searches on a grid snapshot: the box of the cells of start and goal grown by
+// params.window_margin_m; nullopt when that is over params.max_window_cells on either axis. Throws
+// std::invalid_argument naming start_W or goal_W when it is not finite or lies 2^30 cells or more from the origin.
+std::optional<PlanningWindow> window_around(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,
+                                            const Eigen::Vector2d& goal_W, const GlobalPathParams& params);
+
+// Same on a grid snapshot, on window_around's window (kWindowTooLarge when there is none).
 GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Eigen::Vector2d& start_W,
                                   const Eigen::Vector2d& goal_W, const GlobalPathParams& params);
 
