@@ -1,11 +1,8 @@
 #pragma once
 
-// Helpers the `occgeo` tool's commands share: the query connection, number formatting, and reading the models, the
-// footprint and the pose a command's options name.
+// Helpers the `occgeo` tool's commands share: the query connection and number formatting.
 
-#include <optional>
 #include <string>
-#include <vector>
 
 #include "cli_commands.h"
 #include "occgeo/client/connection.h"
@@ -24,17 +21,5 @@ Connection connect_query(const Options& options);
 
 // A number for text and JSON output: six significant digits.
 std::string fmt(double v);
-
-// "grid,octomap,ptem" as Model values; throws UsageError for an unknown name.
-std::vector<v1::Model> models_from(const Options& options);
-
-// A Model's name as --models spells it; empty for an unknown value.
-std::string model_name(v1::Model model);
-
-// The --footprint option as a Footprint message; nullopt when absent. Throws UsageError when malformed.
-std::optional<v1::Footprint> footprint_from(const Options& options);
-
-// --x, --y and --theta (default 0) as a pose.
-v1::Pose2D pose_from(const Options& options);
 
 }  // namespace occgeo::cli

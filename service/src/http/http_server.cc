@@ -1,6 +1,7 @@
 #include "http_server.h"
 
 #include <atomic>
+#include <bit>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
@@ -282,15 +283,21 @@ class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
   friend class WebSocketSession<FoxgloveSocket>;
 
   void on_accepted() {
-    static std::atomic<std::uint64_t> sessions{0};
-    queue(foxglove::server_info(++sessions), false);
+    // Numbered with the protocol sessions, from the server's own counter.
+    queue(foxglove::server_info(core_.next_session_id.fetch_add(1)), false);
     queue(foxglove::advertise(), false);
   }
 
   void on_message(const std::string& text) {
     const foxglove::ClientRequest request = foxglove::parse_client_request(text);
     if (!request.problem.empty()) {
-      log::warn("foxglove_message_not_understood", {{"op", request.op}, {"problem", request.problem}});
+      // Logged at the 1st, 2nd, 4th, 8th... of a connection's bad messages: a client sending nothing else cannot
+      // fill the log.
+      ++not_understood_;
+      if (std::has_single_bit(not_understood_)) {
+        log::warn("foxglove_message_not_understood",
+                  {{"op", request.op}, {"problem", request.problem}, {"count", not_understood_}});
+      }
     }
     for (const std::uint32_t id : request.unsubscribe) {
       std::erase_if(subscriptions_, [&](const Subscribed& s) { return s.id == id; });
@@ -373,6 +380,7 @@ class FoxgloveSocket final : public WebSocketSession<FoxgloveSocket> {
     std::optional<std::chrono::steady_clock::time_point> sent_at;
   };
 
+  std::uint64_t not_understood_ = 0;  // messages of this connection that were not understood
   ServerCore& core_;
   std::deque<Outgoing> outgoing_;
   std::vector<Subscribed> subscriptions_;
