@@ -414,6 +414,35 @@ TEST_F(LiveView, PublishesTheGridAndScansOverTheFoxgloveProtocol) {
   }
 }
 
+// A Foxglove client sending messages the server does not understand keeps its connection, and cannot fill the
+// server's log: 100 bad messages give a handful of warnings, each with the count so far, and the subscription sent
+// after them is served.
+TEST_F(LiveView, FoxgloveMessagesNotUnderstoodAreLoggedSparinglyAndTheConnectionStaysUsable) {
+  FoxgloveClient client(port_);
+  ASSERT_EQ(client.next_text().get<std::string>("op"), "serverInfo");
+  const ptree advertise = client.next_text();
+  int map_channel = -1;
+  for (const auto& [unused, channel] : advertise.get_child("channels")) {
+    if (channel.get<std::string>("topic") == "/map") map_channel = channel.get<int>("id");
+  }
+  ASSERT_GE(map_channel, 0);
+  constexpr int kBadMessages = 100;
+  for (int i = 0; i < kBadMessages; ++i) client.send(R"({"op":"subscribe","subscriptions":"all of them"})");
+  client.send(R"({"op":"subscribe","subscriptions":[{"id":3,"channelId":)" + std::to_string(map_channel) + "}]}");
+  EXPECT_EQ(client.next_data(3).get<std::string>("frame_id"), "world");
+
+  // Messages are handled in order, so every bad one was seen before the map arrived.
+  const std::string log = server_->log();
+  std::size_t warnings = 0;
+  for (std::size_t at = log.find("foxglove_message_not_understood"); at != std::string::npos;
+       at = log.find("foxglove_message_not_understood", at + 1)) {
+    ++warnings;
+  }
+  EXPECT_GE(warnings, 1U) << log;
+  EXPECT_LE(warnings, 8U) << "one warning per bad message would be " << kBadMessages << "\n" << log;
+  EXPECT_NE(log.find("subscribe without a"), std::string::npos) << log;
+}
+
 // The HTTP side follows the socket's rules. An address other than loopback needs the observer token: without it the
 // server refuses to start, naming the key. With a token, the page, /metrics and the WebSockets need it (the page's
 // script and style carry no data); the live view's WebSocket, which can engage an e-stop, refuses a foreign Origin.
