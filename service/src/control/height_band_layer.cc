@@ -131,8 +131,7 @@ GlobalPathResult plan_global_path(const mapping::GridSnapshot& grid, const Heigh
                                   const Eigen::Vector2d& start_W, const Eigen::Vector2d& goal_W,
                                   const GlobalPathParams& params) {
   if (band == nullptr) return plan_global_path(grid, start_W, goal_W, params);
-  params.validate();
-  // The same window as the grid overload.
+  // The same window as the grid overload (window_around checks params and both points).
   std::optional<PlanningWindow> window = window_around(grid, start_W, goal_W, params);
   if (!window) {
     GlobalPathResult result;

@@ -1,6 +1,4 @@
-#include <map>
 #include <utility>
-#include <vector>
 
 #include "../metrics.h"
 #include "handlers.h"
