@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
 #include "occgeo/sim/args.h"
 #include "occgeo/sim/messages.h"
@@ -153,8 +154,10 @@ void hold_until_driven(const SimOptions& options, double hold_s) {
     request.set_request_id(id);
     const occgeo::v1::ServerMessage reply = query.call(request, id);
     for (const occgeo::v1::RobotStatus& robot : reply.status().robots()) {
-      if (robot.id() == options.robot_id && !robot.behaviour().empty() && robot.behaviour() != "stop") {
-        std::fprintf(stderr, "occgeo-sim: --hold: behaviour %s set, starting\n", robot.behaviour().c_str());
+      if (robot.id() == options.robot_id && robot.behaviour() != occgeo::v1::BEHAVIOUR_UNSPECIFIED &&
+          robot.behaviour() != occgeo::v1::BEHAVIOUR_STOP) {
+        std::fprintf(stderr, "occgeo-sim: --hold: behaviour %s set, starting\n",
+                     occgeo::proto::behaviour_label(robot.behaviour()).c_str());
         return;
       }
     }

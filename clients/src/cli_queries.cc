@@ -10,6 +10,7 @@
 
 #include "cli_common.h"
 #include "occgeo/client/option_values.h"
+#include "occgeo/proto/labels.h"
 
 namespace occgeo::cli {
 
@@ -140,8 +141,9 @@ int run_status(const Options& options) {
           << ",\"model\":" << json_string(r.model()) << ",\"connected\":" << (r.connected() ? "true" : "false")
           << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
           << ",\"theta\":" << fmt(r.pose().theta()) << "},\"scans_ingested\":" << r.scans_ingested()
-          << ",\"scans_rejected\":" << r.scans_rejected() << ",\"behaviour\":" << json_string(r.behaviour())
-          << ",\"behaviour_state\":" << json_string(r.behaviour_state())
+          << ",\"scans_rejected\":" << r.scans_rejected()
+          << ",\"behaviour\":" << json_string(proto::behaviour_label(r.behaviour()))
+          << ",\"behaviour_state\":" << json_string(proto::behaviour_state_label(r.behaviour_state()))
           << ",\"estop\":" << (r.estop() ? "true" : "false")
           << ",\"sensor_stale\":" << (r.sensor_stale() ? "true" : "false") << ",\"lease_holder\":";
       if (r.has_lease_holder()) {
@@ -176,8 +178,9 @@ int run_status(const Options& options) {
     std::cout << "  " << r.id() << " (" << r.model() << ") world " << r.world() << ", "
               << (r.connected() ? "connected" : "offline") << ", pose (" << fmt(r.pose().x()) << ", "
               << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << "), scans " << r.scans_ingested() << " ("
-              << r.scans_rejected() << " rejected), " << r.behaviour() << ": " << r.behaviour_state()
-              << (r.estop() ? ", E-STOP" : "") << (r.sensor_stale() ? ", sensors stale" : "");
+              << r.scans_rejected() << " rejected), " << proto::behaviour_label(r.behaviour()) << ": "
+              << proto::behaviour_state_label(r.behaviour_state()) << (r.estop() ? ", E-STOP" : "")
+              << (r.sensor_stale() ? ", sensors stale" : "");
     if (r.has_lease_holder()) {
       std::cout << ", lease: session " << r.lease_holder().session_id() << " (" << r.lease_holder().client_name()
                 << ")";

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 #include "occgeo/client/option_values.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
 
 #include "cli_common.h"
@@ -94,15 +95,17 @@ int run_lease(const std::string& verb, const Options& options) {
 // occgeo drive --robot ID BEHAVIOUR [options]: the behaviour is the one bare word.
 int run_drive(const std::vector<std::string>& words, const Options& options) {
   if (words.size() > 1) throw UsageError("drive takes one behaviour, got '" + words[0] + "' and '" + words[1] + "'");
-  const std::string behaviour = words.empty() ? std::string() : words[0];
-  if (behaviour != "bearcat" && behaviour != "bearcat_seed" && behaviour != "stop" && behaviour != "teleop" &&
-      behaviour != "wander") {
-    throw UsageError("drive needs a behaviour: bearcat, bearcat_seed, wander, stop or teleop");
+  const std::optional<v1::Behaviour> named = proto::behaviour_from_label(words.empty() ? "" : words[0]);
+  if (!named || *named == v1::BEHAVIOUR_GOTO || *named == v1::BEHAVIOUR_WAYPOINTS) {
+    throw UsageError(
+        "drive needs a behaviour: bearcat, bearcat_seed, wander, stop or teleop (goto has its own "
+        "command)");
   }
+  const v1::Behaviour behaviour = *named;
   const std::string robot = options.required("robot");
   const double v = options.number("v", 0.0);
   const double w = options.number("w", 0.0);
-  if (behaviour != "teleop" && (options.values.contains("v") || options.values.contains("w"))) {
+  if (behaviour != v1::BEHAVIOUR_TELEOP && (options.values.contains("v") || options.values.contains("w"))) {
     throw UsageError("options '--v' and '--w' need the teleop behaviour");
   }
   const double hold_s = options.number("hold", 0.0);
@@ -135,13 +138,14 @@ int run_drive(const std::vector<std::string>& words, const Options& options) {
   const v1::LeaseReply returned = lease_call(connection, robot, v1::LeaseRequest::RETURN, 0.0, ++id);
   connection.close();
   if (options.json) {
-    std::cout << "{\"robot\":" << json_string(robot) << ",\"behaviour\":" << json_string(reply.behaviour())
+    std::cout << "{\"robot\":" << json_string(robot)
+              << ",\"behaviour\":" << json_string(proto::behaviour_label(reply.behaviour()))
               << ",\"linear_mps\":" << fmt(reply.linear_mps()) << ",\"angular_radps\":" << fmt(reply.angular_radps())
               << ",\"estop\":" << (reply.estop() ? "true" : "false") << ",\"held_s\":" << fmt(hold_s)
               << ",\"retains\":" << retains << ",\"returned\":" << (returned.granted() ? "true" : "false") << "}\n";
   } else {
-    std::cout << "robot " << robot << ": " << reply.behaviour();
-    if (reply.behaviour() == "teleop") {
+    std::cout << "robot " << robot << ": " << proto::behaviour_label(reply.behaviour());
+    if (reply.behaviour() == v1::BEHAVIOUR_TELEOP) {
       std::cout << " at " << fmt(reply.linear_mps()) << " m/s, " << fmt(reply.angular_radps()) << " rad/s";
     }
     std::cout << (reply.estop() ? " (e-stop engaged: the robot stays stopped)" : "") << ", held " << fmt(hold_s)
@@ -193,7 +197,7 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
   auto* drive = request.mutable_drive();
   request.set_request_id(++id);
   drive->set_robot_id(robot);
-  drive->set_behaviour(waypoints ? "waypoints" : "goto");
+  drive->set_behaviour(waypoints ? v1::BEHAVIOUR_WAYPOINTS : v1::BEHAVIOUR_GOTO);
   drive->set_escape(!options.switches.contains("no-escape"));
   if (waypoints) {
     for (const auto& [x, y] : points) {
@@ -215,7 +219,7 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   };
   std::string outcome = "limit";
-  std::string last_state;
+  v1::BehaviourState last_state = v1::BEHAVIOUR_STATE_UNSPECIFIED;
   v1::RobotStatus last;
   double next_print_s = 0.0;
   while (elapsed_s() < limit_s) {
@@ -234,7 +238,7 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
     const double distance = std::hypot(goal_x - last.pose().x(), goal_y - last.pose().y());
     if (!options.json && (last.behaviour_state() != last_state || elapsed_s() >= next_print_s)) {
       std::cout << "t=" << fmt(elapsed_s()) << "s pose (" << fmt(last.pose().x()) << ", " << fmt(last.pose().y())
-                << ") " << fmt(distance) << " m to go, " << last.behaviour_state()
+                << ") " << fmt(distance) << " m to go, " << proto::behaviour_state_label(last.behaviour_state())
                 << (last.guard().action().empty() || last.guard().action() == "pass"
                         ? ""
                         : ", guard " + last.guard().action() + " (" + last.guard().zone() + ", " +
@@ -243,9 +247,9 @@ int run_goto(bool waypoints, const std::vector<std::string>& goal, const Options
       next_print_s = elapsed_s() + 1.0;
       last_state = last.behaviour_state();
     }
-    if (last.behaviour() == drive->behaviour() &&
-        (last.behaviour_state() == "reached" || last.behaviour_state() == "no_path")) {
-      outcome = last.behaviour_state();
+    if (last.behaviour() == drive->behaviour() && (last.behaviour_state() == v1::BEHAVIOUR_STATE_REACHED ||
+                                                   last.behaviour_state() == v1::BEHAVIOUR_STATE_NO_PATH)) {
+      outcome = proto::behaviour_state_label(last.behaviour_state());
       break;
     }
     if (!last.connected()) {

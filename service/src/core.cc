@@ -14,6 +14,7 @@
 
 #include "durability/world_store.h"
 #include "model_geometry.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/service/log.h"
 
 namespace occgeo::service {
@@ -439,10 +440,11 @@ std::shared_ptr<Robot> ServerCore::register_robot(const std::shared_ptr<const Ro
   if (!control) {
     control = std::make_shared<RobotControl>();
     // The robot's own default (a sonar robot wanders) stands in for the Bearcat, never for an initial stop.
-    const std::string& own_default = model->spec.default_behaviour();
-    const std::string initial = config_.control.initial_behaviour == "bearcat" && !own_default.empty()
-                                    ? own_default
-                                    : config_.control.initial_behaviour;
+    const v1::Behaviour own_default = model->spec.default_behaviour();
+    const v1::Behaviour initial =
+        config_.control.initial_behaviour == "bearcat" && own_default != v1::BEHAVIOUR_UNSPECIFIED
+            ? own_default
+            : proto::behaviour_from_label(config_.control.initial_behaviour).value();
     control->update([&](ControlState& c) { c.behaviour = initial; });
   }
   auto robot = std::make_shared<Robot>(model, std::move(target_world), bearcat_params_for(*model, config_.bearcat),

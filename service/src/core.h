@@ -285,7 +285,8 @@ struct Lease {
 // requests) and the world's strand (commands, watchdogs).
 struct ControlState {
   std::optional<Lease> lease;
-  std::string behaviour = "bearcat";   // see known_behaviour(); control.initial_behaviour while no controller set one
+  // control.initial_behaviour (or the robot spec's default) while no controller set one
+  v1::Behaviour behaviour = v1::BEHAVIOUR_BEARCAT;
   v1::DriveRequest drive;              // the holder's last accepted request: goal, waypoints, escape
   std::uint64_t drive_generation = 0;  // counts accepted DriveRequests: the strand rebuilds the behaviour on change
   double teleop_linear_mps = 0.0;      // teleop: the holder's velocities, already clamped to the robot's limits
@@ -327,8 +328,8 @@ struct RobotState {
   std::uint64_t scans_ingested = 0;  // sensor messages of every kind
   std::uint64_t scans_rejected = 0;
   std::uint64_t commands_sent = 0;
-  std::string behaviour = "bearcat";
-  std::string behaviour_state;
+  v1::Behaviour behaviour = v1::BEHAVIOUR_BEARCAT;
+  v1::BehaviourState behaviour_state = v1::BEHAVIOUR_STATE_UNSPECIFIED;
   double last_linear_mps = 0.0;
   double last_angular_radps = 0.0;
   v1::GuardDecision guard;  // the safety guard's verdict on the latest command

@@ -23,7 +23,7 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(
     const mapping::BeamLimits& sensor_defaults = default_sensor_beam_limits());
 
 // Why the robot cannot run the behaviour (a sensor it needs is missing), or nullopt when it can.
-std::optional<std::string> missing_sensor_for(const std::string& behaviour, const RobotModel& model);
+std::optional<std::string> missing_sensor_for(v1::Behaviour behaviour, const RobotModel& model);
 
 // Checks a footprint message; prefix names the field path for errors.
 std::optional<geometry::Footprint> footprint_from_proto(const v1::Footprint& footprint, const std::string& prefix,

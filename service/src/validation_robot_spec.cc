@@ -10,6 +10,7 @@
 #include <utility>
 #include <variant>
 
+#include "occgeo/proto/labels.h"
 #include "validation_helpers.h"
 
 namespace occgeo::service {
@@ -332,11 +333,14 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
         return nullptr;
     }
   }
-  const std::string& default_behaviour = spec.default_behaviour();
-  if (!default_behaviour.empty()) {
-    if (default_behaviour != "bearcat" && default_behaviour != "wander" && default_behaviour != "stop") {
-      error = field_error("robot_spec.default_behaviour", "must be \"bearcat\", \"wander\" or \"stop\", not \"" +
-                                                              default_behaviour.substr(0, 64) + "\"");
+  const v1::Behaviour default_behaviour = spec.default_behaviour();
+  if (default_behaviour != v1::BEHAVIOUR_UNSPECIFIED) {
+    if (default_behaviour != v1::BEHAVIOUR_BEARCAT && default_behaviour != v1::BEHAVIOUR_WANDER &&
+        default_behaviour != v1::BEHAVIOUR_STOP) {
+      error = field_error("robot_spec.default_behaviour",
+                          "must be BEHAVIOUR_BEARCAT, BEHAVIOUR_WANDER or BEHAVIOUR_STOP, not " +
+                              (v1::Behaviour_IsValid(default_behaviour) ? v1::Behaviour_Name(default_behaviour)
+                                                                        : std::to_string(default_behaviour)));
       return nullptr;
     }
     if (const std::optional<std::string> missing = missing_sensor_for(default_behaviour, *model)) {
@@ -359,16 +363,19 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
   return model;
 }
 
-std::optional<std::string> missing_sensor_for(const std::string& behaviour, const RobotModel& model) {
+std::optional<std::string> missing_sensor_for(v1::Behaviour behaviour, const RobotModel& model) {
   const bool laser = !model.lasers.empty();
-  if (behaviour == "bearcat" || behaviour == "bearcat_seed") {
-    if (!laser) return "'" + behaviour + "' steers by a laser scan and robot '" + model.id + "' has no laser";
-  } else if (behaviour == "wander") {
+  if (behaviour == v1::BEHAVIOUR_BEARCAT || behaviour == v1::BEHAVIOUR_BEARCAT_SEED) {
+    if (!laser) {
+      return "'" + proto::behaviour_label(behaviour) + "' steers by a laser scan and robot '" + model.id +
+             "' has no laser";
+    }
+  } else if (behaviour == v1::BEHAVIOUR_WANDER) {
     if (!laser && model.range_arrays.empty()) {
       return "'wander' avoids what a laser or a range array sees and robot '" + model.id +
              "' has neither (no range sensor to wander by)";
     }
-  } else if (behaviour == "goto") {
+  } else if (behaviour == v1::BEHAVIOUR_GOTO) {
     if (!laser && model.servo_ranges.empty()) {
       return "'goto' (PointBug) reads a laser scan or a servo-swept beam and robot '" + model.id + "' has neither";
     }

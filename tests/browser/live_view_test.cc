@@ -308,7 +308,7 @@ TEST(LiveViewInBrowser, DrawsThePathOfAGotoBeingFollowed) {
   bool following = false;
   for (int attempt = 0; attempt < 200 && !following; ++attempt) {
     const auto robot = robot_status();
-    following = robot && robot->behaviour() == "goto";
+    following = robot && robot->behaviour() == v1::BEHAVIOUR_GOTO;
     if (!following) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   ASSERT_TRUE(following) << "the robot never took the goto";
@@ -347,7 +347,7 @@ TEST(LiveViewInBrowser, DrawsThePathOfAGotoBeingFollowed) {
   EXPECT_GT(path_pixels, 100);
   const auto robot = robot_status();
   ASSERT_TRUE(robot);
-  EXPECT_EQ(robot->behaviour(), "goto") << "the goto ended before the screenshot";
+  EXPECT_EQ(robot->behaviour(), v1::BEHAVIOUR_GOTO) << "the goto ended before the screenshot";
 }
 
 }  // namespace

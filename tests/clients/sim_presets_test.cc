@@ -522,7 +522,8 @@ TEST(ActivityBotUnits, DriveGotoOncePerIdAndDriveSpeedInTicksPerSecond) {
   const RobotPreset& activitybot = preset_named("activitybot");
   const v1::RobotSpec spec = make_robot_spec(activitybot, {});
   EXPECT_EQ(spec.command_units(), v1::COMMAND_UNITS_ACTIVITYBOT_TICKS);
-  EXPECT_EQ(spec.default_behaviour(), "stop") << "server-steered: stands until a controller gives it a goal";
+  EXPECT_EQ(spec.default_behaviour(), v1::BEHAVIOUR_STOP)
+      << "server-steered: stands until a controller gives it a goal";
   Simulation simulation(load_world(kWorlds / "room.yaml"), activitybot, {}, 1);
   v1::MotionCommand go;
   go.set_expires_after_s(0.5);

@@ -5,6 +5,7 @@
 #include <optional>
 #include <sstream>
 
+#include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
@@ -28,7 +29,7 @@ v1::MotionCommand command_for(std::uint64_t scan_seq, double left_mps, double ri
   command.set_answers_scan_seq(scan_seq);
   command.set_left_wheel_mps(left_mps);
   command.set_right_wheel_mps(right_mps);
-  command.set_state(state);
+  command.set_state(proto::behaviour_state_from_label(state).value_or(v1::BEHAVIOUR_STATE_UNSPECIFIED));
   return command;
 }
 

@@ -167,9 +167,9 @@ TEST(HeightBandLayer, GotoEscapeDrivesRoundWhatOnlyTheOctreeHolds) {
     BehaviourInput input{scan, pose, 0.1 * i, grid.get(), nullptr, octree.get()};
     const BehaviourCommand command = go->decide(input);
     if (i == 0) {
-      EXPECT_EQ(command.state, "escape_blocked");
+      EXPECT_EQ(command.state, BehaviourState::kEscapeBlocked);
     }
-    reached = command.state == "reached";
+    reached = command.state == BehaviourState::kReached;
     // The body's centre keeps the inscribed radius (0.4 m) from every column of the band.
     EXPECT_TRUE(band.segment_clear({pose.x, pose.y}, {pose.x, pose.y}, 0.4 - 0.05))
         << "at " << pose.x << ", " << pose.y;

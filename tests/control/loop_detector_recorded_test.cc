@@ -62,7 +62,7 @@ Verdicts replay(const std::vector<TracePose>& trace, const Eigen::Vector2d& goal
       verdicts.reached_s = trace[i].t_s;
       break;
     }
-    const LoopStatus status = detector.update({pose, trace[i].t_s, goal_W, std::nullopt});
+    const LoopStatus status = detector.update({pose, trace[i].t_s, goal_W, BehaviourState::kNone});
     if (status.loop && !verdicts.loop_s) verdicts.loop_s = trace[i].t_s;
     if (status.stalled && !verdicts.stall_s) verdicts.stall_s = trace[i].t_s;
   }

@@ -225,7 +225,7 @@ v1::ClientMessage lease(const std::string& robot_id, v1::LeaseRequest::Action ac
   return message;
 }
 
-v1::ClientMessage drive(const std::string& robot_id, const std::string& behaviour, double linear = 0.0,
+v1::ClientMessage drive(const std::string& robot_id, v1::Behaviour behaviour, double linear = 0.0,
                         double angular = 0.0) {
   v1::ClientMessage message;
   message.set_request_id(18);
@@ -353,7 +353,7 @@ std::vector<std::pair<std::string, v1::ClientMessage>> every_client_message() {
       {"ptem", ptem("default")},
       {"octree", octree("default")},
       {"lease", lease("r1", v1::LeaseRequest::ACQUIRE, 5.0)},
-      {"drive", drive("r1", "teleop", 0.2, 0.1)},
+      {"drive", drive("r1", v1::BEHAVIOUR_TELEOP, 0.2, 0.1)},
       {"estop", estop("r1", true)},
       {"collision_batch", collision_batch("r1")},
       {"clearance_batch", clearance_batch("r1")},
@@ -424,8 +424,8 @@ void message_seeds() {
   reply.Clear();
   auto* command = reply.mutable_motion_command();
   command->set_linear_mps(0.2);
-  command->set_behaviour("bearcat");
-  command->set_state("straight");
+  command->set_behaviour(v1::BEHAVIOUR_BEARCAT);
+  command->set_state(v1::BEHAVIOUR_STATE_CLEAR);
   write_seed("messages", "server_motion_command", reply.SerializeAsString());
   reply.Clear();
   auto* grid_reply = reply.mutable_grid();
@@ -483,12 +483,12 @@ void server_seeds() {
                       {0, spec_message(laser_spec())},
                       {1, hello(v1::ROLE_CONTROLLER)},
                       {1, lease(r1, v1::LeaseRequest::ACQUIRE, 5.0)},
-                      {1, drive(r1, "teleop", 0.3, 0.2)},
+                      {1, drive(r1, v1::BEHAVIOUR_TELEOP, 0.3, 0.2)},
                       {0, odometry(1, 1.0, 0, 0, 0)},
                       {0, laser_scan(1, 1.0)},
                       {1, estop(r1, true)},
                       {1, estop(r1, false)},
-                      {1, drive(r1, "bearcat")},
+                      {1, drive(r1, v1::BEHAVIOUR_BEARCAT)},
                       {1, lease(r1, v1::LeaseRequest::RETAIN)},
                       {1, lease(r1, v1::LeaseRequest::RETURN)}}));
   write_seed("server", "operator_take",
@@ -498,8 +498,8 @@ void server_seeds() {
                       {1, lease(r1, v1::LeaseRequest::ACQUIRE)},
                       {2, hello(v1::ROLE_CONTROLLER, {}, "fuzz-operator")},
                       {2, lease(r1, v1::LeaseRequest::TAKE, 2.0)},
-                      {2, drive(r1, "stop")},
-                      {1, drive(r1, "teleop", 1.0, 0.0)}}));
+                      {2, drive(r1, v1::BEHAVIOUR_STOP)},
+                      {1, drive(r1, v1::BEHAVIOUR_TELEOP, 1.0, 0.0)}}));
   write_seed("server", "queries",
              records({{0, hello(v1::ROLE_DRIVER, r1)},
                       {0, spec_message(laser_spec())},

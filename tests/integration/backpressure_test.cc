@@ -460,7 +460,7 @@ TEST(Backpressure, AControllerThatVanishesLeavesTheRobotStopped) {
   v1::ClientMessage drive;
   drive.set_request_id(2);
   drive.mutable_drive()->set_robot_id("bot");
-  drive.mutable_drive()->set_behaviour("teleop");
+  drive.mutable_drive()->set_behaviour(v1::BEHAVIOUR_TELEOP);
   drive.mutable_drive()->set_linear_mps(0.4);
   controller.send(drive);
   bool granted = false;

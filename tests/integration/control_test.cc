@@ -47,7 +47,7 @@ v1::ClientMessage teleop_drive(double linear_mps, double angular_radps = 0.0) {
   v1::ClientMessage drive;
   drive.set_request_id(2);
   drive.mutable_drive()->set_robot_id("r1");
-  drive.mutable_drive()->set_behaviour("teleop");
+  drive.mutable_drive()->set_behaviour(v1::BEHAVIOUR_TELEOP);
   drive.mutable_drive()->set_linear_mps(linear_mps);
   drive.mutable_drive()->set_angular_radps(angular_radps);
   return drive;
@@ -112,13 +112,14 @@ class ControlOverTheWire : public ::testing::Test {
 // scans at 10 Hz (0.5 s).
 TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheRobotWithinHalfASecond) {
   SteppingDriver driver(server_->address());
-  EXPECT_EQ(driver.step().behaviour(), "bearcat") << "without a controller the robot keeps the Bearcat behaviour";
+  EXPECT_EQ(driver.step().behaviour(), v1::BEHAVIOUR_BEARCAT)
+      << "without a controller the robot keeps the Bearcat behaviour";
   {
     auto controller = open_role(server_->address(), v1::ROLE_CONTROLLER, "test-controller");
     ASSERT_TRUE(lease(controller, v1::LeaseRequest::ACQUIRE, 1, 10.0).granted());
     ASSERT_TRUE(controller.call(teleop_drive(0.3), 2).has_drive());
     const v1::MotionCommand moving = driver.step();
-    EXPECT_EQ(moving.behaviour(), "teleop");
+    EXPECT_EQ(moving.behaviour(), v1::BEHAVIOUR_TELEOP);
     EXPECT_FALSE(moving.stop());
     EXPECT_NEAR(moving.linear_mps(), 0.3, 1e-9);
     controller.close();
@@ -138,7 +139,7 @@ TEST_F(ControlOverTheWire, TheHoldersDisconnectStopsTheRobotWithinHalfASecond) {
   const auto reply = query.call(status, 1).status();
   ASSERT_EQ(reply.robots_size(), 1);
   EXPECT_FALSE(reply.robots(0).has_lease_holder());
-  EXPECT_EQ(reply.robots(0).behaviour(), "stop");
+  EXPECT_EQ(reply.robots(0).behaviour(), v1::BEHAVIOUR_STOP);
 }
 
 // The same with the real occgeo-sim --lockstep as the driver: once the server has seen the
@@ -256,14 +257,14 @@ TEST_F(ControlOverTheWire, TheCliLeasesDrivesAndStopsARobot) {
   EXPECT_NE(result.out.find("\"engaged\":true"), std::string::npos) << result.out;
   const v1::MotionCommand stopped = driver.step();
   EXPECT_TRUE(stopped.stop());
-  EXPECT_EQ(stopped.state(), "estop");
+  EXPECT_EQ(stopped.state(), v1::BEHAVIOUR_STATE_ESTOP);
   result = cli({"status", "--json"});
   EXPECT_NE(result.out.find("\"estop\":true"), std::string::npos) << result.out;
   result = cli({"estop", "--robot", "r1", "--release"});
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const v1::MotionCommand released = driver.step();
   EXPECT_FALSE(released.stop());
-  EXPECT_EQ(released.behaviour(), "bearcat");
+  EXPECT_EQ(released.behaviour(), v1::BEHAVIOUR_BEARCAT);
 
   result = cli({"drive", "--robot", "r1", "dance"});
   EXPECT_EQ(result.exit_code, 2) << "a bad behaviour is a usage error";
@@ -313,7 +314,7 @@ class SilentServer {
           command->set_right_wheel_mps(0.4);
           command->set_linear_mps(0.4);
           command->set_expires_after_s(0.6);
-          command->set_behaviour("teleop");
+          command->set_behaviour(v1::BEHAVIOUR_TELEOP);
           last_answered_stamp_s_ = message.laser_scan().stamp_s();
         } else {
           continue;

@@ -62,7 +62,7 @@ class DriveRefusal : public ::testing::Test {
     }
   }
 
-  std::string behaviour_of(client::Connection& connection, const std::string& robot) {
+  v1::Behaviour behaviour_of(client::Connection& connection, const std::string& robot) {
     v1::ClientMessage request;
     request.mutable_status();
     request.set_request_id(++id_);
@@ -70,7 +70,7 @@ class DriveRefusal : public ::testing::Test {
     for (const auto& r : reply.status().robots()) {
       if (r.id() == robot) return r.behaviour();
     }
-    return "(no such robot)";
+    return v1::BEHAVIOUR_UNSPECIFIED;  // no such robot
   }
 
   // The next motion command the driver receives within 5 s.
@@ -93,15 +93,15 @@ TEST_F(DriveRefusal, WanderWithoutARangeSensorToWanderByIsRefusedAndTheRobotStop
   auto control = controller("bot");
   v1::DriveRequest request;
   request.set_robot_id("bot");
-  request.set_behaviour("wander");
+  request.set_behaviour(v1::BEHAVIOUR_WANDER);
   const std::string error = drive(control, request);
   EXPECT_NE(error.find("drive.behaviour"), std::string::npos) << error;
   EXPECT_NE(error.find("no range sensor to wander by"), std::string::npos) << error;
-  EXPECT_EQ(behaviour_of(control, "bot"), "stop");
+  EXPECT_EQ(behaviour_of(control, "bot"), v1::BEHAVIOUR_STOP);
   const auto command = next_command(bot);
   ASSERT_TRUE(command);
   EXPECT_TRUE(command->stop());
-  EXPECT_EQ(command->state(), "drive_refused");
+  EXPECT_EQ(command->state(), v1::BEHAVIOUR_STATE_DRIVE_REFUSED);
 }
 
 TEST_F(DriveRefusal, PointBugGoalOutsideTheWorldIsRefusedAndTheMovingRobotStops) {
@@ -109,24 +109,24 @@ TEST_F(DriveRefusal, PointBugGoalOutsideTheWorldIsRefusedAndTheMovingRobotStops)
   auto control = controller("cat");
   v1::DriveRequest teleop;
   teleop.set_robot_id("cat");
-  teleop.set_behaviour("teleop");
+  teleop.set_behaviour(v1::BEHAVIOUR_TELEOP);
   teleop.set_linear_mps(0.3);
   ASSERT_EQ(drive(control, teleop), "");
-  ASSERT_EQ(behaviour_of(control, "cat"), "teleop");
+  ASSERT_EQ(behaviour_of(control, "cat"), v1::BEHAVIOUR_TELEOP);
 
   v1::DriveRequest far;
   far.set_robot_id("cat");
-  far.set_behaviour("goto");
+  far.set_behaviour(v1::BEHAVIOUR_GOTO);
   far.mutable_goal()->set_x_m(5.0e7);
   far.mutable_goal()->set_y_m(0.0);
   const std::string error = drive(control, far);
   EXPECT_NE(error.find("drive.goal.x_m"), std::string::npos) << error;
   EXPECT_NE(error.find("outside the world"), std::string::npos) << error;
-  EXPECT_EQ(behaviour_of(control, "cat"), "stop");
+  EXPECT_EQ(behaviour_of(control, "cat"), v1::BEHAVIOUR_STOP);
   const auto command = next_command(bearcat);
   ASSERT_TRUE(command);
   EXPECT_TRUE(command->stop());
-  EXPECT_EQ(command->state(), "drive_refused");
+  EXPECT_EQ(command->state(), v1::BEHAVIOUR_STATE_DRIVE_REFUSED);
 }
 
 }  // namespace

@@ -25,6 +25,7 @@
 #include "../support/process.h"
 #include "../support/temp_dir.h"
 #include "occgeo/mapfile/map_file.h"
+#include "occgeo/proto/labels.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -220,7 +221,7 @@ TEST_F(LiveView, ShowsTheRobotWhereTheStatusSaysAndEngagesItsEStop) {
   EXPECT_EQ(robot.get<double>("pose.y"), truth.pose().y());
   EXPECT_EQ(robot.get<double>("pose.theta"), truth.pose().theta());
   EXPECT_EQ(robot.get<std::string>("footprint.shape"), "box");
-  EXPECT_EQ(robot.get<std::string>("behaviour"), truth.behaviour());
+  EXPECT_EQ(robot.get<std::string>("behaviour"), proto::behaviour_label(truth.behaviour()));
   EXPECT_FALSE(robot.get<bool>("estop"));
 
   page.send(R"({"type":"estop","robot":"nobody"})");

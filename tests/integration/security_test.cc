@@ -257,7 +257,7 @@ TEST(Security, OnlyTheLeaseHoldingControllerDrivesAndOtherRolesAreRefusedEveryTi
         } else {
           message.set_request_id(id);
           message.mutable_drive()->set_robot_id("bot");
-          message.mutable_drive()->set_behaviour("teleop");
+          message.mutable_drive()->set_behaviour(v1::BEHAVIOUR_TELEOP);
           message.mutable_drive()->set_linear_mps(0.5);
         }
         ++attempts;

@@ -15,6 +15,7 @@
 #include "../support/json_fields.h"
 #include "../support/process.h"
 #include "occgeo/client/connection.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
@@ -361,7 +362,9 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     v1::ClientMessage drive;
     drive.set_request_id(++id);
     drive.mutable_drive()->set_robot_id(robot);
-    drive.mutable_drive()->set_behaviour(scenario.behaviour);
+    const std::optional<v1::Behaviour> behaviour = proto::behaviour_from_label(scenario.behaviour);
+    if (!behaviour) throw std::invalid_argument("scenario behaviour '" + scenario.behaviour + "' is not a Behaviour");
+    drive.mutable_drive()->set_behaviour(*behaviour);
     drive.mutable_drive()->set_linear_mps(scenario.teleop_linear_mps);
     drive.mutable_drive()->set_angular_radps(scenario.teleop_angular_radps);
     drive.mutable_drive()->set_escape(scenario.escape);

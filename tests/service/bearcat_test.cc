@@ -139,7 +139,7 @@ void expect_wheels_from_counts(const BearcatDecision& decision, double left_coun
 TEST(BearcatZonesTest, EmptyFieldIsClearAndDrivesStraightAtBaseSpeed) {
   const BearcatDecision decision = decide_on(cast(Scene{}));
   EXPECT_EQ(decision.ob_factor, 0);
-  EXPECT_EQ(decision.state, "clear");
+  EXPECT_EQ(decision.state, BehaviourState::kClear);
   EXPECT_EQ(decision.steer_deg, 0.0);
   EXPECT_FALSE(decision.stop);
   EXPECT_EQ(decision.left_wheel_mps, 0.5);
@@ -152,7 +152,7 @@ TEST(BearcatZonesTest, EmptyFieldIsClearAndDrivesStraightAtBaseSpeed) {
 TEST(BearcatZonesTest, ObstacleOnlyOnTheRightIsCase1AndTurnsLeftBy10Degrees) {
   const BearcatDecision decision = decide_on(cast(Scene{{kRightPost}, {}}));
   EXPECT_EQ(decision.ob_factor, 1);
-  EXPECT_EQ(decision.state, "avoid_right_obstacle");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoidRightObstacle);
   EXPECT_EQ(decision.steer_deg, 10.0);
   // steerCAR(10): 15000 -+ 134.5 * 10 counts.
   expect_wheels_from_counts(decision, 13655.0, 16345.0);
@@ -163,7 +163,7 @@ TEST(BearcatZonesTest, ObstacleOnlyOnTheRightIsCase1AndTurnsLeftBy10Degrees) {
 TEST(BearcatZonesTest, ObstaclesRightAndMiddleAreCase12AndTurnLeftBy15Degrees) {
   const BearcatDecision decision = decide_on(cast(Scene{{kRightPost}, {kBoxAheadRightOfCentre}}));
   EXPECT_EQ(decision.ob_factor, 12);
-  EXPECT_EQ(decision.state, "avoid_right_obstacle");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoidRightObstacle);
   EXPECT_EQ(decision.steer_deg, 15.0);
   expect_wheels_from_counts(decision, 12982.5, 17017.5);
 }
@@ -171,7 +171,7 @@ TEST(BearcatZonesTest, ObstaclesRightAndMiddleAreCase12AndTurnLeftBy15Degrees) {
 TEST(BearcatZonesTest, ObstaclesMiddleAndLeftAreCase23AndTurnRightBy15Degrees) {
   const BearcatDecision decision = decide_on(cast(Scene{{kLeftPost}, {kBoxAheadLeftOfCentre}}));
   EXPECT_EQ(decision.ob_factor, 23);
-  EXPECT_EQ(decision.state, "avoid_left_obstacle");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoidLeftObstacle);
   EXPECT_EQ(decision.steer_deg, -15.0);
   expect_wheels_from_counts(decision, 17017.5, 12982.5);
 }
@@ -179,7 +179,7 @@ TEST(BearcatZonesTest, ObstaclesMiddleAndLeftAreCase23AndTurnRightBy15Degrees) {
 TEST(BearcatZonesTest, ObstacleOnlyOnTheLeftIsCase3AndTurnsRightBy15Degrees) {
   const BearcatDecision decision = decide_on(cast(Scene{{kLeftPost}, {}}));
   EXPECT_EQ(decision.ob_factor, 3);
-  EXPECT_EQ(decision.state, "avoid_left_obstacle");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoidLeftObstacle);
   EXPECT_EQ(decision.steer_deg, -15.0);
   EXPECT_LT(decision.angular_radps, 0.0);
 }
@@ -187,7 +187,7 @@ TEST(BearcatZonesTest, ObstacleOnlyOnTheLeftIsCase3AndTurnsRightBy15Degrees) {
 TEST(BearcatZonesTest, PostsEitherSideWithClearMiddleAreCase13AndPassBetweenStraight) {
   const BearcatDecision decision = decide_on(cast(Scene{{kRightPost, kLeftPost}, {}}));
   EXPECT_EQ(decision.ob_factor, 13);
-  EXPECT_EQ(decision.state, "pass_between");
+  EXPECT_EQ(decision.state, BehaviourState::kPassBetween);
   EXPECT_EQ(decision.steer_deg, 0.0);
   EXPECT_EQ(decision.left_wheel_mps, 0.5);
   EXPECT_EQ(decision.right_wheel_mps, 0.5);
@@ -196,7 +196,7 @@ TEST(BearcatZonesTest, PostsEitherSideWithClearMiddleAreCase13AndPassBetweenStra
 TEST(BearcatZonesTest, WallAcrossTheFrontIsCase123AndStopsInDeadlock) {
   const BearcatDecision decision = decide_on(cast(Scene{{}, {{1.0, -3.0, 1.0, 3.0}}}));
   EXPECT_EQ(decision.ob_factor, 123);
-  EXPECT_EQ(decision.state, "deadlock");
+  EXPECT_EQ(decision.state, BehaviourState::kDeadlock);
   EXPECT_TRUE(decision.stop);
   EXPECT_EQ(decision.left_wheel_mps, 0.0);
   EXPECT_EQ(decision.right_wheel_mps, 0.0);
@@ -257,7 +257,7 @@ TEST(BearcatGapsTest, ObstacleDeadAheadIsCase2AndSteersToTheCentreOfTheWideOpeni
   // A 1.7 m doorway from y = 0.35 m to the room's left corner; the barrel hides the beams up to 15 degrees.
   const BearcatDecision decision = decide_on(cast(Scene{{kBarrelAheadSlightlyLeft}, room_with_front_door(0.35, 2.05)}));
   EXPECT_EQ(decision.ob_factor, 2);
-  EXPECT_EQ(decision.state, "steer_gap");
+  EXPECT_EQ(decision.state, BehaviourState::kSteerGap);
   ASSERT_TRUE(decision.widest_gap.has_value());
   // Open beams 16..44 degrees; the chord between their neighbours (barrel at 15, side wall at 45) is the smaller.
   EXPECT_NEAR(degrees(decision.widest_gap->right_edge_bearing_rad), 15.0, kBearingTolerance_deg);
@@ -276,7 +276,7 @@ TEST(BearcatGapsTest, GapReachingTheEndOfTheScanCounts) {
   const Scene scene{{kBarrelAheadSlightlyLeft}, {{-0.1, -1.0, 2.5, -1.0}, {2.5, -1.0, 2.5, 1.0}}};
   const BearcatDecision decision = decide_on(cast(scene));
   EXPECT_EQ(decision.ob_factor, 2);
-  EXPECT_EQ(decision.state, "steer_gap");
+  EXPECT_EQ(decision.state, BehaviourState::kSteerGap);
   ASSERT_TRUE(decision.widest_gap.has_value());
   // Open beams 22..90 degrees, extended by the wall beam at 21 on the right only.
   EXPECT_NEAR(degrees(decision.widest_gap->right_edge_bearing_rad), 21.0, kBearingTolerance_deg);
@@ -289,14 +289,14 @@ TEST(BearcatGapsTest, OpeningNarrowerThanMinimumIsIgnoredAndTurnsAwayFromTheNear
   const BearcatDecision decision = decide_on(cast(Scene{{kBarrelAheadSlightlyLeft}, room_with_front_door(0.35, 0.95)}));
   EXPECT_EQ(decision.ob_factor, 2);
   EXPECT_FALSE(decision.widest_gap.has_value());
-  EXPECT_EQ(decision.state, "no_gap");
+  EXPECT_EQ(decision.state, BehaviourState::kNoGap);
   EXPECT_EQ(decision.steer_deg, -15.0);
 }
 
 TEST(BearcatGapsTest, WithoutAGapABarrelRightOfCentreTurnsLeft) {
   const BearcatDecision decision =
       decide_on(cast(Scene{{kBarrelAheadSlightlyRight}, room_with_front_door(0.35, 0.95)}));
-  EXPECT_EQ(decision.state, "no_gap");
+  EXPECT_EQ(decision.state, BehaviourState::kNoGap);
   EXPECT_EQ(decision.steer_deg, 15.0);
 }
 

@@ -64,7 +64,7 @@ TEST(GotoBehaviour, ReachesAGoalInOpenSpaceAndStops) {
     command = behaviour->decide({scan.view(), pose, 0.1 * i});
     pose = step(pose, command, 0.1);
   }
-  EXPECT_EQ(command.state, "reached");
+  EXPECT_EQ(command.state, BehaviourState::kReached);
   EXPECT_NEAR(pose.x, 3.0, 0.1);
   EXPECT_NEAR(pose.y, 2.0, 0.1);
 }
@@ -78,8 +78,8 @@ TEST(GotoBehaviour, AnObstacleInTheBodysCorridorButOffTheCentreBeamStopsTheAppro
   auto centre_beam_only = make_goto(pointbug_params_for(bearcat_shape()), 5.0, 0.0, 0.1, 0.0);
   const BehaviourCommand corridor = with_corridor->decide({scan.view(), geometry::Pose2{}, 0.0});
   const BehaviourCommand seed = centre_beam_only->decide({scan.view(), geometry::Pose2{}, 0.0});
-  EXPECT_EQ(seed.state, "step_to_goal");
-  EXPECT_NE(corridor.state, "step_to_goal");
+  EXPECT_EQ(seed.state, BehaviourState::kStepToGoal);
+  EXPECT_NE(corridor.state, BehaviourState::kStepToGoal);
 }
 
 TEST(WanderBehaviour, IsDeterministicAndTurnsAwayFromAFrontalObstacle) {
@@ -87,7 +87,7 @@ TEST(WanderBehaviour, IsDeterministicAndTurnsAwayFromAFrontalObstacle) {
   for (std::size_t i = 80; i <= 100; ++i) blocked.ranges[i] = 0.8F;
   auto avoiding = make_wander(WanderParams{}, bearcat_shape());
   const BehaviourCommand first = avoiding->decide({blocked.view(), geometry::Pose2{}, 0.0});
-  EXPECT_EQ(first.state, "avoid_turn") << "1.5 robot widths of threshold see the obstacle 0.8 m ahead";
+  EXPECT_EQ(first.state, BehaviourState::kAvoidTurn) << "1.5 robot widths of threshold see the obstacle 0.8 m ahead";
   EXPECT_EQ(first.linear_mps, 0.0);
   EXPECT_NE(first.angular_radps, 0.0);
   auto a = make_wander(WanderParams{}, bearcat_shape());
@@ -129,7 +129,7 @@ TEST(PlannedPath, GotoPlansFromWhereItIsToTheGoalUntilItArrives) {
   bool reached = false;
   for (int i = 0; i < 300 && !reached; ++i) {
     const BehaviourCommand command = go->decide({scan.view(), pose, 0.1 * i});
-    reached = command.state == "reached";
+    reached = command.state == BehaviourState::kReached;
     const std::vector<Eigen::Vector2d> path = go->planned_path();
     if (reached) {
       EXPECT_TRUE(path.empty());
@@ -151,7 +151,7 @@ TEST(PlannedPath, WaypointsPlanTheWaypointsStillAhead) {
   for (int i = 0; i < 600; ++i) {
     const BehaviourCommand command = follow->decide({scan.view(), pose, 0.1 * i});
     const std::vector<Eigen::Vector2d> path = follow->planned_path();
-    if (command.state == "reached") {
+    if (command.state == BehaviourState::kReached) {
       EXPECT_TRUE(path.empty());
       break;
     }

@@ -87,7 +87,7 @@ class Control : public ::testing::Test {
     return send(s, m);
   }
 
-  v1::ServerMessage drive(const std::shared_ptr<FakeSession>& s, const std::string& behaviour, double v = 0.0,
+  v1::ServerMessage drive(const std::shared_ptr<FakeSession>& s, v1::Behaviour behaviour, double v = 0.0,
                           double w = 0.0) {
     v1::ClientMessage m;
     m.set_request_id(8);
@@ -134,7 +134,7 @@ TEST_F(Control, ASecondControllerIsRefusedAndToldTheHolder) {
   // Neither may the second one retain, return or drive.
   EXPECT_FALSE(lease(second, v1::LeaseRequest::RETAIN).lease().granted());
   EXPECT_FALSE(lease(second, v1::LeaseRequest::RETURN).lease().granted());
-  reply = drive(second, "teleop", 0.3);
+  reply = drive(second, v1::BEHAVIOUR_TELEOP, 0.3);
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().code(), v1::ERROR_NOT_ALLOWED);
   EXPECT_EQ(reply.error().field(), "drive.robot_id");
@@ -150,7 +150,7 @@ TEST_F(Control, ObserversQueriesAndDriversCanNeverDrive) {
   keep(driver());
   for (const v1::Role role : {v1::ROLE_OBSERVER, v1::ROLE_QUERY}) {
     auto s = session(role, "watcher");
-    auto reply = drive(s, "bearcat");
+    auto reply = drive(s, v1::BEHAVIOUR_BEARCAT);
     ASSERT_TRUE(reply.has_error());
     EXPECT_EQ(reply.error().code(), v1::ERROR_NOT_ALLOWED);
     EXPECT_EQ(reply.error().field(), "drive");
@@ -182,7 +182,7 @@ TEST_F(Control, TakeNeedsTheOperatorToken) {
   EXPECT_EQ(reply.lease().holder().client_name(), "operator");
   // The old holder has lost it.
   EXPECT_FALSE(lease(holder, v1::LeaseRequest::RETAIN).lease().granted());
-  EXPECT_TRUE(drive(holder, "bearcat").has_error());
+  EXPECT_TRUE(drive(holder, v1::BEHAVIOUR_BEARCAT).has_error());
   EXPECT_TRUE(lease(operator_session, v1::LeaseRequest::RETURN).lease().granted());
 }
 
@@ -190,14 +190,14 @@ TEST_F(Control, ALeaseNotRetainedLapsesAndStopsTheRobot) {
   auto d = keep(driver());
   auto holder = session(v1::ROLE_CONTROLLER, "alice");
   ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE, 0.2).lease().granted());
-  ASSERT_TRUE(drive(holder, "teleop", 0.4).has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_TELEOP, 0.4).has_drive());
   EXPECT_FALSE(scan(d).stop());
   // The lease (0.2 s) runs out before the sensor watchdog (0.3 s here) fires.
   std::optional<v1::MotionCommand> stop;
   for (int i = 0; i < 40 && !stop; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     for (const auto& message : d->take_all()) {
-      if (message.has_motion_command() && message.motion_command().state() == "lease_expired") {
+      if (message.has_motion_command() && message.motion_command().state() == v1::BEHAVIOUR_STATE_LEASE_EXPIRED) {
         stop = message.motion_command();
       }
     }
@@ -207,7 +207,7 @@ TEST_F(Control, ALeaseNotRetainedLapsesAndStopsTheRobot) {
   EXPECT_EQ(stop->left_wheel_mps(), 0.0);
   const ControlState control = core_.find_robot("r1")->control().state();
   EXPECT_FALSE(control.lease);
-  EXPECT_EQ(control.behaviour, "stop");
+  EXPECT_EQ(control.behaviour, v1::BEHAVIOUR_STOP);
   EXPECT_TRUE(scan(d).stop()) << "scans are answered by stops after the lapse";
   EXPECT_FALSE(lease(holder, v1::LeaseRequest::RETAIN).lease().granted()) << "too late to retain";
 }
@@ -216,13 +216,13 @@ TEST_F(Control, TheHoldersDisconnectStopsTheRobotAtOnce) {
   auto d = keep(driver());
   auto holder = session(v1::ROLE_CONTROLLER, "alice");
   ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE).lease().granted());
-  ASSERT_TRUE(drive(holder, "teleop", 0.4).has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_TELEOP, 0.4).has_drive());
   EXPECT_FALSE(scan(d).stop());
   handle_disconnect(core_, holder->info());
   auto command = d->next_of(v1::ServerMessage::kMotionCommand);
   ASSERT_TRUE(command);
   EXPECT_TRUE(command->motion_command().stop());
-  EXPECT_EQ(command->motion_command().state(), "controller_disconnected");
+  EXPECT_EQ(command->motion_command().state(), v1::BEHAVIOUR_STATE_CONTROLLER_DISCONNECTED);
   EXPECT_TRUE(scan(d).stop());
   EXPECT_FALSE(core_.find_robot("r1")->control().state().lease);
 }
@@ -232,7 +232,7 @@ TEST_F(Control, EStopLatchesAcrossBehaviourChangesAndOnlyTheHolderReleasesIt) {
   auto holder = session(v1::ROLE_CONTROLLER, "alice");
   auto observer = session(v1::ROLE_OBSERVER, "watcher");
   ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE, 10.0).lease().granted());
-  ASSERT_TRUE(drive(holder, "teleop", 0.3).has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_TELEOP, 0.3).has_drive());
   EXPECT_FALSE(scan(d).stop());
 
   auto reply = estop(observer, true);
@@ -241,14 +241,14 @@ TEST_F(Control, EStopLatchesAcrossBehaviourChangesAndOnlyTheHolderReleasesIt) {
   EXPECT_EQ(reply.estop().holder().client_name(), "alice");
   auto command = scan(d);
   EXPECT_TRUE(command.stop());
-  EXPECT_EQ(command.state(), "estop");
-  for (const char* behaviour : {"bearcat", "teleop", "stop"}) {
+  EXPECT_EQ(command.state(), v1::BEHAVIOUR_STATE_ESTOP);
+  for (const v1::Behaviour behaviour : {v1::BEHAVIOUR_BEARCAT, v1::BEHAVIOUR_TELEOP, v1::BEHAVIOUR_STOP}) {
     reply = drive(holder, behaviour, 0.3);
     ASSERT_TRUE(reply.has_drive());
     EXPECT_TRUE(reply.drive().estop());
     command = scan(d);
     EXPECT_TRUE(command.stop()) << behaviour;
-    EXPECT_EQ(command.state(), "estop") << behaviour;
+    EXPECT_EQ(command.state(), v1::BEHAVIOUR_STATE_ESTOP) << behaviour;
   }
   reply = estop(observer, false);
   ASSERT_TRUE(reply.has_error());
@@ -265,13 +265,13 @@ TEST_F(Control, EStopLatchesAcrossBehaviourChangesAndOnlyTheHolderReleasesIt) {
   EXPECT_TRUE(robots[0].estop());
   EXPECT_EQ(robots[0].lease_holder().client_name(), "alice");
 
-  ASSERT_TRUE(drive(holder, "bearcat").has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_BEARCAT).has_drive());
   reply = estop(holder, false);
   ASSERT_TRUE(reply.has_estop());
   EXPECT_FALSE(reply.estop().engaged());
   command = scan(d);
   EXPECT_FALSE(command.stop());
-  EXPECT_EQ(command.behaviour(), "bearcat");
+  EXPECT_EQ(command.behaviour(), v1::BEHAVIOUR_BEARCAT);
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
 }
 
@@ -282,7 +282,7 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   v1::ClientMessage go;
   go.set_request_id(8);
   go.mutable_drive()->set_robot_id("r1");
-  go.mutable_drive()->set_behaviour("goto");
+  go.mutable_drive()->set_behaviour(v1::BEHAVIOUR_GOTO);
   go.mutable_drive()->mutable_goal()->set_x_m(3.0);
   go.mutable_drive()->mutable_goal()->set_y_m(1.0);
   ASSERT_TRUE(send(holder, go).has_drive());
@@ -305,13 +305,13 @@ TEST_F(Control, TheActiveBehavioursPlannedPathIsInTheRobotsStateUntilItStops) {
   EXPECT_NEAR(detailed.path(1).y(), 1.0, 1e-9);
   EXPECT_GT(detailed.scan_size(), 0) << "the driver's latest laser returns";
   // Teleop plans nothing; stopping clears the path.
-  ASSERT_TRUE(drive(holder, "teleop", 0.2).has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_TELEOP, 0.2).has_drive());
   static_cast<void>(scan(d));
   EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   ASSERT_TRUE(send(holder, go).has_drive());
   static_cast<void>(scan(d));
   EXPECT_FALSE(core_.find_robot("r1")->state().path().empty());
-  ASSERT_TRUE(drive(holder, "stop").has_drive());
+  ASSERT_TRUE(drive(holder, v1::BEHAVIOUR_STOP).has_drive());
   static_cast<void>(scan(d));
   EXPECT_TRUE(core_.find_robot("r1")->state().path().empty());
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
@@ -322,30 +322,36 @@ TEST_F(Control, TeleopVelocitiesAreClampedToTheRobotsLimits) {
   auto holder = session(v1::ROLE_CONTROLLER, "alice");
   ASSERT_TRUE(lease(holder, v1::LeaseRequest::ACQUIRE, 10.0).lease().granted());
   const auto& drive_params = std::get<geometry::DifferentialDriveParams>(core_.find_robot("r1")->model().drive);
-  auto reply = drive(holder, "teleop", 50.0, 1.0);
+  auto reply = drive(holder, v1::BEHAVIOUR_TELEOP, 50.0, 1.0);
   ASSERT_TRUE(reply.has_drive());
   EXPECT_LT(reply.drive().linear_mps(), drive_params.max_wheel_speed_mps + 1e-9);
   EXPECT_GT(reply.drive().linear_mps(), 0.0);
   // One factor for both wheels: the curvature w/v is kept.
   EXPECT_NEAR(reply.drive().angular_radps() / reply.drive().linear_mps(), 1.0 / 50.0, 1e-9);
   const auto command = scan(d);
-  EXPECT_EQ(command.behaviour(), "teleop");
+  EXPECT_EQ(command.behaviour(), v1::BEHAVIOUR_TELEOP);
   EXPECT_LE(std::abs(command.left_wheel_mps()), drive_params.max_wheel_speed_mps + 1e-9);
   EXPECT_LE(std::abs(command.right_wheel_mps()), drive_params.max_wheel_speed_mps + 1e-9);
   EXPECT_NEAR(command.linear_mps(), reply.drive().linear_mps(), 1e-9);
   EXPECT_NEAR(command.expires_after_s(), 0.6, 1e-12) << "teleop commands expire like all others";
-  reply = drive(holder, "teleop", std::nan(""));
+  reply = drive(holder, v1::BEHAVIOUR_TELEOP, std::nan(""));
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().field(), "drive.linear_mps");
-  reply = drive(holder, "dance");
+  reply = drive(holder, v1::BEHAVIOUR_UNSPECIFIED);
   ASSERT_TRUE(reply.has_error());
   EXPECT_EQ(reply.error().field(), "drive.behaviour");
+  EXPECT_NE(reply.error().message().find("not BEHAVIOUR_UNSPECIFIED"), std::string::npos) << reply.error().message();
+  // A value from a newer schema this server does not know is refused by its number.
+  reply = drive(holder, static_cast<v1::Behaviour>(99));
+  ASSERT_TRUE(reply.has_error());
+  EXPECT_EQ(reply.error().field(), "drive.behaviour");
+  EXPECT_NE(reply.error().message().find("not 99"), std::string::npos) << reply.error().message();
   EXPECT_TRUE(lease(holder, v1::LeaseRequest::RETURN).lease().granted());
 }
 
 TEST_F(Control, StaleSensorsStopTheRobotOnce) {
   auto d = keep(driver());
-  EXPECT_EQ(scan(d).behaviour(), "bearcat") << "without a controller robots keep the Bearcat behaviour";
+  EXPECT_EQ(scan(d).behaviour(), v1::BEHAVIOUR_BEARCAT) << "without a controller robots keep the Bearcat behaviour";
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // sensor_timeout_s is 0.3 s here
   std::vector<v1::MotionCommand> stops;
   for (const auto& message : d->take_all()) {
@@ -353,9 +359,9 @@ TEST_F(Control, StaleSensorsStopTheRobotOnce) {
   }
   ASSERT_EQ(stops.size(), 1U) << "one stop, not one per tick";
   EXPECT_TRUE(stops[0].stop());
-  EXPECT_EQ(stops[0].state(), "sensor_stale");
+  EXPECT_EQ(stops[0].state(), v1::BEHAVIOUR_STATE_SENSOR_STALE);
   EXPECT_TRUE(core_.find_robot("r1")->control().state().sensor_stale);
-  EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, "sensor_stale");
+  EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, v1::BEHAVIOUR_STATE_SENSOR_STALE);
   scan(d);
   EXPECT_FALSE(core_.find_robot("r1")->control().state().sensor_stale) << "a new sensor message clears it";
   handle_disconnect(core_, d->info());

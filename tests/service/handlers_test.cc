@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "fake_session.h"
+#include "handlers/robot_control.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
 #include "occgeo/sim/messages.h"
 #include "occgeo/sim/presets.h"
@@ -172,7 +174,7 @@ TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {
   const auto command = session->take_first_of(v1::ServerMessage::kMotionCommand);
   ASSERT_TRUE(command);
   EXPECT_EQ(command->motion_command().answers_scan_seq(), 7U);
-  EXPECT_EQ(command->motion_command().behaviour(), "bearcat");
+  EXPECT_EQ(command->motion_command().behaviour(), v1::BEHAVIOUR_BEARCAT);
   // A ring of returns at 2.5 m lies outside the frontal rectangle (its far corners are 2.135 m
   // from the sensor), so the robot drives on.
   EXPECT_FALSE(command->motion_command().stop());
@@ -197,7 +199,8 @@ TEST_F(Handlers, WallAcrossTheFrontIsADeadlockTheDefaultBearcatDoesNotStopIn) {
   const auto command = session->next_of(v1::ServerMessage::kMotionCommand);
   ASSERT_TRUE(command);
   EXPECT_FALSE(command->motion_command().stop());
-  EXPECT_EQ(command->motion_command().state().rfind("escape_", 0), 0U) << command->motion_command().state();
+  const std::string state = proto::behaviour_state_label(command->motion_command().state());
+  EXPECT_EQ(state.rfind("escape_", 0), 0U) << state;
   EXPECT_NE(command->motion_command().left_wheel_mps(), command->motion_command().right_wheel_mps());
   core_.drain();
   EXPECT_EQ(core_.find_robot("r1")->state().behaviour_state, command->motion_command().state());
@@ -275,6 +278,29 @@ TEST_F(Handlers, CollisionAndClearanceQueriesReadThePublishedMap) {
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->error().code(), v1::ERROR_UNKNOWN_ROBOT);
   EXPECT_EQ(reply->error().field(), "collision.robot_id");
+}
+
+// The wire numbers the behaviours' states as the control library does, name for name: a state added to one and not the
+// other fails here instead of reaching a robot's commands and logs under another name.
+TEST(BehaviourVocabulary, WireStatesAreTheBehavioursStatesByNumberAndName) {
+  for (std::size_t i = 1; i < control::kBehaviourStateCount; ++i) {
+    const auto state = static_cast<control::BehaviourState>(i);
+    EXPECT_EQ(proto::behaviour_state_label(to_wire(state)), control::name(state)) << "state " << i;
+  }
+  // Every label names its value back, and only the lower-case label of a set value names one.
+  const google::protobuf::EnumDescriptor& states = *v1::BehaviourState_descriptor();
+  for (int i = 1; i < states.value_count(); ++i) {
+    const auto value = static_cast<v1::BehaviourState>(states.value(i)->number());
+    EXPECT_EQ(proto::behaviour_state_from_label(proto::behaviour_state_label(value)), value) << states.value(i)->name();
+  }
+  EXPECT_EQ(proto::behaviour_from_label("goto"), v1::BEHAVIOUR_GOTO);
+  EXPECT_EQ(proto::behaviour_from_label("bearcat_seed"), v1::BEHAVIOUR_BEARCAT_SEED);
+  EXPECT_FALSE(proto::behaviour_from_label("GOTO"));
+  EXPECT_FALSE(proto::behaviour_from_label("unspecified"));
+  EXPECT_FALSE(proto::behaviour_from_label(""));
+  EXPECT_FALSE(proto::behaviour_from_label("dance"));
+  EXPECT_EQ(proto::behaviour_label(v1::BEHAVIOUR_UNSPECIFIED), "");
+  EXPECT_EQ(proto::behaviour_labels(), "bearcat, bearcat_seed, stop, teleop, wander, goto, waypoints");
 }
 
 }  // namespace

@@ -27,7 +27,7 @@ struct Outcome {
 
 // Feeds the pose at t = 0, dt, 2 dt, ... up to duration_s.
 Outcome run(LoopDetector& detector, double duration_s, const std::function<Pose2(double)>& pose_at,
-            std::optional<Eigen::Vector2d> goal_W, std::optional<std::string_view> state = std::nullopt) {
+            std::optional<Eigen::Vector2d> goal_W, BehaviourState state = BehaviourState::kNone) {
   Outcome outcome;
   const int steps = static_cast<int>(std::round(duration_s / kDt_s));
   for (int i = 0; i <= steps; ++i) {
@@ -76,7 +76,7 @@ TEST(LoopDetector, CirclingIsALoopOnTheThirdPass) {
   // The pass is detected when the robot comes within revisit_radius_m (0.3 m, 1 s at 0.3 m/s) of the first one.
   EXPECT_GT(*outcome.loop_time_s, 2.0 * lap_s - 1.5);
   EXPECT_LT(*outcome.loop_time_s, 2.0 * lap_s + 0.5);
-  EXPECT_EQ(outcome.last.reason, "loop");
+  EXPECT_EQ(outcome.last.reason, LoopReason::kLoop);
   EXPECT_GE(outcome.last.passes, 2);
   EXPECT_LT((outcome.last.loop_point_W - Eigen::Vector2d(3.0, 0.0)).norm(), 0.35);
 }
@@ -88,7 +88,7 @@ TEST(LoopDetector, CirclingTowardAGoalIsAStallThenALoop) {
   ASSERT_TRUE(outcome.stall_time_s.has_value());
   EXPECT_NEAR(*outcome.stall_time_s, 30.0, kDt_s / 2.0);
   EXPECT_TRUE(outcome.loop_time_s.has_value());
-  EXPECT_EQ(outcome.last.reason, "stall");
+  EXPECT_EQ(outcome.last.reason, LoopReason::kStall);
 }
 
 TEST(LoopDetector, CirclingWithoutAGoalIsALoop) {
@@ -116,7 +116,8 @@ TEST(LoopDetector, PointBugStyleCycleOfLegsIsALoop) {
     const double t = i * kDt_s;
     const Pose2 pose = pose_at(t);
     // The state: driving to the sudden point on legs toward +x, stepping toward the goal otherwise.
-    const std::string_view state = std::cos(pose.theta) > 0.0 ? "drive_to_sudden_point" : "step_to_goal";
+    const BehaviourState state =
+        std::cos(pose.theta) > 0.0 ? BehaviourState::kDriveToSuddenPoint : BehaviourState::kStepToGoal;
     loop = detector.update({pose, t, Eigen::Vector2d(4.0, 4.0), state}).loop;
   }
   EXPECT_TRUE(loop);
@@ -137,7 +138,7 @@ TEST(LoopDetector, StraightApproachIsNeither) {
   const Outcome outcome = run(detector, 36.0, polyline({{0.0, 0.0}, {11.0, 0.0}}), Eigen::Vector2d(12.0, 0.0));
   EXPECT_FALSE(outcome.loop_time_s.has_value());
   EXPECT_FALSE(outcome.stall_time_s.has_value());
-  EXPECT_EQ(outcome.last.reason, "none");
+  EXPECT_EQ(outcome.last.reason, LoopReason::kNone);
   EXPECT_LT(outcome.last.since_progress_s, 1.0);
   EXPECT_NEAR(*outcome.last.best_goal_distance_m, 12.0 - 36.0 * kSpeed_mps, 1e-9);
 }
@@ -178,7 +179,7 @@ TEST(LoopDetector, StandingStillIsAStallNotALoop) {
   ASSERT_TRUE(outcome.stall_time_s.has_value());
   EXPECT_NEAR(*outcome.stall_time_s, 30.0, kDt_s / 2.0);
   EXPECT_FALSE(outcome.loop_time_s.has_value());
-  EXPECT_EQ(outcome.last.reason, "stall");
+  EXPECT_EQ(outcome.last.reason, LoopReason::kStall);
 }
 
 TEST(LoopDetector, PassesInAnotherStateDoNotCount) {
@@ -190,10 +191,10 @@ TEST(LoopDetector, PassesInAnotherStateDoNotCount) {
   bool alternating_loop = false;
   for (int i = 0; i <= static_cast<int>(3.2 * lap_s / kDt_s); ++i) {
     const double t = i * kDt_s;
-    same_state.update({pose_at(t), t, std::nullopt, "drive_to_sudden_point"});
+    same_state.update({pose_at(t), t, std::nullopt, BehaviourState::kDriveToSuddenPoint});
     // Each lap in a different state: the robot is doing something new each time round.
     const int lap = static_cast<int>(t / lap_s);
-    const std::string state = "state_" + std::to_string(lap);
+    const auto state = static_cast<BehaviourState>(1 + lap);
     alternating_loop = alternating.update({pose_at(t), t, std::nullopt, state}).loop || alternating_loop;
   }
   EXPECT_TRUE(same_state.status().loop);
@@ -206,9 +207,9 @@ TEST(LoopDetector, ResetClearsTheVerdict) {
   ASSERT_TRUE(circled.last.loop);
   detector.reset();
   EXPECT_FALSE(detector.status().loop);
-  EXPECT_EQ(detector.status().reason, "none");
+  EXPECT_EQ(detector.status().reason, LoopReason::kNone);
   EXPECT_EQ(detector.sample_count(), 0U);
-  const LoopStatus next = detector.update({Pose2{0.8, 0.0, 1.57}, 60.1, std::nullopt, std::nullopt});
+  const LoopStatus next = detector.update({Pose2{0.8, 0.0, 1.57}, 60.1, std::nullopt, BehaviourState::kNone});
   EXPECT_FALSE(next.loop);
   EXPECT_EQ(next.passes, 0);
 }
@@ -227,15 +228,15 @@ TEST(LoopDetector, RejectsBadInputNamingTheField) {
       },
       std::invalid_argument);
   LoopDetector detector(LoopDetectorParams{});
-  detector.update({Pose2{0.0, 0.0, 0.0}, 5.0, std::nullopt, std::nullopt});
+  detector.update({Pose2{0.0, 0.0, 0.0}, 5.0, std::nullopt, BehaviourState::kNone});
   try {
-    detector.update({Pose2{0.0, 0.0, 0.0}, 4.0, std::nullopt, std::nullopt});
+    detector.update({Pose2{0.0, 0.0, 0.0}, 4.0, std::nullopt, BehaviourState::kNone});
     ADD_FAILURE() << "time going backwards was accepted";
   } catch (const std::invalid_argument& error) {
     EXPECT_NE(std::string(error.what()).find("time_s"), std::string::npos) << error.what();
   }
   try {
-    detector.update({Pose2{std::nan(""), 0.0, 0.0}, 6.0, std::nullopt, std::nullopt});
+    detector.update({Pose2{std::nan(""), 0.0, 0.0}, 6.0, std::nullopt, BehaviourState::kNone});
     ADD_FAILURE() << "a NaN pose was accepted";
   } catch (const std::invalid_argument& error) {
     EXPECT_NE(std::string(error.what()).find("pose.x"), std::string::npos) << error.what();

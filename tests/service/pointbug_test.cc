@@ -71,10 +71,10 @@ DrivenRun run_to_goal(Pose2 pose, double goal_x, double goal_y, const std::vecto
   for (int cycle = 0; cycle < 5000; ++cycle) {
     const std::vector<SweepReading> readings = cast(pose, walls);
     const PointBugDecision decision = behaviour.decide(pose, Sweep{readings, kLidarMax_m});
-    if (run.states.empty() || run.states.back() != decision.state) run.states.emplace_back(decision.state);
-    if (decision.state == "turn_to_sudden_point") run.sudden_points.push_back(*decision.sudden_point);
+    if (run.states.empty() || run.states.back() != name(decision.state)) run.states.emplace_back(name(decision.state));
+    if (decision.state == BehaviourState::kTurnToSuddenPoint) run.sudden_points.push_back(*decision.sudden_point);
     if (decision.stop) {
-      run.final_state = std::string(decision.state);
+      run.final_state = std::string(name(decision.state));
       break;
     }
     pose.theta += decision.target.turn_rad;
@@ -97,7 +97,7 @@ TEST(PointBugTest, SteppingCommandsBodyVelocityAndADriveGotoStep) {
   PointBugBehaviour behaviour(PointBugParams{}, 1.0, 0.0);
   const std::vector<SweepReading> readings = sweep_of([](int) { return kLidarMax_m; });
   const PointBugDecision decision = behaviour.decide(Pose2{}, Sweep{readings, kLidarMax_m});
-  EXPECT_EQ(decision.state, "step_to_goal");
+  EXPECT_EQ(decision.state, BehaviourState::kStepToGoal);
   EXPECT_DOUBLE_EQ(decision.linear_mps, 4.0 * 3.25e-3);
   EXPECT_EQ(decision.angular_radps, 0.0);
   EXPECT_DOUBLE_EQ(decision.target.distance_m, 9.75e-3);
@@ -126,7 +126,7 @@ TEST(PointBugTest, WallWithAnEdgeGivesTheSuddenPointOnThatSideWithTheSeedsCorrec
 
   PointBugBehaviour behaviour(PointBugParams{}, 1.0, 0.0);
   const PointBugDecision decision = behaviour.decide(Pose2{}, sweep);
-  EXPECT_EQ(decision.state, "turn_to_sudden_point");
+  EXPECT_EQ(decision.state, BehaviourState::kTurnToSuddenPoint);
   ASSERT_TRUE(decision.sudden_point.has_value());
   EXPECT_EQ(decision.sudden_point->side, SweepSide::kRight);
   EXPECT_NEAR(decision.target.turn_rad, -radians(36.0), kTolerance);
@@ -193,7 +193,7 @@ TEST(PointBugTest, NoSuddenPointWithin90DegreesOnEitherSideIsNoPath) {
         sweep_of([=](int degree) { return std::abs(degree) >= jump_deg ? 1.5 : 0.25; });
     PointBugBehaviour behaviour(PointBugParams{}, 1.0, 0.0);
     const PointBugDecision decision = behaviour.decide(Pose2{}, Sweep{readings, kLidarMax_m});
-    EXPECT_EQ(decision.state, "no_path") << jump_deg;
+    EXPECT_EQ(decision.state, BehaviourState::kNoPath) << jump_deg;
     EXPECT_TRUE(decision.stop);
     EXPECT_EQ(decision.linear_mps, 0.0);
     EXPECT_EQ(decision.angular_radps, 0.0);

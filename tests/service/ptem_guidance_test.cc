@@ -154,7 +154,7 @@ RunResult run_closed_loop(PtemGuidance& guidance, const std::function<std::vecto
     if (run.waypoint_indices.empty() || run.waypoint_indices.back() != decision.waypoint_index) {
       run.waypoint_indices.push_back(decision.waypoint_index);
     }
-    if (decision.state == "avoid" || decision.state == "escape") ++run.avoid_decisions;
+    if (decision.state == BehaviourState::kAvoid || decision.state == BehaviourState::kEscape) ++run.avoid_decisions;
     if (decision.reached) {
       run.reached = true;
       run.time_s = t;
@@ -229,7 +229,7 @@ TEST(PtemGuidance, VirtualTargetWaitsAtEachWaypoint) {
   EXPECT_TRUE(decision.stop);
   EXPECT_EQ(decision.linear_mps, 0.0);
   EXPECT_EQ(decision.angular_radps, 0.0);
-  EXPECT_EQ(decision.state, "reached");
+  EXPECT_EQ(decision.state, BehaviourState::kReached);
 }
 
 TEST(PtemGuidance, TargetPausesWhenTooFarAhead) {
@@ -289,7 +289,7 @@ TEST(PtemGuidance, SlowsWhenHeadingIntoTheThreat) {
   // Facing the threat with the target right behind it: no forward speed beyond clearance / horizon.
   const PtemGuidanceDecision decision = decide_with_desired(params, Pose2{0.5, 0.0, kPi}, kPi, field);
   EXPECT_NEAR(decision.clearance_m, 0.2, 1e-9);
-  EXPECT_EQ(decision.state, "avoid");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoid);
   EXPECT_NEAR(decision.max_admissible_speed_mps, decision.clearance_m / params.speed_horizon_s, 1e-9);
   EXPECT_LE(decision.linear_mps, decision.max_admissible_speed_mps);
   EXPECT_NE(decision.angular_radps, 0.0);
@@ -301,7 +301,7 @@ TEST(PtemGuidance, EscapesFromInsideTheRestrictedRegion) {
   // Inside, 0.2 m from the centre toward +x+y, the target on the far side.
   const Pose2 pose{0.2 * std::cos(0.5), 0.2 * std::sin(0.5), 0.0};
   const PtemGuidanceDecision decision = decide_with_desired(params, pose, 0.5 + kPi, field);
-  EXPECT_EQ(decision.state, "escape");
+  EXPECT_EQ(decision.state, BehaviourState::kEscape);
   EXPECT_LT(decision.clearance_m, 0.0);
   EXPECT_NEAR(decision.admissible_centre_rad, 0.5, 1e-9);
   EXPECT_NEAR(decision.admissible_half_width_rad, params.escape_half_angle_rad, 1e-12);

@@ -128,12 +128,12 @@ TEST(ServoGoto, StopsSweepsStandingAndGoesRoundThePlateToTheGoal) {
   std::unique_ptr<Behaviour> behaviour = make_servo_goto(PointBugParams{}, kActivityBotServo, 0.0, 2.0, 0.0, kPeriod_s);
   geometry::Pose2 pose{0.0, 0.0, 0.0};
   PingPongServo servo;
-  std::set<std::string> states;
+  std::set<BehaviourState> states;
   double nearest_m = std::numeric_limits<double>::infinity();
   double lowest_y = 0.0;
   bool moved_while_sweeping = false;
-  std::string state;
-  for (int i = 0; i < 60000 && state != "reached" && state != "no_path"; ++i) {
+  BehaviourState state = BehaviourState::kNone;
+  for (int i = 0; i < 60000 && state != BehaviourState::kReached && state != BehaviourState::kNoPath; ++i) {
     const double angle = servo.next();
     const double range =
         cast(pose.x + 0.05 * std::cos(pose.theta), pose.y + 0.05 * std::sin(pose.theta), pose.theta + angle, walls);
@@ -144,7 +144,8 @@ TEST(ServoGoto, StopsSweepsStandingAndGoesRoundThePlateToTheGoal) {
     const BehaviourCommand command = behaviour->decide(input);
     state = command.state;
     states.insert(state);
-    if (state == "sweep" && (command.linear_mps != 0.0 || command.angular_radps != 0.0)) moved_while_sweeping = true;
+    if (state == BehaviourState::kSweep && (command.linear_mps != 0.0 || command.angular_radps != 0.0))
+      moved_while_sweeping = true;
     if (!command.stop) {
       const double theta = pose.theta + command.angular_radps * kPeriod_s / 2.0;
       pose = {pose.x + command.linear_mps * kPeriod_s * std::cos(theta),
@@ -154,10 +155,10 @@ TEST(ServoGoto, StopsSweepsStandingAndGoesRoundThePlateToTheGoal) {
     nearest_m = std::min(nearest_m, distance_to(pose.x, pose.y, walls[0]));
     lowest_y = std::min(lowest_y, pose.y);
   }
-  EXPECT_EQ(state, "reached") << "ended at " << pose.x << ", " << pose.y;
+  EXPECT_EQ(state, BehaviourState::kReached) << "ended at " << pose.x << ", " << pose.y;
   EXPECT_LT(std::hypot(pose.x - 2.0, pose.y), 0.02);
-  EXPECT_TRUE(states.contains("sweep"));
-  EXPECT_TRUE(states.contains("drive_to_sudden_point"));
+  EXPECT_TRUE(states.contains(BehaviourState::kSweep));
+  EXPECT_TRUE(states.contains(BehaviourState::kDriveToSuddenPoint));
   EXPECT_FALSE(moved_while_sweeping);
   EXPECT_LT(lowest_y, -0.3) << "round the plate's lower end";
   // Half the ActivityBot's 0.13 m width clear of the plate all the way.
@@ -169,10 +170,10 @@ TEST(ServoGoto, StandsUntilTheServoHasLookedAheadAtTheCurrentHeading) {
   BehaviourInput input;
   input.X_WB = geometry::Pose2{0.0, 0.0, 0.0};
   input.servo = ServoSample{-90.0 * kDeg, 40.0, 0.0};
-  EXPECT_EQ(behaviour->decide(input).state, "look_ahead");
+  EXPECT_EQ(behaviour->decide(input).state, BehaviourState::kLookAhead);
   input.servo = ServoSample{0.0, 40.0, 0.02};
   const BehaviourCommand command = behaviour->decide(input);
-  EXPECT_EQ(command.state, "step_to_goal");
+  EXPECT_EQ(command.state, BehaviourState::kStepToGoal);
   EXPECT_GT(command.linear_mps, 0.0);
   input.servo.reset();
   EXPECT_TRUE(behaviour->decide(input).stop) << "no reading: no decision";

@@ -69,14 +69,15 @@ Trace wander_in_open_space(const WanderParams& params, int cycles) {
   trace.run_lengths.push_back(last.remaining_m);
   for (int cycle = 0; cycle < cycles; ++cycle) {
     const WanderDecision next = behaviour.decide(clear_ring(), progress_of(last));
-    const bool was_straight = last.state == "wander_straight";
-    const bool new_run = next.state == "wander_straight" && (!was_straight || next.remaining_m > last.remaining_m);
-    if (was_straight && (next.state == "wander_turn" || new_run)) {
+    const bool was_straight = last.state == BehaviourState::kWanderStraight;
+    const bool new_run =
+        next.state == BehaviourState::kWanderStraight && (!was_straight || next.remaining_m > last.remaining_m);
+    if (was_straight && (next.state == BehaviourState::kWanderTurn || new_run)) {
       ++trace.runs_ended;
-      if (next.state == "wander_turn") ++trace.turns_after_run;
+      if (next.state == BehaviourState::kWanderTurn) ++trace.turns_after_run;
     }
     if (new_run) trace.run_lengths.push_back(next.remaining_m);
-    trace.states.emplace_back(next.state);
+    trace.states.emplace_back(name(next.state));
     trace.angular.push_back(next.angular_radps);
     last = next;
   }
@@ -147,14 +148,14 @@ TEST(WanderTest, FrontalObstacleMakesAvoidTurnOneWayUntilTheFrontIsClear) {
     WanderBehaviour behaviour(seeded(seed));
     double yaw = 0.0;
     WanderDecision decision = behaviour.decide(ring_facing_wall(yaw, 0.4), WanderProgress{});
-    ASSERT_EQ(decision.state, "avoid_turn");
+    ASSERT_EQ(decision.state, BehaviourState::kAvoidTurn);
     ASSERT_TRUE(decision.front_blocked);
     const double direction = decision.angular_radps;
     ASSERT_NE(direction, 0.0);
     EXPECT_EQ(decision.linear_mps, 0.0);
     (direction > 0.0 ? turned_left : turned_right) += 1;
     int cycles = 0;
-    while (decision.state == "avoid_turn") {
+    while (decision.state == BehaviourState::kAvoidTurn) {
       ASSERT_LT(++cycles, 1000);
       EXPECT_EQ(decision.angular_radps, direction) << "avoid changed direction";
       EXPECT_EQ(decision.linear_mps, 0.0);
@@ -162,7 +163,7 @@ TEST(WanderTest, FrontalObstacleMakesAvoidTurnOneWayUntilTheFrontIsClear) {
       const RangeSet readings = ring_facing_wall(yaw, 0.4);
       decision = behaviour.decide(readings, progress_of(decision));
     }
-    EXPECT_EQ(decision.state, "wander_straight");
+    EXPECT_EQ(decision.state, BehaviourState::kWanderStraight);
     EXPECT_FALSE(decision.front_blocked);
     EXPECT_FALSE(behaviour.front_blocked(ring_facing_wall(yaw, 0.4)));
     // The frontal sector (-67.5..+45 degrees) no longer points at the wall closer than 0.6 m: the wall is at
@@ -177,19 +178,21 @@ TEST(WanderTest, FrontalObstacleMakesAvoidTurnOneWayUntilTheFrontIsClear) {
 TEST(WanderTest, AvoidSubsumesAStraightRunMidway) {
   WanderBehaviour behaviour(seeded(5));
   WanderDecision decision = behaviour.decide(clear_ring(), WanderProgress{});
-  ASSERT_EQ(decision.state, "wander_straight");
+  ASSERT_EQ(decision.state, BehaviourState::kWanderStraight);
   decision = behaviour.decide(ring_with(15, 0.3), progress_of(decision));  // sonar 15: 22.5 degrees right
-  EXPECT_EQ(decision.state, "avoid_turn");
+  EXPECT_EQ(decision.state, BehaviourState::kAvoidTurn);
   decision = behaviour.decide(clear_ring(), progress_of(decision));
-  EXPECT_EQ(decision.state, "wander_straight");
+  EXPECT_EQ(decision.state, BehaviourState::kWanderStraight);
 }
 
 TEST(WanderTest, EveryFrontSonarTriggersAvoid) {
   for (const std::size_t sonar : {0U, 1U, 2U, 13U, 14U, 15U}) {
     WanderBehaviour behaviour(seeded(1));
-    EXPECT_EQ(behaviour.decide(ring_with(sonar, 0.59), WanderProgress{}).state, "avoid_turn") << "sonar " << sonar;
+    EXPECT_EQ(behaviour.decide(ring_with(sonar, 0.59), WanderProgress{}).state, BehaviourState::kAvoidTurn)
+        << "sonar " << sonar;
     WanderBehaviour far(seeded(1));
-    EXPECT_EQ(far.decide(ring_with(sonar, 0.61), WanderProgress{}).state, "wander_straight") << "sonar " << sonar;
+    EXPECT_EQ(far.decide(ring_with(sonar, 0.61), WanderProgress{}).state, BehaviourState::kWanderStraight)
+        << "sonar " << sonar;
   }
 }
 
@@ -197,7 +200,7 @@ TEST(WanderTest, ObstaclesBesideAndBehindDoNotTriggerAvoid) {
   for (std::size_t sonar = 3; sonar <= 12; ++sonar) {
     WanderBehaviour behaviour(seeded(1));
     const WanderDecision decision = behaviour.decide(ring_with(sonar, 0.1), WanderProgress{});
-    EXPECT_EQ(decision.state, "wander_straight") << "sonar " << sonar;
+    EXPECT_EQ(decision.state, BehaviourState::kWanderStraight) << "sonar " << sonar;
     EXPECT_FALSE(decision.front_blocked);
   }
 }
@@ -212,9 +215,9 @@ TEST(WanderTest, LaserScanConvertsAndOnlyItsFrontTriggersAvoid) {
   ASSERT_EQ(set.beams.size(), 241U);
   EXPECT_DOUBLE_EQ(set.beams[120].bearing_rad, 0.0);
   WanderBehaviour behaviour(seeded(1));
-  EXPECT_EQ(behaviour.decide(set, WanderProgress{}).state, "wander_straight");
+  EXPECT_EQ(behaviour.decide(set, WanderProgress{}).state, BehaviourState::kWanderStraight);
   ranges[130] = 0.2F;  // +10 degrees
-  EXPECT_EQ(behaviour.decide(range_set_from_scan(scan), WanderProgress{}).state, "avoid_turn");
+  EXPECT_EQ(behaviour.decide(range_set_from_scan(scan), WanderProgress{}).state, BehaviourState::kAvoidTurn);
 }
 
 TEST(WanderTest, ProgressWithoutOdometryIsEstimatedFromTheLastCommand) {

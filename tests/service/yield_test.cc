@@ -170,7 +170,7 @@ class Straight final : public Behaviour {
   BehaviourCommand decide(const BehaviourInput& /*input*/) override {
     BehaviourCommand command;
     command.linear_mps = speed_mps_;
-    command.state = "step_to_goal";
+    command.state = BehaviourState::kStepToGoal;
     return command;
   }
 
@@ -204,8 +204,8 @@ DriveRun drive(const World& world, Behaviour& behaviour, const RobotShape& robot
     input.stamp_s = t;
     input.ptem = snapshot.get();
     const BehaviourCommand command = behaviour.decide(input);
-    run.states.insert(command.state);
-    run.state_per_step.push_back(command.state);
+    run.states.insert(std::string(name(command.state)));
+    run.state_per_step.emplace_back(name(command.state));
     if (!command.stop) pose = advance_pose(pose, command.linear_mps, command.angular_radps, kScanPeriod_s);
     run.poses.push_back(pose);
     for (const Disc& disc : world.discs) {

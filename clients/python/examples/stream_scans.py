@@ -44,8 +44,9 @@ with occgeo.Client.connect(host, int(port), role="driver", robot_id="python-demo
         ack = driver.send_laser_scan("laser", scan_of_wall(x), stamp_s=0.1 * i)
         print("scan %d: world version %d" % (ack.seq, ack.world_version))
     for command in driver.motion_commands:
-        print("motion command for scan %d: %s/%s, %.2f m/s" % (command.answers_scan_seq, command.behaviour,
-                                                                command.state, command.linear_mps))
+        print("motion command for scan %d: %s/%s, %.2f m/s" % (command.answers_scan_seq,
+                                                                occgeo.behaviour_label(command.behaviour),
+                                                                occgeo.state_label(command.state), command.linear_mps))
 
 with occgeo.Client.connect(host, int(port)) as client:
     window = client.export_map(world, prefix)

@@ -34,6 +34,9 @@ from occgeo.client import (  # noqa: E402
     LeaseRefused,
     ServerError,
     Timeout,
+    behaviour_label,
+    behaviour_value,
+    state_label,
 )
 from occgeo.mapfile import (  # noqa: E402
     CertaintyGreyLevels,
@@ -58,6 +61,9 @@ __all__ = [
     "LeaseRefused",
     "Timeout",
     "ServerError",
+    "behaviour_label",
+    "behaviour_value",
+    "state_label",
     "box_footprint",
     "cylinder_footprint",
     "image_from_certainty",

@@ -17,7 +17,7 @@ import time
 from occgeo.v1 import common_pb2, control_pb2, query_pb2, robot_pb2, sensors_pb2, session_pb2
 
 #: The protocol version this client speaks (2: request_id on the ClientMessage / ServerMessage envelope).
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 #: Largest frame accepted from the server (whole-map replies can be large), as the C++ client.
 MAX_FRAME_BYTES = 256 * 1024 * 1024
 
@@ -35,7 +35,37 @@ _LEASE_ACTIONS = {
     "take": control_pb2.LeaseRequest.TAKE,
 }
 #: Behaviour names a ``DriveRequest`` accepts (see docs/PROTOCOL.md, "Drive").
-BEHAVIOURS = ("bearcat", "bearcat_seed", "stop", "teleop", "wander", "goto", "waypoints")
+def _labels(enum, prefix):
+    """An enum's values by their label: the name without the prefix, in lower case (BEHAVIOUR_GOTO is "goto")."""
+    return {name[len(prefix):].lower(): number for name, number in enum.items() if number != 0}
+
+
+_BEHAVIOUR_BY_LABEL = _labels(control_pb2.Behaviour, "BEHAVIOUR_")
+_STATE_BY_LABEL = _labels(control_pb2.BehaviourState, "BEHAVIOUR_STATE_")
+_BEHAVIOUR_LABELS = {number: label for label, number in _BEHAVIOUR_BY_LABEL.items()}
+_STATE_LABELS = {number: label for label, number in _STATE_BY_LABEL.items()}
+
+#: The behaviours :meth:`Client.drive` takes, by label, in the schema's order (the ``Behaviour`` enum).
+BEHAVIOURS = tuple(_BEHAVIOUR_BY_LABEL)
+
+
+def behaviour_label(value):
+    """The label of a ``Behaviour`` value (``control_pb2.BEHAVIOUR_GOTO`` is ``"goto"``); ``""`` when unset."""
+    return _BEHAVIOUR_LABELS.get(value, "" if value == 0 else str(value))
+
+
+def state_label(value):
+    """The label of a ``BehaviourState`` value (``BEHAVIOUR_STATE_STEER_GAP`` is ``"steer_gap"``); ``""`` when unset."""
+    return _STATE_LABELS.get(value, "" if value == 0 else str(value))
+
+
+def behaviour_value(behaviour):
+    """A ``Behaviour`` value from its label (``"goto"``) or the value itself; raises ValueError naming the labels."""
+    if isinstance(behaviour, str):
+        if behaviour not in _BEHAVIOUR_BY_LABEL:
+            raise ValueError("behaviour %r is not one of %s" % (behaviour, ", ".join(BEHAVIOURS)))
+        return _BEHAVIOUR_BY_LABEL[behaviour]
+    return int(behaviour)
 
 
 class ClientError(Exception):
@@ -664,7 +694,8 @@ class Client:
 
     def drive(self, robot, behaviour, linear_mps=0.0, angular_radps=0.0, goal=None, waypoints=None, escape=False,
               timeout_s=None):
-        """Sets robot ``robot``'s behaviour (the session must hold its lease): one of :data:`BEHAVIOURS`.
+        """Sets robot ``robot``'s behaviour (the session must hold its lease): one of :data:`BEHAVIOURS` or a
+        ``control_pb2.Behaviour`` value.
         ``teleop`` drives at ``linear_mps`` (m/s, forward along ``base_link`` x) and ``angular_radps``
         (rad/s, counter-clockwise); ``goto`` needs ``goal`` (x, y), world frame, metres; ``waypoints`` a
         list of (x, y); ``escape`` follows a global path when the behaviour stalls. Returns the
@@ -672,7 +703,7 @@ class Client:
         :class:`ServerError` (``ERROR_NOT_ALLOWED`` naming ``drive.robot_id`` without the lease)."""
         def fill(q):
             q.robot_id = robot
-            q.behaviour = behaviour
+            q.behaviour = behaviour_value(behaviour)
             q.linear_mps = float(linear_mps)
             q.angular_radps = float(angular_radps)
             if goal is not None:

@@ -94,12 +94,13 @@ class ControlWithSimulator(test_client.ServerTestCase):
         # Teleop: turn in place (nothing near the start of the open field to stop it) for two seconds.
         before = self.robot_status().pose
         reply = controller.teleop(ROBOT, 0.0, 0.5)
-        self.assertEqual(reply.behaviour, "teleop")
+        self.assertEqual(occgeo.behaviour_label(reply.behaviour), "teleop")
         self.assertAlmostEqual(reply.angular_radps, 0.5)
         self.assertFalse(reply.estop)
         lease.sleep(2.0)
         status = self.robot_status()
-        self.assertEqual(status.behaviour, "teleop")
+        self.assertEqual(occgeo.behaviour_label(status.behaviour), "teleop")
+        self.assertEqual(occgeo.state_label(status.behaviour_state), "teleop")
         self.assertEqual(status.lease_holder.session_id, session_id)
         turned = angle_between(status.pose.theta, before.theta)
         self.assertGreater(turned, 0.3, "teleop at 0.5 rad/s for 2 s turned the robot only %.3f rad" % turned)
@@ -129,7 +130,7 @@ class ControlWithSimulator(test_client.ServerTestCase):
         lease.release()
         after = self.robot_status()
         self.assertFalse(after.HasField("lease_holder"))
-        self.assertEqual(after.behaviour, "stop")
+        self.assertEqual(occgeo.behaviour_label(after.behaviour), "stop")
         self.assertTrue(rival.lease(ROBOT, "acquire").granted)
 
         # Meanwhile the watch stream kept up with every scan the robot sent (no drops at this rate).
@@ -139,6 +140,13 @@ class ControlWithSimulator(test_client.ServerTestCase):
         self.assertEqual(sum(e.dropped_since_last for e in watched), 0)
         all_seqs = seqs + [e.seq for e in watched]
         self.assertEqual(all_seqs, sorted(set(all_seqs)))
+
+    def test_behaviours_are_named_by_the_schemas_labels(self):
+        self.assertEqual(occgeo.BEHAVIOURS, ("bearcat", "bearcat_seed", "stop", "teleop", "wander", "goto", "waypoints"))
+        with self.assertRaises(ValueError) as caught:
+            occgeo.behaviour_value("dance")
+        self.assertIn("goto", str(caught.exception))
+        self.assertEqual(occgeo.state_label(0), "")
 
     def test_drive_example_turns_the_robot(self):
         before = self.robot_status().pose
@@ -152,4 +160,4 @@ class ControlWithSimulator(test_client.ServerTestCase):
         after = self.robot_status()
         self.assertGreater(angle_between(after.pose.theta, before.theta), 0.3, out)
         self.assertFalse(after.HasField("lease_holder"))
-        self.assertEqual(after.behaviour, "stop")
+        self.assertEqual(occgeo.behaviour_label(after.behaviour), "stop")

@@ -402,7 +402,7 @@ def _read_frame(sock):
 
 
 class EnvelopeTest(unittest.TestCase):
-    """Protocol version 2: a request's request_id is on the ClientMessage envelope, and its reply (or Error) is the
+    """Since protocol version 2, a request's request_id is on the ClientMessage envelope, and its reply (or Error) is the
     ServerMessage whose envelope carries the same id. No server: the test writes the server's side of a socket pair."""
 
     def setUp(self):
@@ -413,8 +413,8 @@ class EnvelopeTest(unittest.TestCase):
         self.client.close()
         self.theirs.close()
 
-    def test_the_client_speaks_version_2(self):
-        self.assertEqual(occgeo.client.PROTOCOL_VERSION, 2)
+    def test_the_client_speaks_version_3(self):
+        self.assertEqual(occgeo.client.PROTOCOL_VERSION, 3)
 
     def test_request_id_travels_on_the_envelopes(self):
         # Answers queued before the requests (the client numbers them 1, 2, ...): a reply to a request never sent,

@@ -165,7 +165,7 @@ v1::RobotSpec make_spec(LogFormat format, const ScanRecord& first, const FormatT
   }
   spec.set_command_timeout_s(1.0);
   // A log cannot be steered: the server need not plan motion for it.
-  spec.set_default_behaviour("stop");
+  spec.set_default_behaviour(v1::BEHAVIOUR_STOP);
   return spec;
 }
 
@@ -450,7 +450,7 @@ class RecordingPass {
         if (!spec.ParseFromArray(message->data.data(), static_cast<int>(message->data.size()))) {
           fail("does not decode as occgeo.v1.RobotSpec");
         }
-        spec.set_default_behaviour("stop");  // a recording replayed cannot be steered either
+        spec.set_default_behaviour(v1::BEHAVIOUR_STOP);  // a recording replayed cannot be steered either
         if (drivers_.count(world + "/" + robot) == 0) connect(world, robot, spec);
         continue;
       }

@@ -95,7 +95,7 @@ RobotPreset scout() {
   }
   preset.sensors = {sonar};
   // Seed 001's system: the server wanders it on its sonar ring and maps with HIMM as it goes.
-  preset.default_behaviour = "wander";
+  preset.default_behaviour = v1::BEHAVIOUR_WANDER;
   preset.command_timeout_s = 0.5;
   return preset;
 }
@@ -137,7 +137,7 @@ RobotPreset activitybot() {
   preset.drive_goto_speed_mps = max_speed_mps;
   // Seed 003's system: the server runs PointBug on its sweeps once a controller gives it a goal; until then it
   // stands, answered reading by reading.
-  preset.default_behaviour = "stop";
+  preset.default_behaviour = v1::BEHAVIOUR_STOP;
   preset.activitybot_units = true;
   preset.command_timeout_s = 0.5;
   return preset;

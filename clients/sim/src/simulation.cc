@@ -5,6 +5,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "occgeo/proto/labels.h"
 #include "occgeo/sim/messages.h"
 
 namespace occgeo::sim {
@@ -222,8 +223,8 @@ void Simulation::take_effect(const v1::MotionCommand& command) {
     robot_.command(to_wheel_command(command));
   }
   ++command_count_;
-  ++state_counts_[command.state()];
-  last_state_ = command.state();
+  last_state_ = proto::behaviour_state_label(command.state());
+  ++state_counts_[last_state_];
 }
 
 void Simulation::step() {

@@ -168,28 +168,28 @@ double steer_toward_freer_side(const ScanView& scan, ForwardBeams forward, const
 struct Manoeuvre {
   double steer_deg = 0.0;
   bool stop = false;
-  std::string_view state;
+  BehaviourState state;
 };
 
 Manoeuvre manoeuvre_for(int ob_factor, const std::optional<Gap>& widest_gap, const ScanView& scan, ForwardBeams forward,
                         const BearcatParams& params) {
   switch (ob_factor) {
     case 0:
-      return {0.0, false, "clear"};
+      return {0.0, false, BehaviourState::kClear};
     case 1:
-      return {params.turn_small_deg, false, "avoid_right_obstacle"};
+      return {params.turn_small_deg, false, BehaviourState::kAvoidRightObstacle};
     case 12:
-      return {params.turn_large_deg, false, "avoid_right_obstacle"};
+      return {params.turn_large_deg, false, BehaviourState::kAvoidRightObstacle};
     case 3:
     case 23:
-      return {-params.turn_large_deg, false, "avoid_left_obstacle"};
+      return {-params.turn_large_deg, false, BehaviourState::kAvoidLeftObstacle};
     case 2:
-      if (widest_gap) return {widest_gap->center_bearing_rad * kDegreesPerRadian, false, "steer_gap"};
-      return {steer_toward_freer_side(scan, forward, params), false, "no_gap"};
+      if (widest_gap) return {widest_gap->center_bearing_rad * kDegreesPerRadian, false, BehaviourState::kSteerGap};
+      return {steer_toward_freer_side(scan, forward, params), false, BehaviourState::kNoGap};
     case 13:
-      return {0.0, false, "pass_between"};
+      return {0.0, false, BehaviourState::kPassBetween};
     case 123:
-      return {0.0, true, "deadlock"};
+      return {0.0, true, BehaviourState::kDeadlock};
     default:
       break;
   }

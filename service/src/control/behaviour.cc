@@ -66,7 +66,7 @@ class BearcatAdapter final : public Behaviour {
     command.angular_radps = decision.angular_radps;
     command.wheels = geometry::WheelSpeeds{decision.left_wheel_mps, decision.right_wheel_mps};
     command.stop = decision.stop;
-    command.state = std::string(decision.state);
+    command.state = decision.state;
     return command;
   }
 
@@ -122,7 +122,7 @@ class WanderAdapter final : public Behaviour {
       if (nearest != nullptr && nearest->range_m < body_radius_m_ + kTurnSweepMargin_m) {
         BehaviourCommand command;
         command.linear_mps = std::cos(nearest->bearing_rad) >= 0.0 ? -kEaseOffSpeed_mps : kEaseOffSpeed_mps;
-        command.state = "avoid_ease_off";
+        command.state = BehaviourState::kAvoidEaseOff;
         return command;
       }
     }
@@ -132,7 +132,7 @@ class WanderAdapter final : public Behaviour {
     command.linear_mps = decision.linear_mps;
     command.angular_radps = decision.angular_radps;
     command.stop = decision.stop;
-    command.state = std::string(decision.state);
+    command.state = decision.state;
     return command;
   }
 
@@ -148,7 +148,7 @@ class WanderAdapter final : public Behaviour {
 // PointBug's decision as a velocity held for one control cycle of period_s.
 BehaviourCommand pointbug_command(const PointBugDecision& decision, double period_s) {
   BehaviourCommand command;
-  command.state = std::string(decision.state);
+  command.state = decision.state;
   command.stop = decision.stop;
   // The seed's drive_goto ends each turn and leg exactly; a velocity held for one control cycle must not
   // overshoot them, or the heading tolerance would make the robot oscillate.
@@ -182,7 +182,7 @@ class GotoAdapter final : public Behaviour {
     BehaviourCommand command;
     if (!input.X_WB) {
       command.stop = true;
-      command.state = "no_pose";
+      command.state = BehaviourState::kNoPose;
       return command;
     }
     position_W_ = Eigen::Vector2d(input.X_WB->x, input.X_WB->y);
@@ -198,7 +198,7 @@ class GotoAdapter final : public Behaviour {
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
     const PointBugDecision decision = behaviour_.decide(pose, sweep);
     command = pointbug_command(decision, period_s_);
-    done_ = command.state == "reached" || command.state == "no_path";
+    done_ = command.state == BehaviourState::kReached || command.state == BehaviourState::kNoPath;
     return command;
   }
 
@@ -246,12 +246,12 @@ class ServoGotoAdapter final : public Behaviour {
     BehaviourCommand command;
     command.stop = true;
     if (!input.servo) {
-      command.state = "no_sweep_reading";
+      command.state = BehaviourState::kNoSweepReading;
       return command;
     }
     const bool swept = assembler_.add(input.servo->servo_angle_rad, input.servo->range_m, input.servo->stamp_s);
     if (!input.X_WB) {
-      command.state = "no_pose";
+      command.state = BehaviourState::kNoPose;
       return command;
     }
     const Pose2 pose{input.X_WB->x, input.X_WB->y, input.X_WB->theta};
@@ -264,7 +264,7 @@ class ServoGotoAdapter final : public Behaviour {
     }
     if (awaiting_sweep_) {
       if (!swept) {
-        command.state = "sweep";
+        command.state = BehaviourState::kSweep;
         return command;
       }
       awaiting_sweep_ = false;
@@ -290,13 +290,13 @@ class ServoGotoAdapter final : public Behaviour {
     const PointBugDecision decision = trial.decide(pose, Sweep{forward, limits.range_max_m});
     if (trial.state() == PointBugBehaviour::State::kNoPath && behaviour_.state() != PointBugBehaviour::State::kNoPath) {
       if (!ahead_known) {
-        command.state = "look_ahead";
+        command.state = BehaviourState::kLookAhead;
         return command;
       }
       // Something within obstacle_range_m ahead: stand and take a whole sweep from here.
       awaiting_sweep_ = true;
       assembler_.restart();
-      command.state = "sweep";
+      command.state = BehaviourState::kSweep;
       return command;
     }
     behaviour_ = trial;
@@ -317,8 +317,8 @@ class ServoGotoAdapter final : public Behaviour {
 
   BehaviourCommand finish(const PointBugDecision& decision) {
     BehaviourCommand command = pointbug_command(decision, period_s_);
-    done_ = command.state == "reached" || command.state == "no_path";
-    if (command.state == "drive_to_sudden_point") {
+    done_ = command.state == BehaviourState::kReached || command.state == BehaviourState::kNoPath;
+    if (command.state == BehaviourState::kDriveToSuddenPoint) {
       if (last_state_ != command.state) {
         ++leg_id_;
         leg_m_ = decision.target.distance_m;
@@ -337,9 +337,9 @@ class ServoGotoAdapter final : public Behaviour {
   double period_s_;
   std::optional<Ahead> ahead_;
   bool awaiting_sweep_ = false;
-  std::string last_state_;    // of the last decision that moved or stopped by PointBug
-  std::uint64_t leg_id_ = 0;  // counts the legs to sudden points
-  double leg_m_ = 0.0;        // the current leg's length where it began
+  BehaviourState last_state_ = BehaviourState::kNone;  // of the last decision that moved or stopped by PointBug
+  std::uint64_t leg_id_ = 0;                           // counts the legs to sudden points
+  double leg_m_ = 0.0;                                 // the current leg's length where it began
   std::optional<Eigen::Vector2d> position_W_;
   bool done_ = false;
 };
@@ -371,7 +371,7 @@ class WaypointsAdapter final : public Behaviour {
     BehaviourCommand command;
     if (!input.X_WB) {
       command.stop = true;
-      command.state = "no_pose";
+      command.state = BehaviourState::kNoPose;
       return command;
     }
     position_W_ = Eigen::Vector2d(input.X_WB->x, input.X_WB->y);
@@ -381,7 +381,7 @@ class WaypointsAdapter final : public Behaviour {
     command.linear_mps = decision.linear_mps;
     command.angular_radps = decision.angular_radps;
     command.stop = decision.stop;
-    command.state = decision.reached ? "reached" : std::string(decision.state);
+    command.state = decision.reached ? BehaviourState::kReached : decision.state;
     reached_ = decision.reached;
     return command;
   }
@@ -431,17 +431,18 @@ class EscapeWrapper final : public Behaviour {
       const auto band = height_band(input);  // what the laser plane misses: a kerb, an overhang
       if (!segment_clear(*input.grid, {pose.x, pose.y}, *goal, planner_.footprint_radius_m) ||
           (band && !band->segment_clear({pose.x, pose.y}, *goal, planner_.footprint_radius_m))) {
-        trigger_ = "blocked";
+        escape_state_ = BehaviourState::kEscapeBlocked;
         if (plan(input, pose, *goal)) return follow(input, pose, *goal);
       }
     }
     BehaviourCommand command = inner_->decide(input);
-    if (command.state == "reached") return command;
-    const LoopStatus status =
-        detector_.update({pose, input.stamp_s, goal, std::optional<std::string_view>(command.state)});
-    const bool stuck = command.state == "no_path" || status.loop || status.stalled;
+    if (command.state == BehaviourState::kReached) return command;
+    const LoopStatus status = detector_.update({pose, input.stamp_s, goal, command.state});
+    const bool stuck = command.state == BehaviourState::kNoPath || status.loop || status.stalled;
     if (stuck && input.stamp_s >= next_plan_s_) {
-      trigger_ = command.state == "no_path" ? "no_path" : std::string(status.reason);
+      escape_state_ = command.state == BehaviourState::kNoPath ? BehaviourState::kEscapeNoPath
+                      : status.reason == LoopReason::kLoop     ? BehaviourState::kEscapeLoop
+                                                               : BehaviourState::kEscapeStall;
       if (plan(input, pose, *goal)) return follow(input, pose, *goal);
       next_plan_s_ = input.stamp_s + 2.0;
     }
@@ -493,7 +494,7 @@ class EscapeWrapper final : public Behaviour {
     BehaviourCommand command;
     command.linear_mps = step.linear_mps;
     command.angular_radps = step.angular_radps;
-    command.state = "escape_" + trigger_;
+    command.state = escape_state_;
     if (step.reached) {
       // At the goal the escape ends the run; elsewhere a fresh inner behaviour resumes from here.
       path_.clear();
@@ -517,7 +518,7 @@ class EscapeWrapper final : public Behaviour {
   double planned_at_s_ = 0.0;
   double next_plan_s_ = -std::numeric_limits<double>::infinity();
   double next_look_ahead_s_ = -std::numeric_limits<double>::infinity();
-  std::string trigger_;
+  BehaviourState escape_state_ = BehaviourState::kEscapeStalled;  // what set the current escape off
   double height_m_;  // the robot's top: octree obstacles below it block the way
 };
 
@@ -553,7 +554,7 @@ class MapEscapeWrapper final : public Behaviour {
     position_W_ = Eigen::Vector2d(pose.x, pose.y);
     if (!path_.empty()) {
       BehaviourCommand command = follow(input, pose);
-      if (!command.state.empty()) return command;
+      if (command.state != BehaviourState::kNone) return command;
     }
     BehaviourCommand command = inner_->decide(input);
     // Headway: the robot left a disc round where it last made some; turning on the spot is not headway.
@@ -564,7 +565,7 @@ class MapEscapeWrapper final : public Behaviour {
     if (input.stamp_s < back_off_until_s_) {
       BehaviourCommand back;
       back.linear_mps = -kBackOffSpeed_mps;
-      back.state = "escape_back_off";
+      back.state = BehaviourState::kEscapeBackOff;
       return back;
     }
     const bool stuck = command.stop || input.stamp_s - anchor_s_ > kStallTime_s;
@@ -577,13 +578,15 @@ class MapEscapeWrapper final : public Behaviour {
       anchor_s_ = input.stamp_s + kBackOffTime_s;
       BehaviourCommand back;
       back.linear_mps = -kBackOffSpeed_mps;
-      back.state = "escape_back_off";
+      back.state = BehaviourState::kEscapeBackOff;
       return back;
     }
-    trigger_ = command.stop ? command.state : std::string("stalled");
+    // The inner behaviours without a goal stop only in the Bearcat's deadlock.
+    escape_state_ = command.stop && command.state == BehaviourState::kDeadlock ? BehaviourState::kEscapeDeadlock
+                                                                               : BehaviourState::kEscapeStalled;
     if (plan_out(input, pose)) {
       BehaviourCommand escape = follow(input, pose);
-      if (!escape.state.empty()) return escape;
+      if (escape.state != BehaviourState::kNone) return escape;
     }
     // A search cut short by its per-cycle budget goes on at the next cycle; one that found nothing waits a second.
     next_plan_s_ = next_candidate_ != 0 ? input.stamp_s : input.stamp_s + 1.0;
@@ -591,7 +594,7 @@ class MapEscapeWrapper final : public Behaviour {
       // No way out on the map yet: turn on the spot so the sensors see more of the surroundings.
       command = BehaviourCommand{};
       command.angular_radps = 0.5;
-      command.state = "escape_look_round";
+      command.state = BehaviourState::kEscapeLookRound;
     }
     return command;
   }
@@ -693,7 +696,7 @@ class MapEscapeWrapper final : public Behaviour {
     BehaviourCommand command;
     command.linear_mps = step.linear_mps;
     command.angular_radps = step.angular_radps;
-    command.state = "escape_" + trigger_;
+    command.state = escape_state_;
     return command;
   }
 
@@ -716,8 +719,8 @@ class MapEscapeWrapper final : public Behaviour {
   double escape_started_s_ = 0.0;
   double next_plan_s_ = -std::numeric_limits<double>::infinity();
   int escapes_ = 0;
-  std::size_t next_candidate_ = 0;  // where the next cycle's search for a way out resumes
-  std::string trigger_;
+  std::size_t next_candidate_ = 0;                                // where the next cycle's search for a way out resumes
+  BehaviourState escape_state_ = BehaviourState::kEscapeStalled;  // what set the current escape off
   double height_m_;
 };
 
@@ -763,7 +766,7 @@ class YieldWrapper final : public Behaviour {
       moving_.push_back(track);
     }
     const std::vector<TrackedObstacle>& moving = moving_;
-    if (moving.empty() || command.state == "reached") {
+    if (moving.empty() || command.state == BehaviourState::kReached) {
       aside_ = std::nullopt;
       return command;
     }
@@ -786,10 +789,10 @@ class YieldWrapper final : public Behaviour {
       if (command.wheels)
         command.wheels = {command.wheels->left_mps * kYieldSlowRatio, command.wheels->right_mps * kYieldSlowRatio};
       command.leg_m.reset();
-      command.state = "yield_slow";
+      command.state = BehaviourState::kYieldSlow;
       return command;
     }
-    return standing(command, "yield_wait");
+    return standing(command, BehaviourState::kYieldWait);
   }
 
  private:
@@ -799,13 +802,13 @@ class YieldWrapper final : public Behaviour {
   static constexpr double kAsideTurn_radps = 0.7;
   static constexpr double kAsideHysteresis_m = 0.05;  // keep the previous arc unless another is clearly better
 
-  static BehaviourCommand standing(BehaviourCommand command, std::string state) {
+  static BehaviourCommand standing(BehaviourCommand command, BehaviourState state) {
     command.linear_mps = 0.0;
     command.angular_radps = 0.0;
     command.wheels.reset();
     command.leg_m.reset();
     command.stop = true;
-    command.state = std::move(state);
+    command.state = state;
     return command;
   }
 
@@ -845,13 +848,13 @@ class YieldWrapper final : public Behaviour {
       best_gap_m = gap_m;
     }
     aside_ = best;
-    if (!best) return standing(command, "yield_wait");
+    if (!best) return standing(command, BehaviourState::kYieldWait);
     command.linear_mps = arcs[*best].linear_mps;
     command.angular_radps = arcs[*best].angular_radps;
     command.wheels.reset();
     command.leg_m.reset();
     command.stop = false;
-    command.state = "yield_aside";
+    command.state = BehaviourState::kYieldAside;
     return command;
   }
 

@@ -19,13 +19,6 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 using geometry::wrap_angle;
 
-// 0 is reserved for "no state", so a state hashing to 0 is moved to 1.
-std::uint64_t state_hash(const std::optional<std::string_view>& state) {
-  if (!state.has_value()) return 0;
-  const std::uint64_t hash = std::hash<std::string_view>{}(*state);
-  return hash == 0 ? 1 : hash;
-}
-
 }  // namespace
 
 void LoopDetectorParams::validate() const {
@@ -51,7 +44,7 @@ LoopDetector::LoopDetector(const LoopDetectorParams& params) : params_(params) {
 void LoopDetector::reset() {
   samples_.clear();
   status_ = LoopStatus{};
-  status_.reason = "none";
+  status_.reason = LoopReason::kNone;
   path_length_m_ = 0.0;
   progress_mark_m_ = kInfinity;
   // Progress is measured from now on: a stall needs another stall_time_s without progress.
@@ -68,7 +61,7 @@ int LoopDetector::count_passes(const Sample& now) const {
                          now.path_length_m - earlier.path_length_m >= params_.min_loop_length_m &&
                          (now.p_W - earlier.p_W).norm() <= params_.revisit_radius_m &&
                          std::abs(wrap_angle(now.theta - earlier.theta)) <= params_.heading_tolerance_rad &&
-                         earlier.state_hash == now.state_hash &&
+                         earlier.state == now.state &&
                          // The excursion since then brought no new record closeness to the goal.
                          now.best_goal_distance_m >= earlier.best_goal_distance_m - params_.progress_epsilon_m;
     if (matches && !in_run) ++passes;
@@ -119,7 +112,7 @@ LoopStatus LoopDetector::update(const LoopObservation& observation) {
     status_.since_progress_s = observation.time_s - progress_time_s_;
     if (!status_.stalled && status_.since_progress_s >= params_.stall_time_s) {
       status_.stalled = true;
-      if (!status_.loop) status_.reason = "stall";
+      if (!status_.loop) status_.reason = LoopReason::kStall;
     }
   }
 
@@ -129,17 +122,16 @@ LoopStatus LoopDetector::update(const LoopObservation& observation) {
     samples_.pop_front();
   }
 
-  const Sample now{
-      p_W, pose.theta, observation.time_s, path_length_m_, best_goal_distance_m, state_hash(observation.state)};
+  const Sample now{p_W, pose.theta, observation.time_s, path_length_m_, best_goal_distance_m, observation.state};
   const bool store = samples_.empty() || (p_W - samples_.back().p_W).norm() >= params_.sample_spacing_m ||
                      std::abs(wrap_angle(pose.theta - samples_.back().theta)) >= params_.heading_tolerance_rad / 4.0 ||
-                     now.state_hash != samples_.back().state_hash;
+                     now.state != samples_.back().state;
   if (store) {
     status_.passes = count_passes(now);
     if (!status_.loop && status_.passes >= params_.revisit_count) {
       status_.loop = true;
       status_.loop_point_W = p_W;
-      if (!status_.stalled) status_.reason = "loop";
+      if (!status_.stalled) status_.reason = LoopReason::kLoop;
     }
     samples_.push_back(now);
   }

@@ -157,7 +157,7 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
           state_ = State::kStepToGoal;
           continue;
         }
-        decision.state = "aim_at_goal";
+        decision.state = BehaviourState::kAimAtGoal;
         turn_by(goal_error_rad);
         decision.target = MotionTarget{goal_error_rad, 0.0};
         return decision;
@@ -194,7 +194,7 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
           state_ = State::kTurnToSuddenPoint;
           continue;
         }
-        decision.state = "step_to_goal";
+        decision.state = BehaviourState::kStepToGoal;
         decision.linear_mps = params_.linear_speed_mps;
         decision.target = MotionTarget{goal_error_rad, std::min(params_.step_m, decision.goal_distance_m)};
         return decision;
@@ -208,7 +208,7 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
         }
         const double remaining_m = (target_->world_x_m - pose.x) * std::cos(target_yaw_rad_) +
                                    (target_->world_y_m - pose.y) * std::sin(target_yaw_rad_);
-        decision.state = "turn_to_sudden_point";
+        decision.state = BehaviourState::kTurnToSuddenPoint;
         turn_by(error_rad);
         decision.target = MotionTarget{error_rad, std::max(remaining_m, 0.0)};
         decision.sudden_point = target_;
@@ -225,7 +225,7 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
           state_ = State::kAimAtGoal;
           continue;
         }
-        decision.state = "drive_to_sudden_point";
+        decision.state = BehaviourState::kDriveToSuddenPoint;
         decision.linear_mps = params_.linear_speed_mps;
         decision.target = MotionTarget{0.0, remaining_m};
         decision.sudden_point = target_;
@@ -233,12 +233,12 @@ PointBugDecision PointBugBehaviour::decide(const Pose2& pose, const Sweep& sweep
       }
 
       case State::kReached:
-        decision.state = "reached";
+        decision.state = BehaviourState::kReached;
         decision.stop = true;
         return decision;
 
       case State::kNoPath:
-        decision.state = "no_path";
+        decision.state = BehaviourState::kNoPath;
         decision.stop = true;
         return decision;
     }

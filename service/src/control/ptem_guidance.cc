@@ -190,7 +190,7 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
 
   if (reached_) {
     avoid_side_ = 0;
-    decision.state = "reached";
+    decision.state = BehaviourState::kReached;
     decision.stop = true;
     decision.reached = true;
     decision.desired_heading_rad = wrap_angle(pose.theta);
@@ -277,11 +277,11 @@ PtemGuidanceDecision PtemGuidance::decide(const Pose2& pose, double time_s, cons
   decision.linear_mps = std::min(aligned_speed_mps, max_speed_mps);
 
   if (threat.present && (threat.inside || threat.clearance_m <= 0.0)) {
-    decision.state = "escape";
+    decision.state = BehaviourState::kEscape;
   } else if (heading_limited || aligned_speed_mps > max_speed_mps) {
-    decision.state = "avoid";
+    decision.state = BehaviourState::kAvoid;
   } else {
-    decision.state = "track_target";
+    decision.state = BehaviourState::kTrackTarget;
   }
   return decision;
 }

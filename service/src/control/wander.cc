@@ -169,18 +169,18 @@ WanderDecision WanderBehaviour::command() const {
   switch (state_) {
     case State::kWanderStraight:
       decision.linear_mps = params_.linear_speed_mps;
-      decision.state = "wander_straight";
+      decision.state = BehaviourState::kWanderStraight;
       decision.remaining_m = remaining_m_;
       break;
     case State::kWanderTurn:
       // turn_little and avoid's turn are turns in place, so a round robot never sweeps into what it sees.
       decision.angular_radps = turn_direction_ * params_.turn_speed_radps;
-      decision.state = "wander_turn";
+      decision.state = BehaviourState::kWanderTurn;
       decision.remaining_rad = remaining_rad_;
       break;
     case State::kAvoidTurn:
       decision.angular_radps = turn_direction_ * params_.turn_speed_radps;
-      decision.state = "avoid_turn";
+      decision.state = BehaviourState::kAvoidTurn;
       break;
   }
   return decision;

@@ -1,6 +1,7 @@
 #include <cmath>
 
 #include "../validation.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/service/log.h"
 #include "robot_control.h"
 
@@ -10,9 +11,9 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
   const SessionInfo& info = session->info();
   if (!known_behaviour(request.behaviour())) {
     session->send_error(v1::ERROR_INVALID_ARGUMENT, "drive.behaviour",
-                        "must be \"bearcat\", \"bearcat_seed\", \"stop\", \"teleop\", \"wander\", \"goto\" or "
-                        "\"waypoints\", not \"" +
-                            request.behaviour().substr(0, 64) + "\"",
+                        "must be a Behaviour (" + proto::behaviour_labels() + "), not " +
+                            (v1::Behaviour_IsValid(request.behaviour()) ? v1::Behaviour_Name(request.behaviour())
+                                                                        : std::to_string(request.behaviour())),
                         request_id);
     return;
   }
@@ -26,7 +27,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
     const auto now = std::chrono::steady_clock::now();
     const bool stopped = robot->control().update([&](ControlState& c) {
       if (!c.lease || c.lease->session_id != info.id || c.lease->expires_at <= now) return false;
-      c.behaviour = "stop";
+      c.behaviour = v1::BEHAVIOUR_STOP;
       c.teleop_linear_mps = 0.0;
       c.teleop_angular_radps = 0.0;
       ++c.drive_generation;
@@ -34,7 +35,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
     });
     if (stopped) {
       log::warn("drive_refused", {{"robot", request.robot_id()}, {"field", field}, {"error", message}});
-      send_stop_to_driver(*robot, "drive_refused", session->core().config().control.command_expiry_s);
+      send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_DRIVE_REFUSED, session->core().config().control.command_expiry_s);
     }
   };
   if (!std::isfinite(request.linear_mps())) {
@@ -45,7 +46,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
     refuse("drive.angular_radps", "must be finite");
     return;
   }
-  if (request.behaviour() == "goto") {
+  if (request.behaviour() == v1::BEHAVIOUR_GOTO) {
     if (!request.has_goal()) {
       refuse("drive.goal", "goto needs a goal");
       return;
@@ -60,7 +61,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
       }
     }
   }
-  if (request.behaviour() == "waypoints") {
+  if (request.behaviour() == v1::BEHAVIOUR_WAYPOINTS) {
     constexpr int kMaxWaypoints = 1000;
     if (request.waypoints_size() == 0 || request.waypoints_size() > kMaxWaypoints) {
       refuse("drive.waypoints", "waypoints needs 1 to 1000 waypoints");
@@ -84,7 +85,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
     return;
   }
   ClampedVelocity velocity;
-  if (request.behaviour() == "teleop") {
+  if (request.behaviour() == v1::BEHAVIOUR_TELEOP) {
     velocity = clamp_velocity(robot->model(), request.linear_mps(), request.angular_radps());
   }
   const auto now = std::chrono::steady_clock::now();
@@ -120,7 +121,7 @@ void handle_drive_request(const SessionPtr& session, std::uint64_t request_id, c
   session->send(reply);
   log::info("drive", {{"robot", request.robot_id()},
                       {"session", info.id},
-                      {"behaviour", request.behaviour()},
+                      {"behaviour", proto::behaviour_label(request.behaviour())},
                       {"linear_mps", velocity.body.linear_mps},
                       {"angular_radps", velocity.body.angular_radps}});
 }

@@ -32,7 +32,7 @@ void handle_estop(const SessionPtr& session, std::uint64_t request_id, const v1:
   }
   if (request.engage()) {
     // The next scan would be answered by a stop anyway; this one does not wait for it.
-    send_stop_to_driver(*robot, "estop", session->core().config().control.command_expiry_s);
+    send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_ESTOP, session->core().config().control.command_expiry_s);
   }
   v1::ServerMessage reply;
   auto* out = reply.mutable_estop();

@@ -86,8 +86,8 @@ void handle_hello(const SessionPtr& session, const v1::Hello& hello) {
     session->send_error(v1::ERROR_PROTOCOL_VERSION, "hello.protocol_version",
                         "this server speaks protocol version " + std::to_string(kProtocolVersion) + ", not " +
                             std::to_string(hello.protocol_version()) +
-                            ": version 2 carries request_id on the ClientMessage / ServerMessage envelope; upgrade the "
-                            "client");
+                            " (version 2 carried request_id on the message envelope, version 3 also names behaviours "
+                            "and their states by the Behaviour and BehaviourState enums); upgrade the client");
     return;
   }
   switch (hello.role()) {

@@ -44,7 +44,7 @@ void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, c
   robot->control().update([&](ControlState& c) {
     if (c.lease && c.lease->expires_at <= now) {
       c.lease.reset();
-      c.behaviour = "stop";
+      c.behaviour = v1::BEHAVIOUR_STOP;
       c.teleop_linear_mps = 0.0;
       c.teleop_angular_radps = 0.0;
       lapsed = true;
@@ -56,7 +56,8 @@ void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, c
       case v1::LeaseRequest::ACQUIRE:
       case v1::LeaseRequest::TAKE:
         if (c.lease && !mine && action == v1::LeaseRequest::ACQUIRE) break;
-        if (c.lease && !mine && c.behaviour == "teleop") c.behaviour = "stop";  // velocities were the old holder's
+        if (c.lease && !mine && c.behaviour == v1::BEHAVIOUR_TELEOP)
+          c.behaviour = v1::BEHAVIOUR_STOP;  // velocities were the old holder's
         c.lease = Lease{info.id, info.client_name, timeout_s, after(timeout_s)};
         granted = true;
         break;
@@ -69,7 +70,7 @@ void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, c
       case v1::LeaseRequest::RETURN:
         if (!mine) break;
         c.lease.reset();
-        if (c.behaviour == "teleop") c.behaviour = "stop";  // teleop velocities need a holder
+        if (c.behaviour == v1::BEHAVIOUR_TELEOP) c.behaviour = v1::BEHAVIOUR_STOP;  // teleop velocities need a holder
         granted = true;
         break;
       default:
@@ -77,7 +78,7 @@ void handle_lease_request(const SessionPtr& session, std::uint64_t request_id, c
     }
     lease = c.lease;
   });
-  if (lapsed) send_stop_to_driver(*robot, "lease_expired", config.command_expiry_s);
+  if (lapsed) send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_LEASE_EXPIRED, config.command_expiry_s);
   refresh_watchdog(robot, config);
 
   v1::ServerMessage reply;

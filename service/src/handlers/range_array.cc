@@ -50,7 +50,8 @@ void handle_range_array(const SessionPtr& session, v1::RangeArray message) {
       // robot is meant to be steered (its spec names a default behaviour, or a lease holder set one); a driver that
       // declared neither keeps deciding how it moves, as before range arrays could steer.
       if (!accepted || !model.lasers.empty() || &array != &model.range_arrays.front()) return;
-      if (model.spec.default_behaviour().empty() && robot->control().state().drive_generation == 0) return;
+      if (model.spec.default_behaviour() == v1::BEHAVIOUR_UNSPECIFIED && robot->control().state().drive_generation == 0)
+        return;
       const ServerConfig& config = session->core().config();
       v1::MotionCommand command =
           command_for_scan_on_strand(*robot, control::ScanView{}, message.stamp_s(), config.control.command_expiry_s,

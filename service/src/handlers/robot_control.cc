@@ -8,6 +8,7 @@
 #include "../metrics.h"
 #include "../validation.h"
 #include "occgeo/geometry/convex_polygon.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/service/log.h"
 
 namespace occgeo::service {
@@ -43,7 +44,7 @@ void fire_on_strand(const std::shared_ptr<Robot>& robot, const ControlConfig& co
     if (c.lease && c.lease->expires_at <= now) {
       lapsed_holder = describe_holder(c.lease);
       c.lease.reset();
-      c.behaviour = "stop";
+      c.behaviour = v1::BEHAVIOUR_STOP;
       c.teleop_linear_mps = 0.0;
       c.teleop_angular_radps = 0.0;
     }
@@ -55,11 +56,11 @@ void fire_on_strand(const std::shared_ptr<Robot>& robot, const ControlConfig& co
   });
   if (!lapsed_holder.empty()) {
     log::warn("lease_expired", {{"robot", robot->model().id}, {"holder", lapsed_holder}});
-    send_stop_to_driver(*robot, "lease_expired", config.command_expiry_s);
+    send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_LEASE_EXPIRED, config.command_expiry_s);
   }
   if (went_stale) {
     log::warn("sensor_stale", {{"robot", robot->model().id}, {"timeout_s", config.sensor_timeout_s}});
-    send_stop_to_driver(*robot, "sensor_stale", config.command_expiry_s);
+    send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_SENSOR_STALE, config.command_expiry_s);
   }
   arm_on_strand(robot, config, false);
 }
@@ -88,7 +89,7 @@ void arm_on_strand(const std::shared_ptr<Robot>& robot, const ControlConfig& con
   });
 }
 
-v1::MotionCommand make_stop(const std::string& behaviour, const std::string& state, double expiry_s) {
+v1::MotionCommand make_stop(v1::Behaviour behaviour, v1::BehaviourState state, double expiry_s) {
   v1::MotionCommand command;
   command.set_expires_after_s(expiry_s);
   command.set_behaviour(behaviour);
@@ -99,10 +100,15 @@ v1::MotionCommand make_stop(const std::string& behaviour, const std::string& sta
 
 }  // namespace
 
-bool known_behaviour(const std::string& name) {
-  return name == "bearcat" || name == "bearcat_seed" || name == "stop" || name == "teleop" || name == "wander" ||
-         name == "goto" || name == "waypoints";
+bool known_behaviour(v1::Behaviour behaviour) {
+  return v1::Behaviour_IsValid(behaviour) && behaviour != v1::BEHAVIOUR_UNSPECIFIED;
 }
+
+// The wire keeps the behaviours' states at the same numbers, followed by the server's own.
+static_assert(static_cast<int>(control::kBehaviourStateCount) == v1::BEHAVIOUR_STATE_YIELD_ASIDE + 1);
+static_assert(v1::BEHAVIOUR_STATE_YIELD_ASIDE < v1::BEHAVIOUR_STATE_ESTOP);
+
+v1::BehaviourState to_wire(control::BehaviourState state) { return static_cast<v1::BehaviourState>(state); }
 
 namespace {
 
@@ -149,31 +155,31 @@ void fill_guard(const control::GuardDecision& decision, double requested_linear_
 }
 
 // make_behaviour without the yielding to moving obstacles around goto and waypoints (which wraps the escape too).
-std::unique_ptr<control::Behaviour> make_plain_behaviour(const std::string& name, const v1::DriveRequest& request,
+std::unique_ptr<control::Behaviour> make_plain_behaviour(v1::Behaviour name, const v1::DriveRequest& request,
                                                          const RobotModel& model, const ServerConfig& config) {
   const control::RobotShape shape = robot_shape(model);
   // The Bearcat and wander get out of deadlocks over the map they built (seed 000 §5.2); bearcat_seed is the thesis's
   // behaviour alone, which stops in a deadlock for good. Each robot's Bearcat uses its own wheel separation.
   const control::BearcatParams bearcat = bearcat_params_for(model, config.bearcat);
-  if (name == "bearcat_seed") return control::make_bearcat(bearcat);
-  if (name == "bearcat") {
+  if (name == v1::BEHAVIOUR_BEARCAT_SEED) return control::make_bearcat(bearcat);
+  if (name == v1::BEHAVIOUR_BEARCAT) {
     return control::make_map_escape([bearcat] { return control::make_bearcat(bearcat); }, shape);
   }
-  if (name == "wander") {
+  if (name == v1::BEHAVIOUR_WANDER) {
     return control::make_map_escape([shape] { return control::make_wander(control::WanderParams{}, shape); }, shape);
   }
-  if ((name == "goto" || name == "waypoints") && request.escape()) {
+  if ((name == v1::BEHAVIOUR_GOTO || name == v1::BEHAVIOUR_WAYPOINTS) && request.escape()) {
     v1::DriveRequest plain = request;
     plain.set_escape(false);
     return control::make_escape(
         [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); }, shape);
   }
-  if (name == "waypoints") {
+  if (name == v1::BEHAVIOUR_WAYPOINTS) {
     std::vector<Eigen::Vector2d> waypoints_W;
     for (const auto& w : request.waypoints()) waypoints_W.emplace_back(w.x_m(), w.y_m());
     return control::make_waypoints(shape, std::move(waypoints_W));
   }
-  if (name == "goto" && model.lasers.empty() && !model.servo_ranges.empty()) {
+  if (name == v1::BEHAVIOUR_GOTO && model.lasers.empty() && !model.servo_ranges.empty()) {
     // Seed 003's robot: PointBug on the swept beam, one decision per servo step.
     const ServoRangeModel& servo = model.servo_ranges.front();
     const control::ServoSweepLimits limits{servo.servo_min_rad, servo.servo_max_rad, servo.servo_step_rad,
@@ -190,7 +196,7 @@ std::unique_ptr<control::Behaviour> make_plain_behaviour(const std::string& name
     return control::make_servo_goto(params, limits, std::atan2(beam_B.y(), beam_B.x()), request.goal().x_m(),
                                     request.goal().y_m(), servo.step_period_s);
   }
-  if (name == "goto") {
+  if (name == v1::BEHAVIOUR_GOTO) {
     double half_width_m = 0.0;
     std::visit(
         [&](const auto& shape_of) {
@@ -212,11 +218,11 @@ std::unique_ptr<control::Behaviour> make_plain_behaviour(const std::string& name
 
 }  // namespace
 
-std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
+std::unique_ptr<control::Behaviour> make_behaviour(v1::Behaviour name, const v1::DriveRequest& request,
                                                    const RobotModel& model, const ServerConfig& config) {
   auto behaviour = make_plain_behaviour(name, request, model, config);
   // A robot with a laser going somewhere yields to the people and carts its PTEM tracks.
-  if (behaviour && (name == "goto" || name == "waypoints") && !model.lasers.empty()) {
+  if (behaviour && (name == v1::BEHAVIOUR_GOTO || name == v1::BEHAVIOUR_WAYPOINTS) && !model.lasers.empty()) {
     return control::make_yield(std::move(behaviour), robot_shape(model), config.guard);
   }
   return behaviour;
@@ -231,8 +237,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   v1::MotionCommand command;
   command.set_expires_after_s(expiry_s);
   command.set_behaviour(control.behaviour);
-  if (control.estop || control.behaviour == "stop") {
-    command.set_state(control.estop ? "estop" : "stop");
+  if (control.estop || control.behaviour == v1::BEHAVIOUR_STOP) {
+    command.set_state(control.estop ? v1::BEHAVIOUR_STATE_ESTOP : v1::BEHAVIOUR_STATE_STOP);
     command.set_stop(true);
     robot.update_state([](RobotState& s) {
       s.guard.Clear();
@@ -244,30 +250,33 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   const WorldSnapshot snapshot = robot.world().snapshots();
   control::BehaviourCommand wanted;
   std::vector<Eigen::Vector2d> path_W;  // what the behaviour plans from here, for the status and the web view
-  if (control.behaviour == "teleop") {
+  v1::BehaviourState state = v1::BEHAVIOUR_STATE_TELEOP;
+  if (control.behaviour == v1::BEHAVIOUR_TELEOP) {
     wanted.linear_mps = control.teleop_linear_mps;
     wanted.angular_radps = control.teleop_angular_radps;
-    wanted.state = "teleop";
   } else {
     auto& active = robot.active_behaviour_on_strand();
+    // The bare Bearcat (bearcat_seed) names itself "bearcat" and is rebuilt each cycle; it keeps nothing between them.
+    const std::string behaviour_label = proto::behaviour_label(control.behaviour);
     try {
       if (!active || robot.active_generation_on_strand() != control.drive_generation ||
-          active->name() != control.behaviour) {
+          active->name() != behaviour_label) {
         active = make_behaviour(control.behaviour, control.drive, model, config);
         robot.active_generation_on_strand() = control.drive_generation;
       }
-      if (!active) throw std::invalid_argument("drive.behaviour '" + control.behaviour + "' has no decision");
+      if (!active) throw std::invalid_argument("drive.behaviour '" + behaviour_label + "' has no decision");
       wanted = active->decide(
           {view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring, servo});
       path_W = active->planned_path();
+      state = to_wire(wanted.state);
     } catch (const std::invalid_argument& e) {
-      log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", control.behaviour}, {"error", e.what()}});
+      log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", behaviour_label}, {"error", e.what()}});
       wanted = control::BehaviourCommand{};
       wanted.stop = true;
-      wanted.state = "behaviour_error";
+      state = v1::BEHAVIOUR_STATE_BEHAVIOUR_ERROR;
     }
   }
-  command.set_state(wanted.state);
+  command.set_state(state);
   if (wanted.stop) {
     command.set_stop(true);
     robot.update_state([&](RobotState& s) {
@@ -280,7 +289,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   v1::GuardDecision guard;
   if (config.guard.enabled && X_WB) {
     const std::vector<control::TrackedObstacle> moving =
-        control.behaviour == "teleop" || !robot.active_behaviour_on_strand()
+        control.behaviour == v1::BEHAVIOUR_TELEOP || !robot.active_behaviour_on_strand()
             ? std::vector<control::TrackedObstacle>{}
             : robot.active_behaviour_on_strand()->moving_obstacles();
     const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
@@ -332,7 +341,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
 void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionCommand command,
                             std::uint64_t answers_seq) {
   command.set_answers_scan_seq(answers_seq);
-  std::string previous_state;
+  v1::BehaviourState previous_state = v1::BEHAVIOUR_STATE_UNSPECIFIED;
   robot.update_state([&](RobotState& state) {
     command.set_seq(++state.commands_sent);
     previous_state = state.behaviour_state;
@@ -345,7 +354,9 @@ void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionC
     const auto level = command.stop() ? log::Level::warn : log::Level::debug;
     if (log::enabled(level)) {
       log::write(level, "behaviour_state",
-                 {{"robot", robot.model().id}, {"state", command.state()}, {"scan_seq", answers_seq}});
+                 {{"robot", robot.model().id},
+                  {"state", proto::behaviour_state_label(command.state())},
+                  {"scan_seq", answers_seq}});
     }
   }
   v1::ServerMessage reply;
@@ -353,7 +364,7 @@ void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionC
   session->send(reply);
 }
 
-v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const std::string& state, double expiry_s,
+v1::MotionCommand stop_command(Robot& robot, v1::Behaviour behaviour, v1::BehaviourState state, double expiry_s,
                                std::uint64_t answers_scan_seq) {
   v1::MotionCommand command = make_stop(behaviour, state, expiry_s);
   command.set_answers_scan_seq(answers_scan_seq);
@@ -367,7 +378,7 @@ v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const
   return command;
 }
 
-void send_stop_to_driver(Robot& robot, const std::string& state, double expiry_s) {
+void send_stop_to_driver(Robot& robot, v1::BehaviourState state, double expiry_s) {
   const ControlState control = robot.control().state();
   const auto driver = control.driver.lock();
   if (!driver) return;
@@ -422,14 +433,14 @@ void release_session_control(ServerCore& core, const SessionInfo& info) {
     const bool released = robot->control().update([&](ControlState& c) {
       if (!c.lease || c.lease->session_id != info.id) return false;
       c.lease.reset();
-      c.behaviour = "stop";
+      c.behaviour = v1::BEHAVIOUR_STOP;
       c.teleop_linear_mps = 0.0;
       c.teleop_angular_radps = 0.0;
       return true;
     });
     if (!released) continue;
     log::warn("lease_holder_disconnected", {{"robot", robot->model().id}, {"session", info.id}});
-    send_stop_to_driver(*robot, "controller_disconnected", config.command_expiry_s);
+    send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_CONTROLLER_DISCONNECTED, config.command_expiry_s);
     refresh_watchdog(robot, config);
   }
 }

@@ -12,16 +12,19 @@ namespace occgeo::service {
 // The server side of driving a robot safely: leases, behaviours set by the lease holder, the
 // e-stop latch and the watchdogs (lease expiry, stale sensors). See docs/PROTOCOL.md "Control".
 
-// The behaviours a lease holder may set.
-[[nodiscard]] bool known_behaviour(const std::string& name);
+// The behaviours a lease holder may set: every Behaviour this build knows but BEHAVIOUR_UNSPECIFIED.
+[[nodiscard]] bool known_behaviour(v1::Behaviour behaviour);
+
+// A behaviour's state as the wire numbers it (the same number; the wire adds the server's own states after them).
+[[nodiscard]] v1::BehaviourState to_wire(control::BehaviourState state);
 
 // A stop command for the robot (wheel speeds 0, stop set), answering no scan (answers_scan_seq 0)
 // unless `answers_scan_seq` is given; counts it in the robot's state.
-v1::MotionCommand stop_command(Robot& robot, const std::string& behaviour, const std::string& state, double expiry_s,
+v1::MotionCommand stop_command(Robot& robot, v1::Behaviour behaviour, v1::BehaviourState state, double expiry_s,
                                std::uint64_t answers_scan_seq = 0);
 
 // Sends an unsolicited stop command to the robot's connected driver, if any; thread-safe.
-void send_stop_to_driver(Robot& robot, const std::string& state, double expiry_s);
+void send_stop_to_driver(Robot& robot, v1::BehaviourState state, double expiry_s);
 
 // The lease as the protocol shows it: holder and seconds left.
 void fill_holder(const std::optional<Lease>& lease, v1::LeaseHolder& holder);
@@ -47,8 +50,8 @@ struct ClampedVelocity {
 [[nodiscard]] ClampedVelocity clamp_velocity(const RobotModel& model, double linear_mps, double angular_radps);
 
 // The command answering one scan of the robot's first laser (sensor frame view, stamp in seconds): a stop while the
-// e-stop is latched or the behaviour is "stop", the teleop velocities, or the decision of the behaviour the lease
-// holder set (rebuilt when a new DriveRequest was accepted); every moving command then passes the safety guard
+// e-stop is latched or the behaviour is BEHAVIOUR_STOP, the teleop velocities, or the decision of the behaviour the
+// lease holder set (rebuilt when a new DriveRequest was accepted); every moving command then passes the safety guard
 // (config.guard) against the world's latest snapshot, and the guard's verdict is recorded in the robot's state.
 // answers_scan_seq and seq are left to the caller. Call only from the world's strand.
 // A robot without a laser passes its first range array's readings as `ring` (base_link bearings and distances) and an
@@ -65,7 +68,7 @@ void send_command_on_strand(const SessionPtr& session, Robot& robot, v1::MotionC
 
 // The behaviour a DriveRequest names, built for this robot; nullptr for "stop" and "teleop" (no decision needed).
 // Throws std::invalid_argument naming the field when its parameters are wrong.
-std::unique_ptr<control::Behaviour> make_behaviour(const std::string& name, const v1::DriveRequest& request,
+std::unique_ptr<control::Behaviour> make_behaviour(v1::Behaviour name, const v1::DriveRequest& request,
                                                    const RobotModel& model, const ServerConfig& config);
 
 // A session ends: a driver's robot has no driver any more; every lease a controller held is freed

@@ -27,7 +27,8 @@ void handle_servo_range(const SessionPtr& session, v1::ServoRange message) {
       if (!accepted || !model.lasers.empty() || !model.range_arrays.empty() || &servo != &model.servo_ranges.front()) {
         return;
       }
-      if (model.spec.default_behaviour().empty() && robot->control().state().drive_generation == 0) return;
+      if (model.spec.default_behaviour() == v1::BEHAVIOUR_UNSPECIFIED && robot->control().state().drive_generation == 0)
+        return;
       const ServerConfig& config = session->core().config();
       v1::MotionCommand command = command_for_scan_on_strand(
           *robot, control::ScanView{}, message.stamp_s(), config.control.command_expiry_s, config, std::nullopt,

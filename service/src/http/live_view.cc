@@ -9,6 +9,7 @@
 #include "../handlers/robot_control.h"
 #include "../validation.h"
 #include "occgeo/geometry/fnv1a.h"
+#include "occgeo/proto/labels.h"
 #include "occgeo/service/log.h"
 
 namespace occgeo::service::http {
@@ -126,9 +127,9 @@ void append_robots(std::string& out, ServerCore& core, const std::string& shown_
     out += R"(,"footprint":)";
     append_footprint(out, robot->model().footprint);
     out += R"(,"behaviour":)";
-    append_string(out, control.behaviour);
+    append_string(out, proto::behaviour_label(control.behaviour));
     out += R"(,"behaviour_state":)";
-    append_string(out, state.behaviour_state);
+    append_string(out, proto::behaviour_state_label(state.behaviour_state));
     out += R"(,"estop":)";
     out += control.estop ? "true" : "false";
     out += R"(,"sensor_stale":)";
@@ -430,7 +431,7 @@ bool engage_estop_from_web(ServerCore& core, const std::string& robot_id) {
     control.estop = true;
   });
   // As for a protocol EStop: the robot stops now rather than at its next scan.
-  send_stop_to_driver(*robot, "estop", core.config().control.command_expiry_s);
+  send_stop_to_driver(*robot, v1::BEHAVIOUR_STATE_ESTOP, core.config().control.command_expiry_s);
   if (engaged_now) log::warn("estop", {{"robot", robot_id}, {"source", "web"}, {"engaged", true}});
   return true;
 }

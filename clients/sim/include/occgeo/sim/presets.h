@@ -11,6 +11,7 @@
 #include "occgeo/geometry/footprint.h"
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
+#include "occgeo/v1/control.pb.h"
 
 namespace occgeo::sim {
 
@@ -108,8 +109,9 @@ struct RobotPreset {
   // Speed of each wheel during drive_goto, m/s (the ActivityBot's drive_setMaxSpeed default); 0 when the robot has no
   // drive_goto.
   double drive_goto_speed_mps = 0.0;
-  // RobotSpec.default_behaviour: what the server runs for it while nobody set a behaviour (empty: the server's own).
-  std::string default_behaviour;
+  // RobotSpec.default_behaviour: what the server runs for it while nobody set a behaviour (unspecified: the server's
+  // own).
+  v1::Behaviour default_behaviour = v1::BEHAVIOUR_UNSPECIFIED;
   // RobotSpec.command_units: the robot takes drive_goto / drive_speed encoder ticks (seed 003's ActivityBot).
   bool activitybot_units = false;
   double command_timeout_s = 0.0;  // watchdog: the wheels stop when no command arrived within this, seconds

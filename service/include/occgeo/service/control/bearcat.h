@@ -4,6 +4,7 @@
 #include <optional>
 #include <span>
 #include <string_view>
+#include "occgeo/service/control/behaviour_state.h"
 
 // The Bearcat III obstacle-avoidance behaviour (seed 000 §4.2–4.3 and its appendix source): a frontal rectangle
 // split into right, middle and left zones, the ob_factor case table, the open-gap finder and steerCAR.
@@ -69,17 +70,17 @@ struct WheelCommand {
 
 // Everything one Bearcat decision found and commands; zones are ordered right (1), middle (2), left (3).
 struct BearcatDecision {
-  int ob_factor = 0;                     // ob_factor * 10 + zone over the zones with obstacles, e.g. 12
-  std::array<ZoneObservation, 3> zones;  // right, middle, left
-  std::optional<Gap> widest_gap;         // widest open gap of at least gap_min_width_m, if any
-  double steer_deg = 0.0;                // commanded steer, degrees, positive turns left
-  double left_wheel_mps = 0.0;           // left wheel speed, m/s
-  double right_wheel_mps = 0.0;          // right wheel speed, m/s
-  double linear_mps = 0.0;               // forward speed of the robot, m/s
-  double angular_radps = 0.0;            // counter-clockwise yaw rate, rad/s
-  bool stop = false;                     // the robot must stand still (deadlock)
-  std::string_view state;                // "clear", "avoid_right_obstacle", "avoid_left_obstacle",
-                                         // "steer_gap", "no_gap", "pass_between" or "deadlock"
+  int ob_factor = 0;                              // ob_factor * 10 + zone over the zones with obstacles, e.g. 12
+  std::array<ZoneObservation, 3> zones;           // right, middle, left
+  std::optional<Gap> widest_gap;                  // widest open gap of at least gap_min_width_m, if any
+  double steer_deg = 0.0;                         // commanded steer, degrees, positive turns left
+  double left_wheel_mps = 0.0;                    // left wheel speed, m/s
+  double right_wheel_mps = 0.0;                   // right wheel speed, m/s
+  double linear_mps = 0.0;                        // forward speed of the robot, m/s
+  double angular_radps = 0.0;                     // counter-clockwise yaw rate, rad/s
+  bool stop = false;                              // the robot must stand still (deadlock)
+  BehaviourState state = BehaviourState::kClear;  // kClear, kAvoidRightObstacle, kAvoidLeftObstacle,
+                                                  // kSteerGap, kNoGap, kPassBetween or kDeadlock
 };
 
 // The thesis's steerCAR: wheel speeds for a steer angle in degrees (positive turns left); params must be valid.

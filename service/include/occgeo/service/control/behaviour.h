@@ -16,6 +16,7 @@
 #include "occgeo/mapping/octomap_model.h"
 #include "occgeo/mapping/ptem.h"
 #include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/behaviour_state.h"
 #include "occgeo/service/control/cluster_tracker.h"
 #include "occgeo/service/control/pointbug.h"
 #include "occgeo/service/control/safety_guard.h"
@@ -52,11 +53,11 @@ struct BehaviourInput {
 
 // What a behaviour commands.
 struct BehaviourCommand {
-  double linear_mps = 0.0;                      // forward speed of base_link, m/s
-  double angular_radps = 0.0;                   // counter-clockwise yaw rate, rad/s
-  std::optional<geometry::WheelSpeeds> wheels;  // differential wheel speeds, when the behaviour computes them
-  bool stop = false;                            // stand still
-  std::string state;                            // e.g. "steer_gap", "step_to_goal", "reached"
+  double linear_mps = 0.0;                       // forward speed of base_link, m/s
+  double angular_radps = 0.0;                    // counter-clockwise yaw rate, rad/s
+  std::optional<geometry::WheelSpeeds> wheels;   // differential wheel speeds, when the behaviour computes them
+  bool stop = false;                             // stand still
+  BehaviourState state = BehaviourState::kNone;  // e.g. kSteerGap, kStepToGoal, kReached
   // A straight leg the behaviour drives to its end (PointBug's drive to a sudden point, as the seed's drive_goto):
   // its whole length from where it began, metres, and a number that changes with each new leg (from 1).
   std::optional<double> leg_m;

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string_view>
 
+#include "occgeo/service/control/behaviour_state.h"
 #include "occgeo/service/control/pointbug.h"
 
 // Detects a behaviour going nowhere from the robot's poses: the endless loops of PointBug (seed 003 Fig 2.10) and of
@@ -32,12 +33,14 @@ struct LoopDetectorParams {
   void validate() const;
 };
 
+enum class LoopReason : std::uint8_t { kNone, kLoop, kStall };
+
 struct LoopStatus {
-  bool loop = false;              // a revisit loop was detected (latched)
-  bool stalled = false;           // no progress toward the goal for stall_time_s (latched; needs a goal)
-  std::string_view reason;        // "none", "loop" or "stall" (the first detected)
-  int passes = 0;                 // earlier passes through the current place with the same heading
-  double since_progress_s = 0.0;  // time since the goal distance last improved by progress_epsilon_m, seconds
+  bool loop = false;                      // a revisit loop was detected (latched)
+  bool stalled = false;                   // no progress toward the goal for stall_time_s (latched; needs a goal)
+  LoopReason reason = LoopReason::kNone;  // the first detected
+  int passes = 0;                         // earlier passes through the current place with the same heading
+  double since_progress_s = 0.0;          // time since the goal distance last improved by progress_epsilon_m, seconds
   std::optional<double> best_goal_distance_m;              // closest the robot has come to the goal since reset, metres
   Eigen::Vector2d loop_point_W = Eigen::Vector2d::Zero();  // where the loop was detected, world frame
 };
@@ -45,10 +48,10 @@ struct LoopStatus {
 // One observation: the robot's pose at a time, the goal it is heading for if any, and the behaviour's state if any
 // (an earlier pose then only matches when it was taken in the same state).
 struct LoopObservation {
-  Pose2 pose;                             // world frame
-  double time_s = 0.0;                    // seconds, non-decreasing
-  std::optional<Eigen::Vector2d> goal_W;  // world frame; a changed goal restarts progress tracking
-  std::optional<std::string_view> state;  // e.g. "drive_to_sudden_point"
+  Pose2 pose;                                    // world frame
+  double time_s = 0.0;                           // seconds, non-decreasing
+  std::optional<Eigen::Vector2d> goal_W;         // world frame; a changed goal restarts progress tracking
+  BehaviourState state = BehaviourState::kNone;  // e.g. kDriveToSuddenPoint; kNone without a state
 };
 
 class LoopDetector {
@@ -74,7 +77,7 @@ class LoopDetector {
     double time_s;
     double path_length_m;         // driven since reset, at this sample
     double best_goal_distance_m;  // best goal distance up to this sample (+inf without a goal)
-    std::uint64_t state_hash;     // 0 without a state
+    BehaviourState state;         // kNone without a state
   };
 
   int count_passes(const Sample& now) const;

@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "occgeo/geometry/pose.h"
+#include "occgeo/service/control/behaviour_state.h"
 
 // The modified PointBug go-to-goal behaviour of seed 003 (§2.2, §4.1–4.4 and its Propeller C listing) for an
 // ActivityBot with a servo-swept single-beam LIDAR: step toward the goal; on an obstacle within 30 cm sweep both
@@ -79,12 +80,12 @@ struct MotionTarget {
 };
 
 struct PointBugDecision {
-  std::string_view state;      // "aim_at_goal", "step_to_goal", "turn_to_sudden_point", "drive_to_sudden_point",
-                               // "reached" or "no_path"
-  double linear_mps = 0.0;     // body velocity for a MotionCommand, m/s
-  double angular_radps = 0.0;  // counter-clockwise yaw rate, rad/s
-  bool stop = false;           // reached or no_path: stand still
-  MotionTarget target;         // the same motion as a drive_goto-style turn and distance
+  BehaviourState state = BehaviourState::kAimAtGoal;  // kAimAtGoal, kStepToGoal, kTurnToSuddenPoint,
+                                                      // kDriveToSuddenPoint, kReached or kNoPath
+  double linear_mps = 0.0;                            // body velocity for a MotionCommand, m/s
+  double angular_radps = 0.0;                         // counter-clockwise yaw rate, rad/s
+  bool stop = false;                                  // reached or no_path: stand still
+  MotionTarget target;                                // the same motion as a drive_goto-style turn and distance
   double goal_distance_m = 0.0;
   std::optional<SuddenPoint> sudden_point;  // the point being driven to, while in the sudden point states
   std::optional<SuddenPoint> right;         // what the last search found on each side (set on the decision

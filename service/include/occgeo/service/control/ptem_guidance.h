@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "occgeo/mapping/ptem.h"
+#include "occgeo/service/control/behaviour_state.h"
 #include "occgeo/service/control/pointbug.h"
 
 // PTEM waypoint guidance (seed 004 §4.4–4.5): a virtual target moves along the waypoints at a constant speed, ignoring
@@ -84,12 +85,13 @@ struct PtemGuidanceParams {
 
 // One guidance decision.
 struct PtemGuidanceDecision {
-  std::string_view state;      // "track_target", "avoid" (heading or speed limited by the PTEM), "escape" (inside or
-                               // touching the restricted region) or "reached"
-  double linear_mps = 0.0;     // forward speed, m/s, in [0, max_speed_mps]
-  double angular_radps = 0.0;  // counter-clockwise yaw rate, rad/s
-  bool stop = false;           // the last waypoint is reached: stand still
-  bool reached = false;        // same as stop
+  // kTrackTarget, kAvoid (heading or speed limited by the PTEM), kEscape (inside or touching the restricted region)
+  // or kReached.
+  BehaviourState state = BehaviourState::kTrackTarget;
+  double linear_mps = 0.0;         // forward speed, m/s, in [0, max_speed_mps]
+  double angular_radps = 0.0;      // counter-clockwise yaw rate, rad/s
+  bool stop = false;               // the last waypoint is reached: stand still
+  bool reached = false;            // same as stop
   std::size_t waypoint_index = 0;  // the waypoint the target heads for or waits at (the last one once reached)
   bool target_waiting = false;     // the target stands (at a waypoint or for max_target_lead_m)
   Eigen::Vector2d target_W = Eigen::Vector2d::Zero();  // the virtual target, world frame, metres

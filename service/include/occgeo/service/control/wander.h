@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "occgeo/service/control/bearcat.h"
+#include "occgeo/service/control/behaviour_state.h"
 
 // The wander and avoid behaviours of seed 001 (§2.1–2.2, Figures 1–2): random straight runs of random length, then
 // with probability 0.5 a small turn (turn_little) in a random direction; an obstacle seen by the front sensors
@@ -76,8 +77,8 @@ struct WanderDecision {
   double linear_mps = 0.0;     // forward speed, m/s
   double angular_radps = 0.0;  // counter-clockwise yaw rate, rad/s
   bool stop = false;           // never set: the seed's robot wanders forever; here for uniformity with bearcat
-  std::string_view state;      // "wander_straight", "wander_turn" or "avoid_turn"
-  bool front_blocked = false;  // some frontal beam is closer than obstacle_threshold_m
+  BehaviourState state = BehaviourState::kWanderStraight;  // kWanderStraight, kWanderTurn or kAvoidTurn
+  bool front_blocked = false;                              // some frontal beam is closer than obstacle_threshold_m
   double remaining_m = 0.0;    // what is left of the current straight run, metres (0 unless wander_straight)
   double remaining_rad = 0.0;  // what is left of turn_little, radians (0 unless wander_turn)
 };
