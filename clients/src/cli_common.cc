@@ -1,7 +1,10 @@
 // Helpers the `occgeo` tool's commands share (cli_common.h).
 #include "cli_common.h"
 
+#include <google/protobuf/util/json_util.h>
+
 #include <cstdio>
+#include <iostream>
 #include <string>
 
 #include "occgeo/proto/protocol.h"
@@ -22,6 +25,16 @@ std::string fmt(double v) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.6g", v);
   return buffer;
+}
+
+void print_json(const google::protobuf::Message& reply) {
+  google::protobuf::util::JsonPrintOptions options;
+  options.always_print_primitive_fields = true;
+  options.preserve_proto_field_names = true;
+  std::string json;
+  const auto status = google::protobuf::util::MessageToJsonString(reply, &json, options);
+  if (!status.ok()) throw ClientError("cannot print the " + reply.GetTypeName() + " as JSON: " + status.ToString());
+  std::cout << json << "\n";
 }
 
 }  // namespace occgeo::cli

@@ -35,19 +35,6 @@ std::vector<v1::Model> models_from(const Options& options) {
   return models;
 }
 
-std::string model_name(v1::Model model) {
-  switch (model) {
-    case v1::MODEL_GRID:
-      return "grid";
-    case v1::MODEL_OCTOMAP:
-      return "octomap";
-    case v1::MODEL_PTEM:
-      return "ptem";
-    default:
-      return "";
-  }
-}
-
 // Comma-separated numbers of a --footprint part; throws UsageError naming the option.
 std::vector<double> footprint_numbers(const std::string& text, const std::string& spec) {
   std::vector<double> numbers;
@@ -124,51 +111,8 @@ int run_status(const Options& options) {
   const bool detailed = options.switches.contains("detailed");
   request.mutable_status()->set_detailed(detailed);
   const v1::StatusReply status = connection.call(request, 1).status();
-  const auto json_points = [](const google::protobuf::RepeatedPtrField<v1::Point2D>& points) {
-    std::string out = "[";
-    for (int k = 0; k < points.size(); ++k) {
-      out += (k ? ",[" : "[") + fmt(points[k].x()) + "," + fmt(points[k].y()) + "]";
-    }
-    return out + "]";
-  };
   if (options.json) {
-    std::ostringstream out;
-    out << "{\"server_version\":" << json_string(status.server_version()) << ",\"clients\":" << status.clients()
-        << ",\"uptime_s\":" << fmt(status.uptime_s()) << ",\"robots\":[";
-    for (int i = 0; i < status.robots_size(); ++i) {
-      const auto& r = status.robots(i);
-      out << (i ? "," : "") << "{\"id\":" << json_string(r.id()) << ",\"world\":" << json_string(r.world())
-          << ",\"model\":" << json_string(r.model()) << ",\"connected\":" << (r.connected() ? "true" : "false")
-          << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
-          << ",\"theta\":" << fmt(r.pose().theta()) << "},\"scans_ingested\":" << r.scans_ingested()
-          << ",\"scans_rejected\":" << r.scans_rejected()
-          << ",\"behaviour\":" << json_string(proto::behaviour_label(r.behaviour()))
-          << ",\"behaviour_state\":" << json_string(proto::behaviour_state_label(r.behaviour_state()))
-          << ",\"estop\":" << (r.estop() ? "true" : "false")
-          << ",\"sensor_stale\":" << (r.sensor_stale() ? "true" : "false") << ",\"lease_holder\":";
-      if (r.has_lease_holder()) {
-        out << "{\"session_id\":" << r.lease_holder().session_id()
-            << ",\"client_name\":" << json_string(r.lease_holder().client_name())
-            << ",\"expires_in_s\":" << fmt(r.lease_expires_in_s()) << "}";
-      } else {
-        out << "null";
-      }
-      if (detailed) {
-        out << ",\"path\":" << json_points(r.path()) << ",\"scan\":" << json_points(r.scan())
-            << ",\"scan_stamp_s\":" << fmt(r.scan_stamp_s());
-      }
-      out << "}";
-    }
-    out << "],\"worlds\":[";
-    for (int i = 0; i < status.worlds_size(); ++i) {
-      const auto& w = status.worlds(i);
-      out << (i ? "," : "") << "{\"name\":" << json_string(w.name()) << ",\"cell_size_m\":" << fmt(w.cell_size_m())
-          << ",\"version\":" << w.version() << ",\"tiles\":" << w.tiles()
-          << ",\"occupied_cells\":" << w.occupied_cells() << ",\"octomap_version\":" << w.octomap_version()
-          << ",\"octomap_nodes\":" << w.octomap_nodes() << ",\"octomap_leaves\":" << w.octomap_leaves() << "}";
-    }
-    out << "]}";
-    std::cout << out.str() << "\n";
+    print_json(status);
     return 0;
   }
   std::cout << status.server_version() << ", up " << fmt(status.uptime_s()) << " s, " << status.clients()
@@ -212,24 +156,9 @@ int run_query_collision(const Options& options) {
   if (const auto footprint = footprint_from(options)) *query->mutable_footprint() = *footprint;
   const v1::CollisionReply reply = connection.call(request, 1).collision();
   if (options.json) {
-    std::cout << "{\"hit\":" << (reply.hit() ? "true" : "false");
-    if (reply.hit()) {
-      std::cout << ",\"model\":" << json_string(model_name(reply.model()))
-                << ",\"contact\":{\"x\":" << fmt(reply.contact().x()) << ",\"y\":" << fmt(reply.contact().y())
-                << ",\"z\":" << fmt(reply.contact().z()) << "}";
-      if (reply.has_cell()) {
-        std::cout << ",\"cell\":{\"ix\":" << reply.cell().ix() << ",\"iy\":" << reply.cell().iy()
-                  << "},\"cell_center\":{\"x\":" << fmt(reply.cell_center().x())
-                  << ",\"y\":" << fmt(reply.cell_center().y()) << "}";
-      }
-    }
-    if (reply.keep_out()) {
-      std::cout << ",\"keep_out\":true,\"keep_out_point\":{\"x\":" << fmt(reply.keep_out_point().x())
-                << ",\"y\":" << fmt(reply.keep_out_point().y()) << "}";
-    }
-    std::cout << ",\"cells_tested\":" << reply.cells_tested() << "}\n";
+    print_json(reply);
   } else if (reply.hit()) {
-    std::cout << "hit (" << model_name(reply.model()) << ") at (" << fmt(reply.contact().x()) << ", "
+    std::cout << "hit (" << proto::model_label(reply.model()) << ") at (" << fmt(reply.contact().x()) << ", "
               << fmt(reply.contact().y()) << ", " << fmt(reply.contact().z()) << ")";
     if (reply.has_cell()) std::cout << ": occupied cell (" << reply.cell().ix() << ", " << reply.cell().iy() << ")";
     std::cout << "\n";
@@ -255,24 +184,10 @@ int run_query_clearance(const Options& options) {
   for (const v1::Model model : models_from(options)) query->add_models(model);
   const v1::ClearanceReply reply = connection.call(request, 1).clearance();
   if (options.json) {
-    std::cout << "{\"clearance_m\":" << fmt(reply.clearance_m()) << ",\"found\":" << (reply.found() ? "true" : "false");
-    if (reply.found()) {
-      std::cout << ",\"model\":" << json_string(model_name(reply.model()));
-      if (reply.has_nearest_cell()) {
-        std::cout << ",\"nearest_cell\":{\"ix\":" << reply.nearest_cell().ix()
-                  << ",\"iy\":" << reply.nearest_cell().iy() << "}";
-      }
-      std::cout << ",\"nearest_point\":{\"x\":" << fmt(reply.nearest_point().x())
-                << ",\"y\":" << fmt(reply.nearest_point().y()) << "}";
-    }
-    if (reply.has_restricted_clearance_m()) {
-      std::cout << ",\"keep_out\":" << (reply.keep_out() ? "true" : "false")
-                << ",\"restricted_clearance_m\":" << fmt(reply.restricted_clearance_m());
-    }
-    std::cout << "}\n";
+    print_json(reply);
   } else if (reply.found()) {
-    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to the " << model_name(reply.model()) << " at ("
-              << fmt(reply.nearest_point().x()) << ", " << fmt(reply.nearest_point().y()) << ")\n";
+    std::cout << "clearance " << fmt(reply.clearance_m()) << " m to the " << proto::model_label(reply.model())
+              << " at (" << fmt(reply.nearest_point().x()) << ", " << fmt(reply.nearest_point().y()) << ")\n";
   } else {
     std::cout << "clearance at least " << fmt(reply.clearance_m())
               << " m (nothing occupied within the search radius)\n";
@@ -300,12 +215,7 @@ int run_query_ptem(const Options& options) {
   if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
   const v1::PtemSample& sample = reply.samples(0);
   if (options.json) {
-    std::cout << "{\"world\":" << json_string(reply.world()) << ",\"version\":" << reply.version()
-              << ",\"threat\":" << fmt(sample.threat()) << ",\"gradient\":{\"x\":" << fmt(sample.gradient().x())
-              << ",\"y\":" << fmt(sample.gradient().y())
-              << "},\"restricted\":" << (sample.restricted() ? "true" : "false")
-              << ",\"threshold_f_r\":" << fmt(reply.threshold_f_r()) << ",\"clusters\":" << reply.cluster_count()
-              << ",\"scans\":" << reply.scans() << ",\"construction\":" << json_string(reply.construction()) << "}\n";
+    print_json(reply);
   } else {
     std::cout << "threat " << fmt(sample.threat()) << " /m^2 (f_r " << fmt(reply.threshold_f_r()) << "), gradient ("
               << fmt(sample.gradient().x()) << ", " << fmt(sample.gradient().y()) << ") /m^3, "
@@ -328,17 +238,9 @@ int run_query_raycast(const Options& options) {
   if (reply.results_size() != 1) throw ClientError("the server answered with no result for the ray");
   const v1::RaycastResult& result = reply.results(0);
   if (options.json) {
-    std::cout << "{\"hit\":" << (result.hit() ? "true" : "false") << ",\"range_m\":" << fmt(result.range_m())
-              << ",\"model\":" << json_string(model_name(result.model())) << ",\"per_model\":[";
-    for (int i = 0; i < result.per_model_size(); ++i) {
-      const v1::RaycastHit& hit = result.per_model(i);
-      std::cout << (i > 0 ? "," : "") << "{\"model\":" << json_string(model_name(hit.model()))
-                << ",\"hit\":" << (hit.hit() ? "true" : "false") << ",\"range_m\":" << fmt(hit.range_m())
-                << ",\"point\":{\"x\":" << fmt(hit.point().x()) << ",\"y\":" << fmt(hit.point().y()) << "}}";
-    }
-    std::cout << "]}\n";
+    print_json(reply);
   } else if (result.hit()) {
-    std::cout << "hit the " << model_name(result.model()) << " at " << fmt(result.range_m()) << " m\n";
+    std::cout << "hit the " << proto::model_label(result.model()) << " at " << fmt(result.range_m()) << " m\n";
   } else {
     std::cout << "nothing within " << fmt(result.range_m()) << " m\n";
   }
@@ -360,12 +262,7 @@ int run_query_occupancy(const Options& options) {
   if (reply.samples_size() != 1) throw ClientError("the server answered with no sample for the point");
   const v1::OccupancySample& s = reply.samples(0);
   if (options.json) {
-    std::cout << "{\"version\":" << reply.version() << ",\"cell\":{\"ix\":" << s.cell().ix()
-              << ",\"iy\":" << s.cell().iy() << "},\"observed\":" << (s.observed() ? "true" : "false")
-              << ",\"certainty\":" << s.certainty() << ",\"occupied\":" << (s.occupied() ? "true" : "false")
-              << ",\"octree_known\":" << (s.octree_known() ? "true" : "false")
-              << ",\"octree_probability\":" << fmt(s.octree_probability()) << ",\"threat\":" << fmt(s.threat())
-              << ",\"restricted\":" << (s.restricted() ? "true" : "false") << "}\n";
+    print_json(reply);
   } else {
     std::cout << "grid certainty " << s.certainty() << (s.occupied() ? " (occupied)" : "")
               << (s.observed() ? "" : " (never observed)") << ", octree "
@@ -392,16 +289,9 @@ int run_query_swept(const Options& options) {
   if (reply.results_size() != 1) throw ClientError("the server answered with no result for the motion");
   const v1::SweptResult& r = reply.results(0);
   if (options.json) {
-    std::cout << "{\"hit\":" << (r.hit() ? "true" : "false") << ",\"time_s\":" << fmt(r.time_s())
-              << ",\"pose\":{\"x\":" << fmt(r.pose().x()) << ",\"y\":" << fmt(r.pose().y())
-              << ",\"theta\":" << fmt(r.pose().theta()) << "}";
-    if (r.hit()) {
-      std::cout << ",\"model\":" << json_string(model_name(r.model())) << ",\"contact\":{\"x\":" << fmt(r.contact().x())
-                << ",\"y\":" << fmt(r.contact().y()) << "}";
-    }
-    std::cout << "}\n";
+    print_json(reply);
   } else if (r.hit()) {
-    std::cout << "contact with the " << model_name(r.model()) << " after " << fmt(r.time_s()) << " s at ("
+    std::cout << "contact with the " << proto::model_label(r.model()) << " after " << fmt(r.time_s()) << " s at ("
               << fmt(r.pose().x()) << ", " << fmt(r.pose().y()) << ", " << fmt(r.pose().theta()) << ")\n";
   } else {
     std::cout << "free for the whole " << fmt(r.time_s()) << " s\n";

@@ -45,18 +45,6 @@ std::string holder_text(const v1::LeaseReply& reply) {
   return "session " + std::to_string(reply.holder().session_id()) + " (" + reply.holder().client_name() + ")";
 }
 
-std::string lease_json(const v1::LeaseReply& reply) {
-  std::string out =
-      "{\"robot\":" + json_string(reply.robot_id()) + ",\"granted\":" + (reply.granted() ? "true" : "false");
-  if (reply.has_holder()) {
-    out += ",\"holder\":{\"session_id\":" + std::to_string(reply.holder().session_id()) +
-           ",\"client_name\":" + json_string(reply.holder().client_name()) + "}";
-  } else {
-    out += ",\"holder\":null";
-  }
-  return out + ",\"expires_in_s\":" + fmt(reply.expires_in_s()) + "}";
-}
-
 // Refusals (lease held by another session) print the holder and exit 1.
 void require_granted(const v1::LeaseReply& reply, const std::string& what) {
   if (!reply.granted()) {
@@ -79,7 +67,7 @@ int run_lease(const std::string& verb, const Options& options) {
   Connection connection = connect_role(options, v1::ROLE_CONTROLLER);
   const v1::LeaseReply reply = lease_call(connection, robot, action, timeout_s, 1);
   if (options.json) {
-    std::cout << lease_json(reply) << "\n";
+    print_json(reply);
   } else if (reply.granted()) {
     std::cout << verb << " granted: robot " << robot << " held by " << holder_text(reply) << " for "
               << fmt(reply.expires_in_s()) << " s\n";
@@ -292,8 +280,7 @@ int run_estop(const Options& options) {
   if (release) lease_call(connection, robot, v1::LeaseRequest::RETURN, 0.0, ++id);
   connection.close();
   if (options.json) {
-    std::cout << "{\"robot\":" << json_string(robot) << ",\"engaged\":" << (reply.engaged() ? "true" : "false")
-              << "}\n";
+    print_json(reply);
   } else {
     std::cout << "robot " << robot << ": e-stop " << (reply.engaged() ? "engaged" : "released") << "\n";
   }

@@ -60,17 +60,40 @@ inline nlohmann::ordered_json required_field(const std::string& text, const std:
 
 }  // namespace detail
 
-// The number stored under key, at any depth; throws std::runtime_error naming the key when it is absent or not a
-// number. Keys that appear more than once give the first in document order, so ask for keys that appear once.
+namespace detail {
+
+// A number, or a string holding one: proto3's JSON mapping (occgeo --json) writes 64-bit integers as strings.
+inline std::optional<double> as_number(const nlohmann::ordered_json& value) {
+  if (value.is_number()) return value.get<double>();
+  if (!value.is_string()) return std::nullopt;
+  const std::string text = value.get<std::string>();
+  std::size_t used = 0;
+  try {
+    const double number = std::stod(text, &used);
+    if (used == text.size()) return number;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
+}  // namespace detail
+
+// The number stored under key, at any depth (a 64-bit integer printed as a string counts); throws
+// std::runtime_error naming the key when it is absent or not a number. Keys that appear more than once give the first
+// in document order, so ask for keys that appear once.
 inline double json_number(const std::string& json, const std::string& key) {
-  return detail::required_field(json, key, &nlohmann::ordered_json::is_number, "a number").get<double>();
+  const auto value = detail::json_field(json, key);
+  if (!value) throw std::runtime_error("no '" + key + "' in " + json);
+  const auto number = detail::as_number(*value);
+  if (!number) throw std::runtime_error("'" + key + "' is not a number in " + json);
+  return *number;
 }
 
 // The number stored under key, or nullopt when the JSON holds none.
 inline std::optional<double> json_optional_number(const std::string& json, const std::string& key) {
   const auto value = detail::json_field(json, key);
-  if (!value || !value->is_number()) return std::nullopt;
-  return value->get<double>();
+  if (!value) return std::nullopt;
+  return detail::as_number(*value);
 }
 
 // The boolean stored under key; throws std::runtime_error naming the key when it is absent.

@@ -7,7 +7,6 @@ Needs the environment CTest sets (tests/clients/CMakeLists.txt, test python_cont
 OCCGEO_BINARY_DIR or OCCGEOD / OCCGEO_CLI / OCCGEO_SIM.
 """
 
-import json
 import math
 import os
 import subprocess
@@ -16,7 +15,9 @@ import time
 
 import occgeo
 import test_client
-from occgeo.v1 import session_pb2
+from google.protobuf import json_format
+
+from occgeo.v1 import control_pb2, session_pb2
 
 ROBOT = "bearcat-py"
 SIM_SECONDS = 60  # longer than the test; the simulator is stopped when the test ends
@@ -88,8 +89,9 @@ class ControlWithSimulator(test_client.ServerTestCase):
         self.assertEqual(caught.exception.field, "drive.robot_id")
         cli = self.run_cli("lease", "acquire", "--robot", ROBOT, "--json", check=False)
         self.assertEqual(cli.returncode, 1, cli.stderr.decode())
-        holder = json.loads(cli.stdout.decode())["holder"]
-        self.assertEqual((holder["session_id"], holder["client_name"]), (session_id, "py-controller"))
+        refused = json_format.Parse(cli.stdout.decode(), control_pb2.LeaseReply())
+        self.assertFalse(refused.granted)
+        self.assertEqual((refused.holder.session_id, refused.holder.client_name), (session_id, "py-controller"))
 
         # Teleop: turn in place (nothing near the start of the open field to stop it) for two seconds.
         before = self.robot_status().pose

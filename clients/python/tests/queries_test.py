@@ -13,49 +13,13 @@ import os
 
 import occgeo
 import test_client
-from test_client import MODEL_NAMES, ROBOT, WALL_X_M, WORLD, clearance_json, collision_json, fmt
+from occgeo.v1 import query_pb2
+from test_client import MODEL_NAMES, ROBOT, WALL_X_M, WORLD, cli_reply
 
 
 def model_name(model):
-    """The CLI's model_name: "" for MODEL_UNSPECIFIED."""
+    """A model's label: "" for MODEL_UNSPECIFIED."""
     return MODEL_NAMES.get(model, "")
-
-
-def raycast_json(result):
-    """The CLI's `query raycast --json` object for a RaycastResult."""
-    return {
-        "hit": result.hit,
-        "range_m": fmt(result.range_m),
-        "model": model_name(result.model),
-        "per_model": [{"model": model_name(h.model), "hit": h.hit, "range_m": fmt(h.range_m),
-                       "point": {"x": fmt(h.point.x), "y": fmt(h.point.y)}} for h in result.per_model],
-    }
-
-
-def occupancy_json(version, s):
-    """The CLI's `query occupancy --json` object for an OccupancySample."""
-    return {"version": version, "cell": {"ix": s.cell.ix, "iy": s.cell.iy}, "observed": s.observed,
-            "certainty": s.certainty, "occupied": s.occupied, "octree_known": s.octree_known,
-            "octree_probability": fmt(s.octree_probability), "threat": fmt(s.threat), "restricted": s.restricted}
-
-
-def swept_json(r):
-    """The CLI's `query swept --json` object for a SweptResult."""
-    out = {"hit": r.hit, "time_s": fmt(r.time_s), "pose": {"x": fmt(r.pose.x), "y": fmt(r.pose.y),
-                                                           "theta": fmt(r.pose.theta)}}
-    if r.hit:
-        out["model"] = model_name(r.model)
-        out["contact"] = {"x": fmt(r.contact.x), "y": fmt(r.contact.y)}
-    return out
-
-
-def ptem_json(reply):
-    """The CLI's `query ptem --json` object for a PtemReply of one point."""
-    sample = reply.samples[0]
-    return {"world": reply.world, "version": reply.version, "threat": fmt(sample.threat),
-            "gradient": {"x": fmt(sample.gradient.x), "y": fmt(sample.gradient.y)}, "restricted": sample.restricted,
-            "threshold_f_r": fmt(reply.threshold_f_r), "clusters": reply.cluster_count, "scans": reply.scans,
-            "construction": reply.construction}
 
 
 def number_args(**values):
@@ -70,7 +34,12 @@ class QueriesMatchCli(test_client.ClientTest):
     """A server holding the wall per test (ClientTest.setUp); ClientTest's own tests run from test_client.py."""
 
     def cli_json(self, *args):
+        """What `occgeo ARGS --json` printed, as JSON (the grid window prints its cells as numbers)."""
         return json.loads(self.run_cli(*args, "--json"))
+
+    def printed(self, reply_type, *args):
+        """What `occgeo ARGS --json` printed, parsed back into the reply it printed."""
+        return cli_reply(self.run_cli(*args, "--json"), reply_type)
 
     def test_raycast_single_and_batch_match_cli(self):
         rays = [(0.0, 0.0, theta) for theta in (0.0, 0.3, -0.5, 1.2, math.pi)] + [(1.0, 0.4, 0.1), (2.5, 0.0, math.pi)]
@@ -81,9 +50,10 @@ class QueriesMatchCli(test_client.ClientTest):
             with self.subTest(ray=(x, y, theta)):
                 single = self.query.raycast([(x, y, theta)], 5.0, world=WORLD).results[0]
                 self.assertEqual(single, result)
-                cli = self.cli_json("query", "raycast", "--world", WORLD,
-                                    *number_args(x=x, y=y, theta=theta, max_range=5.0))
-                self.assertEqual(raycast_json(result), cli)
+                cli = self.printed(query_pb2.RaycastReply, "query", "raycast", "--world", WORLD,
+                               *number_args(x=x, y=y, theta=theta, max_range=5.0))
+                self.assertEqual(result, cli.results[0])
+                self.assertEqual(batch.version, cli.version)
                 hits += result.hit
         self.assertGreater(hits, 0, "no ray hit the wall")
         self.assertLess(hits, len(rays), "every ray hit something")
@@ -96,8 +66,9 @@ class QueriesMatchCli(test_client.ClientTest):
         for models in ("grid", "octomap", "ptem"):
             result = self.query.raycast([(0.0, 0.0, 0.0)], 5.0, world=WORLD, models=models).results[0]
             self.assertEqual([model_name(h.model) for h in result.per_model], [models])
-            self.assertEqual(raycast_json(result), self.cli_json("query", "raycast", "--world", WORLD, "--models",
-                                                                 models, *number_args(x=0, y=0, theta=0, max_range=5)))
+            cli = self.printed(query_pb2.RaycastReply, "query", "raycast", "--world", WORLD, "--models", models,
+                           *number_args(x=0, y=0, theta=0, max_range=5))
+            self.assertEqual(result, cli.results[0])
 
     def test_occupancy_matches_cli(self):
         points = [(WALL_X_M + 0.05, 0.0, 0.3), (1.0, 0.0, 0.3), (-6.0, 6.0, 0.3), (WALL_X_M + 0.05, 0.5, 0.1)]
@@ -105,8 +76,10 @@ class QueriesMatchCli(test_client.ClientTest):
         self.assertEqual(len(reply.samples), len(points))
         for (x, y, z), sample in zip(points, reply.samples):
             with self.subTest(point=(x, y, z)):
-                cli = self.cli_json("query", "occupancy", "--world", WORLD, *number_args(x=x, y=y, z=z))
-                self.assertEqual(occupancy_json(reply.version, sample), cli)
+                cli = self.printed(query_pb2.OccupancyReply, "query", "occupancy", "--world", WORLD,
+                               *number_args(x=x, y=y, z=z))
+                self.assertEqual(sample, cli.samples[0])
+                self.assertEqual(reply.version, cli.version)
         wall, free, unknown = reply.samples[0], reply.samples[1], reply.samples[2]
         self.assertTrue(wall.occupied)
         self.assertTrue(free.observed)
@@ -121,9 +94,9 @@ class QueriesMatchCli(test_client.ClientTest):
         for start, v, w, duration in motions:
             with self.subTest(start=start, v=v, w=w):
                 result = self.query.swept(ROBOT, start, v, w, duration)
-                cli = self.cli_json("query", "swept", "--robot", ROBOT,
-                                    *number_args(x=start[0], y=start[1], theta=start[2], v=v, w=w, duration=duration))
-                self.assertEqual(swept_json(result), cli)
+                cli = self.printed(query_pb2.SweptReply, "query", "swept", "--robot", ROBOT,
+                               *number_args(x=start[0], y=start[1], theta=start[2], v=v, w=w, duration=duration))
+                self.assertEqual(result, cli.results[0])
                 results.append(result)
         self.assertTrue(results[0].hit)
         self.assertFalse(results[1].hit)
@@ -131,8 +104,8 @@ class QueriesMatchCli(test_client.ClientTest):
         # On the grid alone, the front of the 0.6 m footprint (0.3 m ahead of base_link) meets the wall after about
         # 1.7 m at 0.5 m/s (the PTEM's circle around the wall is met sooner).
         into = self.query.swept(ROBOT, (0.0, 0.0, 0.0), 0.5, 0.0, 6.0, models="grid")
-        self.assertEqual(swept_json(into), self.cli_json("query", "swept", "--robot", ROBOT, "--models", "grid",
-                                                         *number_args(x=0, y=0, theta=0, v=0.5, w=0, duration=6)))
+        self.assertEqual(into, self.printed(query_pb2.SweptReply, "query", "swept", "--robot", ROBOT, "--models", "grid",
+                                        *number_args(x=0, y=0, theta=0, v=0.5, w=0, duration=6)).results[0])
         self.assertTrue(into.hit)
         self.assertAlmostEqual(into.time_s, (WALL_X_M - 0.3) / 0.5, delta=0.3)
 
@@ -147,17 +120,19 @@ class QueriesMatchCli(test_client.ClientTest):
         self.assertLess(collisions.hits, len(poses))
         for i, (x, y, theta) in enumerate(poses):
             with self.subTest(pose=(x, y, theta)):
-                self.assertEqual(collision_json(collisions.results[i]), collision_json(self.query.collision(ROBOT, x, y, theta)))
-                self.assertEqual(clearance_json(clearances.results[i]), clearance_json(self.query.clearance(ROBOT, x, y, theta)))
+                self.assertEqual(collisions.results[i], self.query.collision(ROBOT, x, y, theta))
+                self.assertEqual(clearances.results[i], self.query.clearance(ROBOT, x, y, theta))
                 if i % 3 == 0:  # the CLI for a third of them: each call is a process
                     pose_args = ["--robot", ROBOT] + number_args(x=x, y=y, theta=theta)
-                    self.assertEqual(collision_json(collisions.results[i]), self.cli_json("query", "collision", *pose_args))
-                    self.assertEqual(clearance_json(clearances.results[i]), self.cli_json("query", "clearance", *pose_args))
+                    self.assertEqual(collisions.results[i],
+                                     self.printed(query_pb2.CollisionReply, "query", "collision", *pose_args))
+                    self.assertEqual(clearances.results[i],
+                                     self.printed(query_pb2.ClearanceReply, "query", "clearance", *pose_args))
         # A model subset, as the CLI's --models.
         grid_only = self.query.clearance_batch(ROBOT, poses[:4], models="grid")
         for (x, y, theta), result in zip(poses[:4], grid_only.results):
-            self.assertEqual(clearance_json(result), self.cli_json("query", "clearance", "--robot", ROBOT, "--models",
-                                                                   "grid", *number_args(x=x, y=y, theta=theta)))
+            self.assertEqual(result, self.printed(query_pb2.ClearanceReply, "query", "clearance", "--robot", ROBOT,
+                                              "--models", "grid", *number_args(x=x, y=y, theta=theta)))
 
     def test_grid_window_and_its_changes_match_cli(self):
         box = dict(min_x=-1.0, min_y=-2.0, max_x=3.0, max_y=2.0)
@@ -206,17 +181,17 @@ class QueriesMatchCli(test_client.ClientTest):
             c = voxel.center
             with self.subTest(voxel=(c.x, c.y, c.z)):
                 self.assertAlmostEqual(c.x, WALL_X_M, delta=0.2)
-                cli = self.cli_json("query", "occupancy", "--world", WORLD, "--models", "octomap",
-                                    *number_args(x=c.x, y=c.y, z=c.z))
-                self.assertTrue(cli["octree_known"])
-                self.assertEqual(fmt(voxel.probability), cli["octree_probability"])
+                cli = self.printed(query_pb2.OccupancyReply, "query", "occupancy", "--world", WORLD, "--models", "octomap",
+                               *number_args(x=c.x, y=c.y, z=c.z)).samples[0]
+                self.assertTrue(cli.octree_known)
+                self.assertAlmostEqual(voxel.probability, cli.octree_probability, places=6)
 
     def test_ptem_matches_cli(self):
         for x, y in ((WALL_X_M, 0.0), (1.0, 0.3), (-3.0, 2.0)):
             with self.subTest(point=(x, y)):
                 reply = self.query.ptem(WORLD, [(x, y)])
-                cli = self.cli_json("query", "ptem", "--world", WORLD, *number_args(x=x, y=y))
-                self.assertEqual(ptem_json(reply), cli)
+                self.assertEqual(reply, self.printed(query_pb2.PtemReply, "query", "ptem", "--world", WORLD,
+                                                 *number_args(x=x, y=y)))
 
 
 def list_bytes(values):

@@ -18,6 +18,8 @@ import unittest
 
 import occgeo
 from occgeo.specs import laser_robot_spec
+from google.protobuf import json_format
+
 from occgeo.v1 import query_pb2, session_pb2
 
 ROBOT = "py-bot"
@@ -58,42 +60,12 @@ def wall_scan(spec):
     return ranges
 
 
-def fmt(value):
-    """As the CLI's fmt (printf %.6g), read back as JSON would."""
-    return float("%.6g" % value)
-
-
 MODEL_NAMES = {query_pb2.MODEL_GRID: "grid", query_pb2.MODEL_OCTOMAP: "octomap", query_pb2.MODEL_PTEM: "ptem"}
 
 
-def collision_json(reply):
-    """The CLI's `query collision --json` object for a CollisionReply."""
-    out = {"hit": reply.hit}
-    if reply.hit:
-        out["model"] = MODEL_NAMES.get(reply.model, "none")
-        out["contact"] = {"x": fmt(reply.contact.x), "y": fmt(reply.contact.y), "z": fmt(reply.contact.z)}
-        if reply.HasField("cell"):
-            out["cell"] = {"ix": reply.cell.ix, "iy": reply.cell.iy}
-            out["cell_center"] = {"x": fmt(reply.cell_center.x), "y": fmt(reply.cell_center.y)}
-    if reply.keep_out:
-        out["keep_out"] = True
-        out["keep_out_point"] = {"x": fmt(reply.keep_out_point.x), "y": fmt(reply.keep_out_point.y)}
-    out["cells_tested"] = reply.cells_tested
-    return out
-
-
-def clearance_json(reply):
-    """The CLI's `query clearance --json` object for a ClearanceReply."""
-    out = {"clearance_m": fmt(reply.clearance_m), "found": reply.found}
-    if reply.found:
-        out["model"] = MODEL_NAMES.get(reply.model, "none")
-        if reply.HasField("nearest_cell"):
-            out["nearest_cell"] = {"ix": reply.nearest_cell.ix, "iy": reply.nearest_cell.iy}
-        out["nearest_point"] = {"x": fmt(reply.nearest_point.x), "y": fmt(reply.nearest_point.y)}
-    if reply.HasField("restricted_clearance_m"):
-        out["keep_out"] = reply.keep_out
-        out["restricted_clearance_m"] = fmt(reply.restricted_clearance_m)
-    return out
+def cli_reply(text, reply_type):
+    """The reply a `occgeo ... --json` printed (protobuf's JSON mapping of it), parsed back into its message."""
+    return json_format.Parse(text, reply_type())
 
 
 class ServerTestCase(unittest.TestCase):
@@ -257,8 +229,8 @@ class ClientTest(ServerTestCase):
             clearance = self.query.clearance(ROBOT, x, y, theta)
             hits += collision.hit
             with self.subTest(pose=(x, y, theta)):
-                self.assertEqual(collision_json(collision), json.loads(self.run_cli("query", "collision", *pose_args)))
-                self.assertEqual(clearance_json(clearance), json.loads(self.run_cli("query", "clearance", *pose_args)))
+                self.assertEqual(collision, cli_reply(self.run_cli("query", "collision", *pose_args), query_pb2.CollisionReply))
+                self.assertEqual(clearance, cli_reply(self.run_cli("query", "clearance", *pose_args), query_pb2.ClearanceReply))
                 if collision.hit:
                     self.assertEqual(clearance.clearance_m, 0.0)
         self.assertGreater(hits, 0, "no pose hit the wall")
@@ -266,13 +238,13 @@ class ClientTest(ServerTestCase):
         # One model at a time, as the CLI's --models.
         for models in ("grid", "octomap", "ptem"):
             pose_args = ["--robot", ROBOT, "--x", "1.0", "--y", "0.2", "--theta", "0.3", "--models", models, "--json"]
-            self.assertEqual(clearance_json(self.query.clearance(ROBOT, 1.0, 0.2, 0.3, models=[models])),
-                             json.loads(self.run_cli("query", "clearance", *pose_args)))
+            self.assertEqual(self.query.clearance(ROBOT, 1.0, 0.2, 0.3, models=[models]),
+                             cli_reply(self.run_cli("query", "clearance", *pose_args), query_pb2.ClearanceReply))
             hit_args = ["--robot", ROBOT, "--x", "1.75", "--y", "0", "--theta", "0", "--models", models, "--json"]
             hit = self.query.collision(ROBOT, 1.75, 0.0, 0.0, models=models)
             self.assertTrue(hit.hit, "the footprint overlapping the wall does not hit the " + models)
             self.assertEqual(MODEL_NAMES[hit.model], models)
-            self.assertEqual(collision_json(hit), json.loads(self.run_cli("query", "collision", *hit_args)))
+            self.assertEqual(hit, cli_reply(self.run_cli("query", "collision", *hit_args), query_pb2.CollisionReply))
 
     def test_unknown_robot_raises(self):
         for method, field in ((self.query.collision, "collision.robot_id"),
