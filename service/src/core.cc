@@ -268,6 +268,20 @@ RobotCounters robot_counters(metrics::Registry& registry, const std::string& rob
                        registry.counter("occgeo_guard_interventions_total", robot)};
 }
 
+metrics::Counter& Robot::ingested_counter_on_strand(metrics::Registry& registry, std::string_view kind) {
+  constexpr std::array<std::string_view, 4> kKinds = {"laser_scan", "range_array", "servo_range", "point_cloud"};
+  static_assert(kKinds.size() == std::tuple_size_v<decltype(ingested_counters_)>);
+  const auto lookup = [&] {
+    return &registry.counter("occgeo_scans_ingested_total",
+                             {{"robot", model_->id}, {"world", world_->name()}, {"kind", std::string(kind)}});
+  };
+  const auto known = std::find(kKinds.begin(), kKinds.end(), kind);
+  if (known == kKinds.end()) return *lookup();
+  metrics::Counter*& counter = ingested_counters_[static_cast<std::size_t>(known - kKinds.begin())];
+  if (counter == nullptr) counter = lookup();
+  return *counter;
+}
+
 Robot::Robot(std::shared_ptr<const RobotModel> model, std::shared_ptr<World> world, control::BearcatParams bearcat,
              RobotCounters counters, std::shared_ptr<RobotControl> control)
     : model_(std::move(model)),

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
@@ -365,6 +366,10 @@ class Robot : public std::enable_shared_from_this<Robot> {
   [[nodiscard]] World& world() const { return *world_; }
   [[nodiscard]] std::shared_ptr<World> world_ptr() const { return world_; }
   [[nodiscard]] const RobotCounters& counters() const { return counters_; }
+  // occgeo_scans_ingested_total of this robot, its world and one sensor message kind ("laser_scan", "range_array",
+  // "servo_range", "point_cloud"): found in the registry at the kind's first message, then kept, so that the
+  // per-message path takes no lock. Call only from the world's strand.
+  metrics::Counter& ingested_counter_on_strand(metrics::Registry& registry, std::string_view kind);
   // The obstacle-avoidance behaviour; used only from the world's strand.
   control::BearcatBehaviour& behaviour_on_strand() { return behaviour_; }
   // Dead reckoning from wheel ticks, present when the spec declares encoders; used only from the
@@ -409,6 +414,7 @@ class Robot : public std::enable_shared_from_this<Robot> {
   std::unique_ptr<control::Behaviour> active_behaviour_;
   std::uint64_t active_generation_ = 0;
   std::optional<geometry::EncoderOdometry> encoder_odometry_;
+  std::array<metrics::Counter*, 4> ingested_counters_{};  // by kind, as ingested_counter_on_strand lists them
   mutable std::mutex mutex_;
   RobotState state_;
 };

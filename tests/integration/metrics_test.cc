@@ -251,6 +251,9 @@ TEST_F(MetricsEndpoint, CountersMoveByWhatTheClientsDid) {
   EXPECT_EQ(after.value("occgeo_scans_ingested_total",
                         {{"robot", "bearcat-m"}, {"world", "default"}, {"kind", "laser_scan"}}),
             scans);
+  // A kind the robot never sent has no series (the per-robot counters are found at each kind's first message).
+  EXPECT_FALSE(after.value("occgeo_scans_ingested_total",
+                           {{"robot", "bearcat-m"}, {"world", "default"}, {"kind", "range_array"}}));
   EXPECT_EQ(after.value("occgeo_queries_total", {{"kind", "collision"}}), kQueries);
   EXPECT_EQ(after.value("occgeo_queries_total", {{"kind", "status"}}), 1);
   EXPECT_EQ(after.value("occgeo_query_duration_seconds_count", {{"kind", "collision"}}), kQueries);

@@ -148,10 +148,7 @@ bool ingest_sensor_message_on_strand(
     state.last_scan_seq = header.seq;
     ++state.scans_ingested;
   });
-  session->core()
-      .metrics()
-      .counter("occgeo_scans_ingested_total", {{"robot", robot.model().id}, {"world", world.name()}, {"kind", kind}})
-      .inc();
+  robot.ingested_counter_on_strand(session->core().metrics(), kind).inc();
   note_sensor_message_on_strand(robot, session->core().config().control);
 
   v1::ServerMessage ack;
