@@ -256,21 +256,24 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     wanted.angular_radps = control.teleop_angular_radps;
   } else {
     auto& active = robot.active_behaviour_on_strand();
-    // The bare Bearcat (bearcat_seed) names itself "bearcat" and is rebuilt each cycle; it keeps nothing between them.
-    const std::string behaviour_label = proto::behaviour_label(control.behaviour);
     try {
-      if (!active || robot.active_generation_on_strand() != control.drive_generation ||
-          active->name() != behaviour_label) {
+      // Rebuilt only for a newly accepted DriveRequest: every other change of behaviour (a lapsed lease, a refused
+      // request, the controller gone) is to stop or teleop, which run none, and leaving them takes a DriveRequest.
+      if (!active || robot.active_generation_on_strand() != control.drive_generation) {
         active = make_behaviour(control.behaviour, control.drive, model, config);
         robot.active_generation_on_strand() = control.drive_generation;
       }
-      if (!active) throw std::invalid_argument("drive.behaviour '" + behaviour_label + "' has no decision");
+      if (!active) {
+        throw std::invalid_argument("drive.behaviour '" + proto::behaviour_label(control.behaviour) +
+                                    "' has no decision");
+      }
       wanted = active->decide(
           {view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring, servo});
       path_W = active->planned_path();
       state = to_wire(wanted.state);
     } catch (const std::invalid_argument& e) {
-      log::warn("behaviour_error", {{"robot", model.id}, {"behaviour", behaviour_label}, {"error", e.what()}});
+      log::warn("behaviour_error",
+                {{"robot", model.id}, {"behaviour", proto::behaviour_label(control.behaviour)}, {"error", e.what()}});
       wanted = control::BehaviourCommand{};
       wanted.stop = true;
       state = v1::BEHAVIOUR_STATE_BEHAVIOUR_ERROR;
