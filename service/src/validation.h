@@ -17,7 +17,8 @@ struct FieldError {
 };
 
 // Checks a RobotSpec and converts it; the error names the first offending field. Each sensor's beam_limits are its
-// SensorSpec.ranges, fields left unset taken from sensor_defaults (the config's `sensors:`).
+// SensorSpec.ranges, fields left unset taken from sensor_defaults (the config's `sensors:`), except a range array's
+// no_return_clear_m, which defaults to 0 (a sonar's silence is mostly a specular miss).
 std::shared_ptr<const RobotModel> robot_model_from_spec(
     const std::string& robot_id, const v1::RobotSpec& spec, const LimitsConfig& limits, FieldError& error,
     const mapping::BeamLimits& sensor_defaults = default_sensor_beam_limits());

@@ -222,6 +222,10 @@ bool parse_point_cloud(const v1::PointCloudSpec& cloud, const std::string& prefi
   return true;
 }
 
+// SensorSpec.ranges.no_return_clear_m of a range array (sonar ring) that leaves it unset, whatever the config's
+// `sensors:` says.
+constexpr double kRangeArrayNoReturnClear_m = 0.0;
+
 // A sensor's SensorSpec.ranges over the server's defaults; each given length finite and >= 0 (the insert range > 0).
 bool parse_sensor_ranges(const v1::SensorSpec& sensor, const std::string& prefix,
                          const mapping::BeamLimits& sensor_defaults, mapping::BeamLimits& limits, FieldError& error) {
@@ -290,7 +294,12 @@ std::shared_ptr<const RobotModel> robot_model_from_spec(const std::string& robot
     const geometry::Pose3 X_BS = geometry::Pose3::from_xyz_rpy(
         mount.position().x(), mount.position().y(), mount.position().z(), mount.roll(), mount.pitch(), mount.yaw());
     mapping::BeamLimits beam_limits;
-    if (!parse_sensor_ranges(sensor, prefix, sensor_defaults, beam_limits, error)) return nullptr;
+    mapping::BeamLimits defaults = sensor_defaults;
+    // A sonar element that hears nothing has mostly met a wall obliquely (its echo is specular), not open space: by
+    // default its silence carves nothing (ROS's range_sensor_layer leaves clear_on_max_reading off for the same
+    // reason), or the walls a ring drives along are erased by the elements that graze them.
+    if (sensor.model_case() == v1::SensorSpec::kRangeArray) defaults.no_return_clear_m = kRangeArrayNoReturnClear_m;
+    if (!parse_sensor_ranges(sensor, prefix, defaults, beam_limits, error)) return nullptr;
     switch (sensor.model_case()) {
       case v1::SensorSpec::kLaser: {
         LaserModel laser;

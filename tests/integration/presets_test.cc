@@ -20,6 +20,8 @@ struct PresetRun {
   std::string drive;     // --drive script; empty when the server steers the robot
   std::string start;     // --start pose x,y,theta
   std::string world;     // a pixel world shipped in clients/sim/worlds
+  // Free cells more than one cell from any obstacle that may be marked occupied, as a fraction of all free cells.
+  double max_false_rate_beyond_one_cell = 0.02;
 };
 
 void PrintTo(const PresetRun& run, std::ostream* out) { *out << run.robot; }
@@ -75,7 +77,7 @@ TEST_P(PresetMapsWorld, MarksWhatItsSensorsSawAndLittleElse) {
   // Free cells are judged with the same one-cell tolerance as obstacles: every wall face of this room lies on a cell
   // boundary, and a robot that stands facing one (the Bearcat deadlocks here) puts about half of its noisy hits in the
   // free cell in front of it. The strict rates are printed above.
-  EXPECT_LT(score.false_rate_beyond_one_cell(), 0.02);
+  EXPECT_LT(score.false_rate_beyond_one_cell(), run.max_false_rate_beyond_one_cell);
 }
 
 // The server steers the robots with a laser (Bearcat behaviour); the scout and the ActivityBot have none, so they
@@ -91,7 +93,17 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         PresetRun{.robot = "bearcat", .duration = "60", .drive = "", .start = "0,0,0", .world = "room.yaml"},
         PresetRun{.robot = "ugv", .duration = "90", .drive = "", .start = "0,0,-2.4", .world = "open_field.yaml"},
-        PresetRun{.robot = "scout", .duration = "120", .drive = kScoutTour, .start = "0,0,0", .world = "room.yaml"},
+        // HIMM marks an off-axis echo on the element's axis, where nothing is (seed 001 §3 saw its map "of its own
+        // path"); such a mark now goes only when a later echo passes through it, since a sonar's silence (mostly a
+        // specular miss) carves nothing. The price of keeping the walls: 4.3 % of free cells marked here against
+        // 1.7 % when silence carved, for 100 % of the seen wall cells kept against 98.6 % on this tour (and 97 %
+        // against 68 % on a wander along the walls, tests/scenarios/sonar_wander_test.cc).
+        PresetRun{.robot = "scout",
+                  .duration = "120",
+                  .drive = kScoutTour,
+                  .start = "0,0,0",
+                  .world = "room.yaml",
+                  .max_false_rate_beyond_one_cell = 0.05},
         PresetRun{.robot = "activitybot",
                   .duration = "40",
                   .drive = "0,0,7.2;0,0.8,2;0,0,7.2;0,0.8,2",

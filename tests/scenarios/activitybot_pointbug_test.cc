@@ -50,10 +50,12 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(ActivityBotWorld{"room", "room.yaml", {3.0, 3.2}, 600.0, 120.0, "PointBug alone in the room"}),
     [](const ::testing::TestParamInfo<ActivityBotWorld>& param_info) { return param_info.param.name; });
 
-// The catalogue's PointBug layouts (seed 003 Fig 2.8-2.11) at the seed's 13 mm/s: 15 to 25 sim minutes per seed row,
-// too long for every run of the suite; run with --gtest_also_run_disabled_tests.
+// The catalogue's PointBug layouts (seed 003 Fig 2.8-2.11). The seed rows run 13 to 25 sim minutes at the seed's
+// 13 mm/s, 20 to 45 s of wall time each in lockstep. Measured (full stack, 0 collisions each): local minimum 12.29 m
+// against 11.22 m optimal (1.10), travel direction 1.04, cup 1.09, min angle 1.04; PointBug alone reaches none of the
+// four goals within its time (2.98, 3.30, 4.38 and 10.24 m driven; each stop at a sudden point costs a sweep).
 INSTANTIATE_TEST_SUITE_P(
-    DISABLED_Catalogue, ActivityBotPointBug,
+    Catalogue, ActivityBotPointBug,
     ::testing::Values(
         ActivityBotWorld{"local_minimum",
                          "pointbug_local_minimum.yaml",

@@ -14,6 +14,7 @@
 
 #include "../support/json_fields.h"
 #include "../support/process.h"
+#include "../support/sim_trace.h"
 #include "occgeo/client/connection.h"
 #include "occgeo/proto/labels.h"
 #include "occgeo/proto/protocol.h"
@@ -98,27 +99,6 @@ void register_robot_offline(const std::string& address, const std::string& robot
     throw std::runtime_error("the robot's spec was refused");
   }
   driver.close();
-}
-
-struct TraceRow {
-  double t = 0.0;
-  double x = 0.0;
-  double y = 0.0;
-  double theta = 0.0;
-};
-
-std::vector<TraceRow> read_trace(const std::filesystem::path& file) {
-  std::vector<TraceRow> rows;
-  std::ifstream in(file);
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream fields(line);
-    TraceRow row;
-    if (fields >> row.t >> row.x >> row.y >> row.theta) rows.push_back(row);
-  }
-  return rows;
 }
 
 std::string read_file(const std::filesystem::path& file) {
@@ -428,7 +408,7 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     return result;
   }
   result.last_state = last_state_of(out);
-  const std::vector<TraceRow> trace = read_trace(dir.path() / "trace.csv");
+  std::vector<Eigen::Vector4d> trace = read_sim_trace(dir.path() / "trace.csv");
   if (trace.empty()) {
     result.failure = "empty trace";
     return result;
@@ -436,34 +416,33 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
   // Sim time counts from the first motion: a behaviour may hold the robot still for its first scans.
   std::size_t first = 0;
   while (first + 1 < trace.size() &&
-         std::hypot(trace[first + 1].x - trace[0].x, trace[first + 1].y - trace[0].y) < 1e-4 &&
-         std::abs(trace[first + 1].theta - trace[0].theta) < 1e-4) {
+         std::hypot(trace[first + 1](1) - trace[0](1), trace[first + 1](2) - trace[0](2)) < 1e-4 &&
+         std::abs(trace[first + 1](3) - trace[0](3)) < 1e-4) {
     ++first;
   }
   std::size_t last = trace.size() - 1;
   if (scenario.goal) {
     result.reached = false;
     for (std::size_t i = first; i < trace.size(); ++i) {
-      if (std::hypot(trace[i].x - scenario.goal->x(), trace[i].y - scenario.goal->y()) <= scenario.goal_tolerance_m) {
+      if (std::hypot(trace[i](1) - scenario.goal->x(), trace[i](2) - scenario.goal->y()) <= scenario.goal_tolerance_m) {
         result.reached = true;
         last = i;
         break;
       }
     }
     const std::optional<OptimalPath> optimal = optimal_path_length(
-        scenario.world, scenario.preset, {trace[0].x, trace[0].y}, *scenario.goal, scenario.goal_tolerance_m);
+        scenario.world, scenario.preset, {trace[0](1), trace[0](2)}, *scenario.goal, scenario.goal_tolerance_m);
     if (optimal) {
       result.optimal_m = optimal->any_angle_m;
       result.lattice_m = optimal->lattice_m;
     }
   }
   for (std::size_t i = first + 1; i <= last; ++i) {
-    result.path_m += std::hypot(trace[i].x - trace[i - 1].x, trace[i].y - trace[i - 1].y);
+    result.path_m += std::hypot(trace[i](1) - trace[i - 1](1), trace[i](2) - trace[i - 1](2));
   }
-  result.sim_s = trace[last].t - trace[first].t;
-  result.final_pose = {trace.back().x, trace.back().y, trace.back().theta};
-  result.trace.reserve(trace.size());
-  for (const TraceRow& row : trace) result.trace.emplace_back(row.t, row.x, row.y, row.theta);
+  result.sim_s = trace[last](0) - trace[first](0);
+  result.final_pose = {trace.back()(1), trace.back()(2), trace.back()(3)};
+  result.trace = std::move(trace);
   result.ran = true;
   return result;
 }

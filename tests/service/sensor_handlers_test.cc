@@ -160,8 +160,20 @@ TEST_F(SensorHandlers, SonarElementsFollowTheRobotsHeading) {
   EXPECT_FALSE(occupied(0.05, 1.57)) << "mapped from the robot centre";
 }
 
-TEST_F(SensorHandlers, MaxRangeSonarReadingClearsWithoutMarking) {
+TEST_F(SensorHandlers, MaxRangeSonarReadingCarvesNothingByDefault) {
   auto session = driver("r1", testing::sensor_robot_spec());
+  handle_odometry(session, odometry(0.05, 0.05, 0.0, 0.0));
+  // Element 0 at (0.40, 0.05) facing +x; a reading beyond range_max (3 m) is "no echo", mostly a specular miss.
+  handle_range_array(session, one_sonar_element(1, 0.1, 0, 10.0F));
+  expect_ack(*session, 1);
+  EXPECT_FALSE(observed(1.05, 0.05)) << "a sonar's silence carved free space";
+  EXPECT_EQ(core_.world("default")->snapshot()->occupied_cell_count(), 0U);
+}
+
+TEST_F(SensorHandlers, MaxRangeSonarReadingClearsWithoutMarkingWhenTheSpecSaysSo) {
+  v1::RobotSpec spec = testing::sensor_robot_spec();
+  spec.mutable_sensors(0)->mutable_ranges()->set_no_return_clear_m(10.0);
+  auto session = driver("r1", spec);
   handle_odometry(session, odometry(0.05, 0.05, 0.0, 0.0));
   // Element 0 at (0.40, 0.05) facing +x; a reading beyond range_max (3 m) is "no echo".
   handle_range_array(session, one_sonar_element(1, 0.1, 0, 10.0F));

@@ -46,6 +46,7 @@ SimulatedScan RangeArraySimulator::fire(const SimWorld& world, const geometry::P
     const geometry::Pose2 X_WE = X_WS.compose(X_SE);
     const double noise = noise_.sample();
     std::optional<double> nearest_m;
+    std::optional<RayHit> axis_hit;
     for (std::uint32_t ray = 0; ray < rays; ++ray) {
       // Offsets from -width/2 to +width/2; the middle ray's offset is exactly 0 (the acoustic axis).
       const double offset_rad = rays == 1 ? 0.0 : array_.beam_width_rad * (static_cast<double>(ray) / (rays - 1) - 0.5);
@@ -55,7 +56,12 @@ SimulatedScan RangeArraySimulator::fire(const SimWorld& world, const geometry::P
       // Specular reflection: met more obliquely than the tolerance, the pulse bounces away and this ray hears nothing.
       if (-direction.dot(hit->normal_W) < min_cos_incidence) continue;
       if (!nearest_m || hit->distance_m < *nearest_m) nearest_m = hit->distance_m;
-      if (ray == axis_ray) scan.hit_pixels.insert(scan.hit_pixels.end(), hit->pixels.begin(), hit->pixels.end());
+      if (ray == axis_ray) axis_hit = hit;
+    }
+    // The element hears the nearest echo in its cone: the axis cell is what it saw only when that echo is the axis's.
+    constexpr double kSameEcho_m = 1e-3;
+    if (axis_hit && axis_hit->distance_m <= *nearest_m + kSameEcho_m) {
+      scan.hit_pixels.insert(scan.hit_pixels.end(), axis_hit->pixels.begin(), axis_hit->pixels.end());
     }
     if (!nearest_m) {
       scan.ranges_m.push_back(static_cast<float>(array_.range_max_m));

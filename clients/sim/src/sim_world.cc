@@ -9,9 +9,36 @@
 
 namespace occgeo::sim {
 
+namespace {
+
+// The outward normal of the surface a pixel image draws, at obstacle pixel `hit`: the sum of the directions to the
+// free pixels within two pixels, each weighted by 1 / distance (pixels beyond the image count as free). A specular
+// sonar needs the drawn surface's normal, not the pixel face's: a disc drawn in pixels is a staircase of axis-aligned
+// faces, which it would hear only from the four axis directions (and a pillar met diagonally not at all), where a
+// round pillar echoes towards whichever transducer faces it. Where the sum cancels (a wall one pixel thin, with free
+// space on both sides) or leans away from the face the ray entered, the face's normal stands.
+Eigen::Vector2d drawn_surface_normal(const World& world, const Pixel& hit, const Eigen::Vector2d& face_normal_W) {
+  constexpr int kRadius = 2;
+  constexpr double kSmallestSum = 0.5;  // a straight face's sum is 4.2
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  for (int d_row = -kRadius; d_row <= kRadius; ++d_row) {
+    for (int d_col = -kRadius; d_col <= kRadius; ++d_col) {
+      if ((d_row == 0 && d_col == 0) || world.is_obstacle({hit.col + d_col, hit.row + d_row})) continue;
+      const Eigen::Vector2d offset_W(d_col, -d_row);  // rows count downwards
+      sum += offset_W / offset_W.squaredNorm();
+    }
+  }
+  if (sum.norm() < kSmallestSum || sum.dot(face_normal_W) <= 0.0) return face_normal_W;
+  return sum.normalized();
+}
+
+}  // namespace
+
 std::optional<RayHit> PixelWorld::cast(const Eigen::Vector2d& p_W, const Eigen::Vector2d& direction_W,
                                        double max_range_m, double /*time_s*/, double /*height_m*/) const {
-  return cast_ray(world_, p_W, direction_W, max_range_m);
+  std::optional<RayHit> hit = cast_ray(world_, p_W, direction_W, max_range_m);
+  if (hit && hit->pixels.size() == 1) hit->normal_W = drawn_surface_normal(world_, hit->pixels.front(), hit->normal_W);
+  return hit;
 }
 
 std::optional<std::string> PixelWorld::find_collision(const geometry::BoxFootprint& footprint,

@@ -528,8 +528,13 @@ class EscapeWrapper final : public Behaviour {
 // followed by pure pursuit; then a fresh inner behaviour carries on from there, facing away from the trap.
 class MapEscapeWrapper final : public Behaviour {
  public:
-  MapEscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
-      : rebuild_(std::move(rebuild)), inner_(rebuild_()), height_m_(geometry::footprint_height(robot.footprint)) {
+  MapEscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
+                   const GuardParams& guard)
+      : rebuild_(std::move(rebuild)),
+        inner_(rebuild_()),
+        footprint_(robot.footprint),
+        guard_(guard),
+        height_m_(geometry::footprint_height(robot.footprint)) {
     // No goal to squeeze through to: the way out keeps the whole turning circle clear, and more where there is room.
     planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint);
     planner_.cost_radius_m = planner_.footprint_radius_m + 0.4;
@@ -554,7 +559,7 @@ class MapEscapeWrapper final : public Behaviour {
     position_W_ = Eigen::Vector2d(pose.x, pose.y);
     if (!path_.empty()) {
       BehaviourCommand command = follow(input, pose);
-      if (command.state != BehaviourState::kNone) return command;
+      if (command.state != BehaviourState::kNone) return unwedged(input, pose, command);
     }
     BehaviourCommand command = inner_->decide(input);
     // Headway: the robot left a disc round where it last made some; turning on the spot is not headway.
@@ -569,7 +574,8 @@ class MapEscapeWrapper final : public Behaviour {
       return back;
     }
     const bool stuck = command.stop || input.stamp_s - anchor_s_ > kStallTime_s;
-    if (!stuck || input.stamp_s < next_plan_s_) return command;
+    if (!stuck) return command;
+    if (input.stamp_s < next_plan_s_) return unwedged(input, pose, command);
     if (held_up_ && !input.ring && clear_behind(input, pose)) {
       // The last way out was held up where it started (a wall the guard sees close ahead): back off first.
       held_up_ = false;
@@ -586,7 +592,7 @@ class MapEscapeWrapper final : public Behaviour {
                                                                                : BehaviourState::kEscapeStalled;
     if (plan_out(input, pose)) {
       BehaviourCommand escape = follow(input, pose);
-      if (escape.state != BehaviourState::kNone) return escape;
+      if (escape.state != BehaviourState::kNone) return unwedged(input, pose, escape);
     }
     // A search cut short by its per-cycle budget goes on at the next cycle; one that found nothing waits a second.
     next_plan_s_ = next_candidate_ != 0 ? input.stamp_s : input.stamp_s + 1.0;
@@ -596,7 +602,9 @@ class MapEscapeWrapper final : public Behaviour {
       command.angular_radps = 0.5;
       command.state = BehaviourState::kEscapeLookRound;
     }
-    return command;
+    // Whatever it does meanwhile, not what the guard stops: a wander into a wall the ring no longer hears would stand
+    // there for good.
+    return unwedged(input, pose, command);
   }
 
  private:
@@ -607,6 +615,48 @@ class MapEscapeWrapper final : public Behaviour {
   static constexpr double kBackOffSpeed_mps = 0.15;
   static constexpr double kRingAheadClearance_m = 0.5;  // ring readings this far beyond the body block an escape
   static constexpr double kBackOffTime_s = 2.0;
+  static constexpr double kUnwedgeTurn_radps = 0.6;
+  static constexpr double kUnwedgeCreep_mps = 0.1;
+  static constexpr double kHeadway_rad = 0.5;  // turning this far towards the way out is headway too
+  static constexpr double kUnwedge_s = 1.5;
+  struct UnwedgeMotion {
+    double linear_mps = 0.0;
+    double angular_radps = 0.0;
+  };
+
+  // The escape's command, or when the guard would stop it (a corner of the footprint swinging into what stands beside
+  // the robot, its nose into a pillar) a motion the guard lets through, kept up for kUnwedge_s unless the guard would
+  // stop it too: the same turn on the spot, backing, the turn the other way round, creeping forward. Without it the
+  // robot stands for good where every way out starts with a motion the guard stops; going back to the escape's own
+  // command as soon as it passes again swings the robot to and fro at the edge of what the guard allows.
+  [[nodiscard]] BehaviourCommand unwedged(const BehaviourInput& input, const Pose2& pose, BehaviourCommand command) {
+    if (!guard_.enabled || input.grid == nullptr) return command;
+    const GuardModels models{input.grid, input.octomap, guard_.check_ptem ? input.ptem : nullptr};
+    const auto passes = [&](double linear_mps, double angular_radps) {
+      return guard_command(models, footprint_, pose, linear_mps, angular_radps, guard_).action != GuardAction::kStop;
+    };
+    const auto apply = [&command](const UnwedgeMotion& motion) {
+      command.linear_mps = motion.linear_mps;
+      command.angular_radps = motion.angular_radps;
+      command.wheels.reset();
+      if (motion.linear_mps < 0.0) command.state = BehaviourState::kEscapeBackOff;
+      return command;
+    };
+    if (input.stamp_s < unwedge_until_s_ && passes(unwedge_.linear_mps, unwedge_.angular_radps)) return apply(unwedge_);
+    if (passes(command.linear_mps, command.angular_radps)) return command;
+    const double turn = command.angular_radps < 0.0 ? -1.0 : 1.0;
+    const std::array<UnwedgeMotion, 4> motions{{{0.0, turn * kUnwedgeTurn_radps},
+                                                {-kUnwedgeCreep_mps, 0.0},
+                                                {0.0, -turn * kUnwedgeTurn_radps},
+                                                {kUnwedgeCreep_mps, 0.0}}};
+    for (const UnwedgeMotion& motion : motions) {
+      if (!passes(motion.linear_mps, motion.angular_radps)) continue;
+      unwedge_ = motion;
+      unwedge_until_s_ = input.stamp_s + kUnwedge_s;
+      return apply(motion);
+    }
+    return command;
+  }
 
   // Whether reversing kBackOffSpeed_mps for kBackOffTime_s stays clear of what the ring hears behind (when the robot
   // has one) and of what the map remembers there.
@@ -674,8 +724,10 @@ class MapEscapeWrapper final : public Behaviour {
   BehaviourCommand follow(const BehaviourInput& input, const Pose2& pose) {
     const PurePursuitCommand step = pure_pursuit(pose, path_, follower_, segment_);
     segment_ = step.segment;
-    if (!escape_anchor_W_ || (*position_W_ - *escape_anchor_W_).norm() > kHeadway_m) {
+    if (!escape_anchor_W_ || (*position_W_ - *escape_anchor_W_).norm() > kHeadway_m ||
+        std::abs(geometry::wrap_angle(pose.theta - escape_anchor_theta_)) > kHeadway_rad) {
       escape_anchor_W_ = position_W_;
+      escape_anchor_theta_ = pose.theta;
       escape_anchor_s_ = input.stamp_s;
     }
     // Held up on the way out (the guard stops what the map did not show): give up and try another way.
@@ -704,6 +756,10 @@ class MapEscapeWrapper final : public Behaviour {
 
   std::function<std::unique_ptr<Behaviour>()> rebuild_;
   std::unique_ptr<Behaviour> inner_;
+  geometry::Footprint footprint_;
+  GuardParams guard_;
+  UnwedgeMotion unwedge_;  // what the robot does while the guard stops the escape's own command
+  double unwedge_until_s_ = -std::numeric_limits<double>::infinity();
   GlobalPathParams planner_;
   PurePursuitParams follower_;
   double clearance_m_ = 0.0;
@@ -712,6 +768,7 @@ class MapEscapeWrapper final : public Behaviour {
   std::optional<Eigen::Vector2d> position_W_;
   std::optional<Eigen::Vector2d> anchor_W_;         // where the robot last made headway
   std::optional<Eigen::Vector2d> escape_anchor_W_;  // ... on the escape path
+  double escape_anchor_theta_ = 0.0;                // and the heading there
   double escape_anchor_s_ = 0.0;
   bool held_up_ = false;            // the last escape path made no headway
   double back_off_until_s_ = -1.0;  // reversing until then
@@ -871,9 +928,9 @@ class YieldWrapper final : public Behaviour {
 
 }  // namespace
 
-std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
-                                           const RobotShape& robot) {
-  return std::make_unique<MapEscapeWrapper>(std::move(rebuild), robot);
+std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
+                                           const GuardParams& guard) {
+  return std::make_unique<MapEscapeWrapper>(std::move(rebuild), robot, guard);
 }
 
 std::unique_ptr<Behaviour> make_bearcat(const BearcatParams& params) {

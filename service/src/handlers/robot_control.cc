@@ -163,10 +163,11 @@ std::unique_ptr<control::Behaviour> make_plain_behaviour(v1::Behaviour name, con
   const control::BearcatParams bearcat = bearcat_params_for(model, config.bearcat);
   if (name == v1::BEHAVIOUR_BEARCAT_SEED) return control::make_bearcat(bearcat);
   if (name == v1::BEHAVIOUR_BEARCAT) {
-    return control::make_map_escape([bearcat] { return control::make_bearcat(bearcat); }, shape);
+    return control::make_map_escape([bearcat] { return control::make_bearcat(bearcat); }, shape, config.guard);
   }
   if (name == v1::BEHAVIOUR_WANDER) {
-    return control::make_map_escape([shape] { return control::make_wander(control::WanderParams{}, shape); }, shape);
+    return control::make_map_escape([shape] { return control::make_wander(control::WanderParams{}, shape); }, shape,
+                                    config.guard);
   }
   if ((name == v1::BEHAVIOUR_GOTO || name == v1::BEHAVIOUR_WAYPOINTS) && request.escape()) {
     v1::DriveRequest plain = request;

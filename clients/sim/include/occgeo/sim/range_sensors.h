@@ -24,10 +24,10 @@ namespace occgeo::sim {
 //     walls and returns from any incidence inside the beam, giving the corner's distance. This model ignores that and
 //     treats each wall alone, so a corner met obliquely returns nothing. Nor are multiple reflections (a pulse bounced
 //     off one wall echoing from another, reading too long) or diffuse echoes from rough surfaces and edges simulated.
-//   - Pixel worlds make every surface axis-aligned (RayHit::normal_W is ±x or ±y), so an obstacle drawn in pixels,
-//     however round it was meant to be, echoes only towards the four axis directions, and a sonar at 45° to the axes
-//     hears no pixel surface at all. A round pillar should be a shape world circle, whose radial normal can face a
-//     sonar from any direction (within the ray sampling below).
+//   - In pixel worlds a hit's normal is that of the surface the pixels draw (PixelWorld::cast: the directions to the
+//     free pixels within two pixels, summed), so a pillar drawn in pixels echoes towards whichever sonar faces it, as a
+//     round one does, and an axis-aligned wall as a flat one; a wall one pixel thin keeps its face's normal (±x or
+//     ±y). A disc only a few pixels across has a coarse normal; a shape world circle's is exact.
 //   - The cone is sampled by its rays. A flat surface whose normal lies inside the cone is heard through the ray
 //     nearest the normal, at that ray's slightly longer distance (the scout's rays are 4.2° apart, so within 0.07% of
 //     the perpendicular distance). A curved surface is harsher: a ray passing a circle of radius r at b from its centre
@@ -41,10 +41,11 @@ class RangeArraySimulator {
   RangeArraySimulator(const RangeArrayPreset& array, std::uint64_t seed);
 
   // Fires every element once from base_link pose X_WB at sim time time_s. ranges_m has one reading per element.
-  // hit_pixels holds the obstacle pixels entered by the noise-free acoustic AXIS rays whose own echo the specular rule
-  // accepts: what an axis-only sensor model such as HIMM can map from a reading. An axis ray meeting a wall at 40°
-  // incidence returns nothing, so the cell it entered is not recorded even if an off-axis ray's echo makes the
-  // reading; off-axis rays never record pixels.
+  // hit_pixels holds the obstacle pixels entered by the noise-free acoustic AXIS rays whose own echo is the reading
+  // (the specular rule accepts it and no off-axis ray's echo is nearer): what an axis-only sensor model such as HIMM
+  // can map from a reading. An axis ray meeting a wall at 40° incidence returns nothing, and one behind a nearer
+  // off-axis echo is masked by it (the element reports the nearer range), so the cell it entered is not recorded;
+  // off-axis rays never record pixels.
   SimulatedScan fire(const SimWorld& world, const geometry::Pose2& X_WB, double time_s);
 
   [[nodiscard]] const RangeArrayPreset& preset() const { return array_; }

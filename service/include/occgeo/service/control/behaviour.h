@@ -131,9 +131,11 @@ std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>(
 // deadlock) or makes no headway (0.5 m) for 6 s, plans a way out over the remembered HIMM grid to the first reachable
 // point round the robot (4 m, 2.5 m, 1.5 m away; behind it first) and follows it by pure pursuit (state
 // "escape_<trigger>"), then resumes a fresh inner behaviour from `rebuild`. With no way out on the map yet it turns on
-// the spot ("escape_look_round") instead of stopping.
-std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild,
-                                           const RobotShape& robot);
+// the spot ("escape_look_round") instead of stopping. While it escapes or is stalled, a command the safety guard
+// (`guard`, as the server runs it) would stop is replaced for 1.5 s by the first motion the guard lets through: the
+// same turn on the spot, backing, the other turn, creeping forward.
+std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
+                                           const GuardParams& guard);
 
 // Beyond the seeds: yielding to moving obstacles. Tracks the PTEM's clusters (ClusterTracker) and runs the inner
 // behaviour; when a moving obstacle is predicted (guard.predict_horizon_s ahead) to come within
