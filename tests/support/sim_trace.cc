@@ -1,9 +1,7 @@
 #include "sim_trace.h"
 
 #include <algorithm>
-#include <cmath>
 #include <fstream>
-#include <iterator>
 #include <numbers>
 #include <random>
 #include <sstream>
