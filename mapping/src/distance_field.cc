@@ -115,6 +115,56 @@ struct PlacedFootprint {
     return out * out;
   }
 
+  // The x interval of row y holding every point within r >= 0 of the footprint (and some farther: for a box, the
+  // box grown by r along both its axes; for a polygon, its bounding box grown by r), or nullopt when the row passes
+  // farther.
+  [[nodiscard]] std::optional<std::pair<double, double>> row_span(double y, double r) const {
+    if (is_polygon) {
+      if (std::abs(y - center_W.y()) > aabb_half_extents_W.y() + r) return std::nullopt;
+      return std::pair{center_W.x() - aabb_half_extents_W.x() - r, center_W.x() + aabb_half_extents_W.x() + r};
+    }
+    if (!is_box) return disc_row_span(center_W, radius + r, y);
+    return box_row_span(y, half_extents.x() + r, half_extents.y() + r);
+  }
+
+  // True when p_W is inside the footprint and more than margin from its edge (never for a polygon).
+  [[nodiscard]] bool deep_inside(const Eigen::Vector2d& p_W, double margin) const {
+    if (is_polygon) return false;
+    const Eigen::Vector2d offset = p_W - center_W;
+    if (!is_box) return radius > margin && offset.squaredNorm() < (radius - margin) * (radius - margin);
+    return std::abs(offset.dot(axis_x_W)) < half_extents.x() - margin &&
+           std::abs(offset.dot(axis_y_W)) < half_extents.y() - margin;
+  }
+
+ private:
+  // x interval of the row y inside the disc (centre, r).
+  static std::optional<std::pair<double, double>> disc_row_span(const Eigen::Vector2d& centre, double r, double y) {
+    const double dy = y - centre.y();
+    if (std::abs(dy) > r) return std::nullopt;
+    const double half_width = std::sqrt(r * r - dy * dy);
+    return std::pair{centre.x() - half_width, centre.x() + half_width};
+  }
+
+  // x interval of the row y inside the box's rectangle of half extents (hx, hy) on its own axes.
+  [[nodiscard]] std::optional<std::pair<double, double>> box_row_span(double y, double hx, double hy) const {
+    // Offsets t = x - centre.x where |t * axis.x + dy * axis.y| <= half extent, for both axes.
+    const double dy = y - center_W.y();
+    double first = -std::numeric_limits<double>::infinity();
+    double last = std::numeric_limits<double>::infinity();
+    const auto clip = [&](double slope, double offset, double half) {
+      if (std::abs(slope) < 1e-12) return std::abs(offset) <= half;
+      double a = (-half - offset) / slope;
+      double b = (half - offset) / slope;
+      if (a > b) std::swap(a, b);
+      first = std::max(first, a);
+      last = std::min(last, b);
+      return first <= last;
+    };
+    if (!clip(axis_x_W.x(), dy * axis_x_W.y(), hx) || !clip(axis_y_W.x(), dy * axis_y_W.y(), hy)) return std::nullopt;
+    return std::pair{center_W.x() + first, center_W.x() + last};
+  }
+
+ public:
   // Exact distance to the closed axis-aligned square (centre, half side), metres, and the square's point where it is
   // attained; 0 and the square's point nearest the footprint's centre when they overlap.
   [[nodiscard]] std::pair<double, Eigen::Vector2d> distance_to_square(const Eigen::Vector2d& square_center_W,
@@ -358,10 +408,7 @@ class DistanceField::Brushfire {
     std::array<Cell, static_cast<std::size_t>(kBlockCells) * kBlockCells> cells{};
   };
 
-  static std::size_t local_index(std::int32_t x, std::int32_t y) {
-    return static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells +
-           static_cast<std::size_t>(x & (kBlockCells - 1));
-  }
+  static std::size_t local_index(std::int32_t x, std::int32_t y) { return DistanceFieldSnapshot::index_in_block(x, y); }
 
   // The slot of block (bx, by) in the directory, or -1 outside it.
   [[nodiscard]] std::ptrdiff_t slot(std::int32_t bx, std::int32_t by) const {
@@ -629,8 +676,7 @@ const DistanceFieldSnapshot::RefBlock* DistanceFieldSnapshot::block_at(std::int3
 std::optional<CellIndex> DistanceFieldSnapshot::nearest_occupied(const CellIndex& c) const {
   const RefBlock* block = block_at(c.ix >> kBlockShift, c.iy >> kBlockShift);
   if (block == nullptr) return std::nullopt;
-  const Ref& ref = block->refs[static_cast<std::size_t>(c.iy & (kBlockCells - 1)) * kBlockCells +
-                               static_cast<std::size_t>(c.ix & (kBlockCells - 1))];
+  const Ref& ref = block->refs[index_in_block(c.ix, c.iy)];
   if (ref.x == kNone) return std::nullopt;
   return CellIndex{c.ix + ref.x, c.iy + ref.y};
 }
@@ -679,8 +725,34 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const double scale = cell_size / 2.0;
   const double squared_scale = scale * scale;
   const double squared_half_diagonal = half_diagonal * half_diagonal;
-  // The smallest squared field distance (half cells) of the cells visited, and whether one had no occupied cell in
-  // range: the lower bound follows from them once the loop is done, with one square root instead of one per cell.
+  // Cell columns whose centres lie in the x interval span (widened or narrowed by a rounding margin), within `within`.
+  const double rounding = 1e-9 * cell_size;
+  const auto columns = [&](const std::optional<std::pair<double, double>>& span, double widen,
+                           std::pair<std::int32_t, std::int32_t> within) {
+    if (!span) return std::pair{within.second + 1, within.second};
+    const double first = std::ceil((span->first - widen) / cell_size - 0.5);
+    const double last = std::floor((span->second + widen) / cell_size - 0.5);
+    return std::pair{static_cast<std::int32_t>(std::max<double>(first, within.first)),
+                     static_cast<std::int32_t>(std::min<double>(last, within.second))};
+  };
+  // The reference of cell (ix, iy), the row's block found once per 64 cells.
+  struct RowReader {
+    const DistanceFieldSnapshot& field;
+    std::int32_t iy;
+    const RefBlock* block = nullptr;
+    std::int32_t block_column = std::numeric_limits<std::int32_t>::min();
+    Ref at(std::int32_t ix) {
+      if ((ix >> kBlockShift) != block_column) {
+        block_column = ix >> kBlockShift;
+        block = field.block_at(block_column, iy >> kBlockShift);
+      }
+      if (block == nullptr) return Ref{kNone, 0};
+      return block->refs[index_in_block(ix, iy)];
+    }
+  };
+
+  // The smallest squared field distance (half cells) of the edge cells visited, and whether one had no occupied cell
+  // in range: the lower bound follows from them once the loop is done, with one square root instead of one per cell.
   std::int32_t smallest_squared = kInfiniteSquared;
   bool visited_cell_out_of_range = false;
   double upper = std::numeric_limits<double>::infinity();
@@ -690,39 +762,77 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   std::optional<CellIndex> best_cell;
   Eigen::Vector2d best_point = Eigen::Vector2d::Zero();
   std::optional<CellIndex> last_cell;
-  for (std::int32_t iy = near.min.iy; iy <= near.max.iy; ++iy) {
+  // Only the cells along the footprint's edge bound its clearance: the nearest footprint point to any obstacle
+  // outside lies on the edge, within half a diagonal of its own cell's centre. The cells deeper inside only have to
+  // be free, and a free cell's field distance vouches for its neighbours along the row (below), so a lookup costs
+  // the edge's length in cells, not the footprint's area.
+  const auto visit_edge_cell = [&](RowReader& row, std::int32_t ix, double center_y) {
+    const Eigen::Vector2d center_W((ix + 0.5) * cell_size, center_y);
+    if (placed.squared_distance_to_point(center_W) > squared_half_diagonal) return;
+    const Ref ref = row.at(ix);
+    if (ref.x == kNone) {
+      visited_cell_out_of_range = true;
+      return;
+    }
+    const std::int32_t squared = squared_half_cells(ref.x, ref.y);
+    smallest_squared = std::min(smallest_squared, squared);
+    const CellIndex nearest{ix + ref.x, row.iy + ref.y};
+    if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) return;
+    last_cell = nearest;
+    const Eigen::Vector2d square_W((nearest.ix + 0.5) * cell_size, (nearest.iy + 0.5) * cell_size);
+    const auto [exact_distance, point_W] = placed.distance_to_square(square_W, half_cell);
+    if (exact_distance < upper) {
+      upper = exact_distance;
+      squared_distance_to_beat = (upper + half_diagonal) * (upper + half_diagonal);
+      best_cell = nearest;
+      best_point = point_W;
+    }
+  };
+  // A free cell whose nearest occupied square is d cells from its centre vouches for the next k cells of its row
+  // while k - 1/2 < d; with no occupied cell within max_distance(), for as many as that allows (one fewer, for the
+  // bound's own rounding).
+  const double cells_in_range = max_distance_m_ / cell_size;
+  const auto vouched = [](double distance_cells) { return std::max(0.0, std::floor(distance_cells + 0.5 - 1e-6)); };
+  const std::int32_t vouched_without_obstacle = static_cast<std::int32_t>(std::max(0.0, vouched(cells_in_range) - 1.0));
+  std::optional<CellIndex> occupied_inside;
+  for (std::int32_t iy = near.min.iy; iy <= near.max.iy && !occupied_inside; ++iy) {
     const double center_y = (iy + 0.5) * cell_size;
-    // The reference block under the row's current cells, looked up again only when the row crosses into the next.
-    const RefBlock* block = nullptr;
-    std::int32_t block_column = std::numeric_limits<std::int32_t>::min();
-    const std::int32_t block_row = iy >> kBlockShift;
-    const std::size_t row_in_block = static_cast<std::size_t>(iy & (kBlockCells - 1)) * kBlockCells;
-    for (std::int32_t ix = near.min.ix; ix <= near.max.ix; ++ix) {
-      const Eigen::Vector2d center_W((ix + 0.5) * cell_size, center_y);
-      if (placed.squared_distance_to_point(center_W) > squared_half_diagonal) continue;
-      if ((ix >> kBlockShift) != block_column) {
-        block_column = ix >> kBlockShift;
-        block = block_at(block_column, block_row);
-      }
-      const Ref ref = block == nullptr ? Ref{kNone, 0} : block->refs[row_in_block + (ix & (kBlockCells - 1))];
+    RowReader row{*this, iy};
+    const auto [first, last] = columns(placed.row_span(center_y, half_diagonal), rounding, {near.min.ix, near.max.ix});
+    if (first > last) continue;
+    // Cells whose centres are inside the footprint by more than half a diagonal hold no point of its edge: the row
+    // is walked from both ends to them (they are one interval, the footprint being convex).
+    const auto deep = [&](std::int32_t ix) {
+      return placed.deep_inside({(ix + 0.5) * cell_size, center_y}, half_diagonal);
+    };
+    std::int32_t inner_first = first;
+    for (; inner_first <= last && !deep(inner_first); ++inner_first) visit_edge_cell(row, inner_first, center_y);
+    std::int32_t inner_last = last;
+    for (; inner_last > inner_first && !deep(inner_last); --inner_last) visit_edge_cell(row, inner_last, center_y);
+    for (std::int32_t ix = inner_first; ix <= inner_last;) {
+      const Ref ref = row.at(ix);
       if (ref.x == kNone) {
-        visited_cell_out_of_range = true;
-        continue;
-      }
-      const std::int32_t squared = squared_half_cells(ref.x, ref.y);
-      smallest_squared = std::min(smallest_squared, squared);
-      const CellIndex nearest{ix + ref.x, iy + ref.y};
-      if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) continue;
-      last_cell = nearest;
-      const Eigen::Vector2d square_W((nearest.ix + 0.5) * cell_size, (nearest.iy + 0.5) * cell_size);
-      const auto [exact_distance, point_W] = placed.distance_to_square(square_W, half_cell);
-      if (exact_distance < upper) {
-        upper = exact_distance;
-        squared_distance_to_beat = (upper + half_diagonal) * (upper + half_diagonal);
-        best_cell = nearest;
-        best_point = point_W;
+        ix += 1 + vouched_without_obstacle;
+      } else if (ref.x == 0 && ref.y == 0) {
+        occupied_inside = CellIndex{ix, iy};
+        break;
+      } else {
+        ix += 1 +
+              static_cast<std::int32_t>(vouched(std::sqrt(static_cast<double>(squared_half_cells(ref.x, ref.y))) / 2));
       }
     }
+  }
+  Answer answer{{}, placed};
+  if (occupied_inside) {
+    answer.result.found = true;
+    answer.result.clearance_m = 0.0;
+    answer.result.nearest_cell = occupied_inside;
+    answer.result.nearest_point_W = placed
+                                        .distance_to_square(Eigen::Vector2d((occupied_inside->ix + 0.5) * cell_size,
+                                                                            (occupied_inside->iy + 0.5) * cell_size),
+                                                            half_cell)
+                                        .second;
+    return answer;
   }
   double lower = std::numeric_limits<double>::infinity();
   if (smallest_squared != kInfiniteSquared) {
@@ -734,35 +844,44 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const double capped_upper = std::min(upper, limit);
   if (capped_upper - capped_lower > cell_size) {
     // The lower bound is loose by up to 1.2 cells even when the upper one is exact (a cell centre half a cell off the
-    // footprint's edge, minus half a diagonal), so settle it: any cell nearer than capped_upper - cell_size lies in
-    // the footprint's box grown by that much; the exact distances to those cells make the answer within one cell.
+    // footprint's edge, minus half a diagonal), so settle it: an occupied cell nearer than capped_upper - cell_size
+    // has its centre within that plus half a diagonal of the footprint, and no occupied cell is nearer than `lower`,
+    // so only the cells in that thin shell around the footprint are read, row by row, occupied where the field says 0.
     fallbacks_.fetch_add(1, std::memory_order_relaxed);
     const double radius = capped_upper - cell_size;
-    const geometry::GridGeometry cells(cell_size);
-    struct Best {
-      const PlacedFootprint& placed;
-      const geometry::GridGeometry& cells;
-      double distance;
-      CellIndex cell;
-      Eigen::Vector2d point_W;
-    } best{placed, cells, upper, {}, best_point};
-    if (best_cell) best.cell = *best_cell;
-    grid_->for_each_occupied(cells.cell_of(lo - Eigen::Vector2d::Constant(radius)),
-                             cells.cell_of(hi + Eigen::Vector2d::Constant(radius)), [&best](const CellIndex& c) {
-                               const auto [distance, point_W] =
-                                   best.placed.distance_to_square(best.cells.center_of(c), best.cells.cell_size() / 2);
-                               if (distance < best.distance) {
-                                 best.distance = distance;
-                                 best.cell = c;
-                                 best.point_W = point_W;
-                               }
-                               return true;
-                             });
-    upper = best.distance;
-    best_point = best.point_W;
-    best_cell = best.cell;
+    const double shell_out = radius + half_diagonal;
+    const double squared_shell_out = shell_out * shell_out;
+    const double squared_lower = lower > 0.0 ? lower * lower : -1.0;
+    const auto shell_ys = cell_range(lo.y() - shell_out, hi.y() + shell_out, cell_size);
+    const auto shell_xs = cell_range(lo.x() - shell_out, hi.x() + shell_out, cell_size);
+    for (std::int32_t iy = shell_ys->first; iy <= shell_ys->second; ++iy) {
+      const double center_y = (iy + 0.5) * cell_size;
+      RowReader row{*this, iy};
+      const auto [first, last] = columns(placed.row_span(center_y, shell_out), rounding, *shell_xs);
+      if (first > last) continue;
+      // Reads cell ix when it lies in the shell; false once the walk reaches the cells nearer than `lower`, which are
+      // free and one interval of the row, so the row is walked from both ends up to them.
+      const auto check = [&](std::int32_t ix) {
+        const Eigen::Vector2d square_W((ix + 0.5) * cell_size, center_y);
+        const double squared = placed.squared_distance_to_point(square_W);
+        if (squared < squared_lower) return false;
+        if (squared > squared_shell_out) return true;
+        const Ref ref = row.at(ix);
+        if (ref.x != 0 || ref.y != 0) return true;
+        const auto [distance, point_W] = placed.distance_to_square(square_W, half_cell);
+        if (distance < upper) {
+          upper = distance;
+          best_cell = CellIndex{ix, iy};
+          best_point = point_W;
+        }
+        return true;
+      };
+      std::int32_t ix = first;
+      while (ix <= last && check(ix)) ++ix;
+      std::int32_t jx = last;
+      while (jx > ix && check(jx)) --jx;
+    }
   }
-  Answer answer{{}, placed};
   if (upper <= limit) {
     answer.result.found = true;
     answer.result.clearance_m = upper;

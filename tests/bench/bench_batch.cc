@@ -275,8 +275,8 @@ void print_summary(double seconds) {
     sink += geometry::check_collision({kBearcat, pose}, *world.grid).hit;
   });
   // Latency of single all-model clearance lookups (wall clock per call; other processes on the cores show as tail),
-  // the octree answered from its band field and, alternating in the same run, by walking its columns; then each model
-  // of the first on its own, to show which one the tail comes from.
+  // the octree answered from its band field and, in the same run, by walking its columns; then each model of the
+  // first on its own, to show which one the tail comes from.
   const auto& poses = bench_poses();
   const std::size_t samples = seconds < 0.5 ? 2000 : 20000;
   struct Series {
@@ -290,8 +290,10 @@ void print_summary(double seconds) {
                                    {"grid only", &bench_world_all_models(), {v1::MODEL_GRID}, {}},
                                    {"octree only (band field)", &bench_world_all_models(), {v1::MODEL_OCTOMAP}, {}},
                                    {"ptem only", &bench_world_all_models(), {v1::MODEL_PTEM}, {}}}};
-  for (std::size_t i = 0; i < samples; ++i) {
-    for (Series& run : series) {
+  // Each series on its own, one lookup after the other as a query thread answers them: interleaved, every lookup of
+  // one series would find the caches filled by the other series' lookups (the octree walk streams megabytes).
+  for (Series& run : series) {
+    for (std::size_t i = 0; i < samples; ++i) {
       v1::ClearanceReply reply;
       const auto start = std::chrono::steady_clock::now();
       answer_clearance(*run.world, kBearcat, poses[i & (poses.size() - 1)], 1.0, run.models, reply);
@@ -334,8 +336,12 @@ void print_summary(double seconds) {
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   bool smoke = false;
-  for (int i = 1; i < argc; ++i) smoke = smoke || std::string(argv[i]).find("min_time=0.0") != std::string::npos;
-  occgeo::service::print_summary(smoke ? 0.05 : 1.0);
+  bool summary = true;  // --no-summary: the Google Benchmarks alone, e.g. under a profiler
+  for (int i = 1; i < argc; ++i) {
+    smoke = smoke || std::string(argv[i]).find("min_time=0.0") != std::string::npos;
+    summary = summary && std::string(argv[i]) != "--no-summary";
+  }
+  if (summary) occgeo::service::print_summary(smoke ? 0.05 : 1.0);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

@@ -50,14 +50,16 @@ class DistanceFieldSnapshot {
   [[nodiscard]] std::optional<geometry::CellIndex> nearest_occupied(const geometry::CellIndex& c) const;
 
   // The clearance of request.footprint at request.pose, from the field: never below the exact clearance
-  // (geometry::compute_clearance on grid()) and at most one cell_size() above it. The field gives an upper bound (the
-  // exact distance to the occupied cells that the cell centres within half a cell diagonal of the footprint refer to;
-  // equal to the exact clearance in most queries) and a lower bound (the smallest distance at those centres minus half
-  // a cell diagonal, the distance being 1-Lipschitz). When they are more than a cell apart (up to 1.2 cells even for
-  // an exact upper bound) the occupied cells within (upper bound - one cell) of the footprint are checked exactly, a
-  // box query on grid(). When the footprint grown by request.max_distance_m reaches beyond bounds(), or
-  // request.max_distance_m > max_distance(), geometry::compute_clearance answers. Throws std::invalid_argument naming
-  // the field like geometry::compute_clearance.
+  // (geometry::compute_clearance on grid()) and at most one cell_size() above it. It reads the cells along the
+  // footprint's edge (centres within half a cell diagonal of it and not deeper inside): they give an upper bound (the
+  // exact distance to the occupied cells they refer to; equal to the exact clearance in most queries) and a lower
+  // bound (their smallest distance minus half a cell diagonal, the distance being 1-Lipschitz). The cells deeper
+  // inside only have to be free, and a free cell's distance vouches for the next cells of its row, so those are read
+  // a few per row. When the bounds are more than a cell apart (up to 1.2 cells even for an exact upper bound), the
+  // cells in the thin shell around the footprint where a nearer occupied cell could hide (between the lower bound and
+  // the upper bound less a cell) are read. When the footprint grown by request.max_distance_m reaches beyond bounds(),
+  // or request.max_distance_m > max_distance(), geometry::compute_clearance answers. Throws std::invalid_argument
+  // naming the field like geometry::compute_clearance.
   [[nodiscard]] geometry::ClearanceResult compute_clearance(const geometry::ClearanceRequest& request) const;
 
   // The direction in which moving the footprint (translation only, world frame) increases its clearance fastest: the
@@ -75,7 +77,8 @@ class DistanceFieldSnapshot {
            refs_.written_blocks * (sizeof(RefBlock) + kControlBlockAndHeader);
   }
 
-  // Number of compute_clearance and clearance_gradient calls so far that needed an exact check (local or global).
+  // Number of compute_clearance and clearance_gradient calls so far that needed an exact check (the shell around the
+  // footprint, or geometry::compute_clearance).
   [[nodiscard]] std::uint64_t exact_fallback_count() const { return fallbacks_.load(std::memory_order_relaxed); }
 
  private:
@@ -93,9 +96,17 @@ class DistanceFieldSnapshot {
   static constexpr std::int32_t kBlockCells = 1 << kBlockShift;
   static constexpr std::int32_t kChunkShift = 3;  // in blocks
   static constexpr std::int32_t kChunkBlocks = 1 << kChunkShift;
-  struct RefBlock {
+  struct alignas(64) RefBlock {
     std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
   };
+  // A cell's place in its block: 4x4 cells per 64-byte cache line (the lines row-major), so that a clearance lookup,
+  // which reads the cells along a footprint's edge, reads a line per four cells of edge in any direction rather than
+  // one per row it crosses.
+  static std::size_t index_in_block(std::int32_t x, std::int32_t y) {
+    const auto lx = static_cast<std::size_t>(x & (kBlockCells - 1));
+    const auto ly = static_cast<std::size_t>(y & (kBlockCells - 1));
+    return (((ly >> 2U) * (kBlockCells / 4) + (lx >> 2U)) << 4U) + ((ly & 3U) << 2U) + (lx & 3U);
+  }
   // Row-major; nullptr where no reference was ever written (all kNone).
   struct RefChunk {
     std::array<std::shared_ptr<const RefBlock>, static_cast<std::size_t>(kChunkBlocks) * kChunkBlocks> blocks;
