@@ -725,13 +725,14 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const double scale = cell_size / 2.0;
   const double squared_scale = scale * scale;
   const double squared_half_diagonal = half_diagonal * half_diagonal;
-  // Cell columns whose centres lie in the x interval span (widened or narrowed by a rounding margin), within `within`.
+  // Cell columns whose centres lie in the x interval span (widened by a rounding margin), within `within`; first >
+  // last when there are none.
   const double rounding = 1e-9 * cell_size;
-  const auto columns = [&](const std::optional<std::pair<double, double>>& span, double widen,
+  const auto columns = [&](const std::optional<std::pair<double, double>>& span,
                            std::pair<std::int32_t, std::int32_t> within) {
     if (!span) return std::pair{within.second + 1, within.second};
-    const double first = std::ceil((span->first - widen) / cell_size - 0.5);
-    const double last = std::floor((span->second + widen) / cell_size - 0.5);
+    const double first = std::ceil((span->first - rounding) / cell_size - 0.5);
+    const double last = std::floor((span->second + rounding) / cell_size - 0.5);
     return std::pair{static_cast<std::int32_t>(std::max<double>(first, within.first)),
                      static_cast<std::int32_t>(std::min<double>(last, within.second))};
   };
@@ -762,6 +763,15 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   std::optional<CellIndex> best_cell;
   Eigen::Vector2d best_point = Eigen::Vector2d::Zero();
   std::optional<CellIndex> last_cell;
+  // The edge cells read (those with an occupied cell in range), for the shell below to look only near the ones that
+  // could hide a nearer obstacle; past the array's size it looks all around.
+  struct EdgeCell {
+    std::int32_t ix;
+    std::int32_t iy;
+    std::int32_t squared;
+  };
+  std::array<EdgeCell, 512> edge_cells;
+  std::size_t edge_cell_count = 0;
   // Only the cells along the footprint's edge bound its clearance: the nearest footprint point to any obstacle
   // outside lies on the edge, within half a diagonal of its own cell's centre. The cells deeper inside only have to
   // be free, and a free cell's field distance vouches for its neighbours along the row (below), so a lookup costs
@@ -776,6 +786,8 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     }
     const std::int32_t squared = squared_half_cells(ref.x, ref.y);
     smallest_squared = std::min(smallest_squared, squared);
+    if (edge_cell_count < edge_cells.size()) edge_cells[edge_cell_count] = {ix, row.iy, squared};
+    ++edge_cell_count;
     const CellIndex nearest{ix + ref.x, row.iy + ref.y};
     if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) return;
     last_cell = nearest;
@@ -798,7 +810,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   for (std::int32_t iy = near.min.iy; iy <= near.max.iy && !occupied_inside; ++iy) {
     const double center_y = (iy + 0.5) * cell_size;
     RowReader row{*this, iy};
-    const auto [first, last] = columns(placed.row_span(center_y, half_diagonal), rounding, {near.min.ix, near.max.ix});
+    const auto [first, last] = columns(placed.row_span(center_y, half_diagonal), {near.min.ix, near.max.ix});
     if (first > last) continue;
     // Cells whose centres are inside the footprint by more than half a diagonal hold no point of its edge: the row
     // is walked from both ends to them (they are one interval, the footprint being convex).
@@ -852,12 +864,32 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     const double shell_out = radius + half_diagonal;
     const double squared_shell_out = shell_out * shell_out;
     const double squared_lower = lower > 0.0 ? lower * lower : -1.0;
-    const auto shell_ys = cell_range(lo.y() - shell_out, hi.y() + shell_out, cell_size);
-    const auto shell_xs = cell_range(lo.x() - shell_out, hi.x() + shell_out, cell_size);
-    for (std::int32_t iy = shell_ys->first; iy <= shell_ys->second; ++iy) {
+    auto shell_ys = *cell_range(lo.y() - shell_out, hi.y() + shell_out, cell_size);
+    auto shell_xs = *cell_range(lo.x() - shell_out, hi.x() + shell_out, cell_size);
+    // An occupied cell nearer than radius is nearest to a footprint point p in the square of an edge cell c with
+    // d(c) - half_diagonal <= |p - obstacle| < radius, and its centre is within radius + half a diagonal of p, so
+    // within radius + a diagonal of c's centre: only the shell around such edge cells is read.
+    if (edge_cell_count <= edge_cells.size()) {
+      const double at_risk_within = radius + half_diagonal + rounding;
+      const double squared_at_risk = at_risk_within * at_risk_within / squared_scale;
+      CellBox at_risk{{std::numeric_limits<std::int32_t>::max(), std::numeric_limits<std::int32_t>::max()},
+                      {std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::min()}};
+      for (std::size_t i = 0; i < edge_cell_count; ++i) {
+        const EdgeCell& cell = edge_cells[i];
+        if (static_cast<double>(cell.squared) >= squared_at_risk) continue;
+        at_risk.min = {std::min(at_risk.min.ix, cell.ix), std::min(at_risk.min.iy, cell.iy)};
+        at_risk.max = {std::max(at_risk.max.ix, cell.ix), std::max(at_risk.max.iy, cell.iy)};
+      }
+      if (at_risk.min.ix <= at_risk.max.ix) {
+        const auto grow = static_cast<std::int32_t>(std::ceil((radius + 2.0 * half_diagonal) / cell_size)) + 1;
+        shell_xs = {std::max(shell_xs.first, at_risk.min.ix - grow), std::min(shell_xs.second, at_risk.max.ix + grow)};
+        shell_ys = {std::max(shell_ys.first, at_risk.min.iy - grow), std::min(shell_ys.second, at_risk.max.iy + grow)};
+      }
+    }
+    for (std::int32_t iy = shell_ys.first; iy <= shell_ys.second; ++iy) {
       const double center_y = (iy + 0.5) * cell_size;
       RowReader row{*this, iy};
-      const auto [first, last] = columns(placed.row_span(center_y, shell_out), rounding, *shell_xs);
+      const auto [first, last] = columns(placed.row_span(center_y, shell_out), shell_xs);
       if (first > last) continue;
       // Reads cell ix when it lies in the shell; false once the walk reaches the cells nearer than `lower`, which are
       // free and one interval of the row, so the row is walked from both ends up to them.
