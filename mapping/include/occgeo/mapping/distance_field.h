@@ -57,9 +57,10 @@ class DistanceFieldSnapshot {
   // inside only have to be free, and a free cell's distance vouches for the next cells of its row, so those are read
   // a few per row. When the bounds are more than a cell apart (up to 1.2 cells even for an exact upper bound), the
   // cells in the thin shell around the footprint where a nearer occupied cell could hide (between the lower bound and
-  // the upper bound less a cell, near the edge cells whose distance allows one) are read. When the footprint grown by request.max_distance_m reaches beyond bounds(),
-  // or request.max_distance_m > max_distance(), geometry::compute_clearance answers. Throws std::invalid_argument
-  // naming the field like geometry::compute_clearance.
+  // the upper bound less a cell, near the edge cells whose distance allows one) are read. When the footprint grown by
+  // request.max_distance_m reaches beyond bounds(), or request.max_distance_m > max_distance(),
+  // geometry::compute_clearance answers. Throws std::invalid_argument naming the field like
+  // geometry::compute_clearance.
   [[nodiscard]] geometry::ClearanceResult compute_clearance(const geometry::ClearanceRequest& request) const;
 
   // The direction in which moving the footprint (translation only, world frame) increases its clearance fastest: the
