@@ -275,6 +275,42 @@ TEST(MovingObstacle, ContactsAreSplitIntoRunningIntoItAndBeingRunInto) {
   EXPECT_EQ(robot.collisions(), 2u);
 }
 
+TEST(MovingObstacle, AWalkerCatchingUpWithARobotDrivingAwayRanIntoIt) {
+  // The robot backs away at 0.1 m/s from a person walking at it at 1 m/s: the person comes into the footprint where
+  // the robot stands, so the contact is theirs, not the robot's, though its wheels turn.
+  const MovingObstacle walker{.shape = Shape::circle({0.0, 0.0}, 0.25),
+                              .waypoints = {{3.0, 0.0}, {-3.0, 0.0}},
+                              .speed_mps = 1.0,
+                              .loop = false};
+  const ShapeWorld world({}, {walker});
+  SimulatedRobot robot(world, bearcat(), {0.0, 0.0, 0.0});
+  for (int i = 0; i < 300; ++i) {
+    if (i % 40 == 0) robot.command({.left_mps = -0.1, .right_mps = -0.1});
+    robot.step();
+  }
+  EXPECT_EQ(robot.collisions_hit_moving(), 1u);
+  EXPECT_EQ(robot.collisions_moving(), 0u);
+  EXPECT_EQ(robot.collisions_at_rest(), 0u);
+  ASSERT_EQ(robot.collision_events().size(), 1u);
+  EXPECT_TRUE(robot.collision_events()[0].moving);
+  EXPECT_TRUE(robot.collision_events()[0].ran_into_robot);
+  EXPECT_NE(robot.collision_events()[0].obstacle.find(" at t = "), std::string::npos);  // the walker, where and when
+
+  // Driving at a person who stands still (a walker that has arrived) is the robot's contact.
+  const MovingObstacle arrived{
+      .shape = Shape::circle({0.0, 0.0}, 0.25), .waypoints = {{1.5, 0.0}, {1.5, 0.0}}, .speed_mps = 1.0, .loop = false};
+  const ShapeWorld still({}, {arrived});
+  SimulatedRobot driving(still, bearcat(), {0.0, 0.0, 0.0});
+  for (int i = 0; i < 400; ++i) {
+    if (i % 40 == 0) driving.command({.left_mps = 0.5, .right_mps = 0.5});
+    driving.step();
+  }
+  EXPECT_EQ(driving.collisions_moving(), 1u);
+  EXPECT_EQ(driving.collisions_hit_moving(), 0u);
+  ASSERT_EQ(driving.collision_events().size(), 1u);
+  EXPECT_FALSE(driving.collision_events()[0].ran_into_robot);
+}
+
 TEST(MovingObstacle, SuccessiveScansSeeTheApproachingObstacleCloser) {
   RobotPreset preset = bearcat();
   preset.laser()->range_noise_sigma_m = 0.0;

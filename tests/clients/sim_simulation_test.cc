@@ -210,9 +210,10 @@ TEST(Report, JsonHasEveryField) {
   const RunSummary summary{.robot_id = "bc \"1\"",
                            .world_file = "worlds/open_field.yaml",
                            .distance_m = 12.5,
-                           .collisions = 2,
+                           .collisions = 3,
                            .collisions_moving = 1,
                            .collisions_at_rest = 1,
+                           .collisions_hit_moving = 1,
                            .sim_time_s = 60.0,
                            .scans_sent = 600,
                            .commands_received = 598,
@@ -221,15 +222,28 @@ TEST(Report, JsonHasEveryField) {
                            .last_state = "deadlock",
                            .state_counts = {{"clear", 590}, {"deadlock", 8}},
                            .messages_sent = {{"laser_scan", 600}, {"odometry", 600}},
-                           .commands_ignored = 3};
+                           .commands_ignored = 3,
+                           .collision_events = {{{.time_s = 4.5,
+                                                  .X_WB = {1.0, 0.5, 0.25},
+                                                  .wheels = {-0.1, -0.1},
+                                                  .moving = true,
+                                                  .ran_into_robot = true,
+                                                  .obstacle = "moving[0]"},
+                                                 "yield_aside"}}};
   EXPECT_EQ(to_json(summary),
             "{\"robot\": \"bc \\\"1\\\"\", \"world\": \"worlds/open_field.yaml\", \"distance_m\": 12.5, "
-            "\"collisions\": 2, \"collisions_moving\": 1, \"collisions_at_rest\": 1, \"sim_time_s\": 60, "
+            "\"collisions\": 3, \"collisions_moving\": 1, \"collisions_at_rest\": 1, \"collisions_hit_moving\": 1, "
+            "\"sim_time_s\": 60, "
             "\"scans_sent\": 600, \"commands_received\": 598, "
             "\"final_pose\": {\"x\": 1.25, \"y\": -2, \"theta\": 0.5}, \"deadlock_reported\": true, "
             "\"last_state\": \"deadlock\", \"state_counts\": {\"clear\": 590, \"deadlock\": 8}, "
-            "\"messages_sent\": {\"laser_scan\": 600, \"odometry\": 600}, \"commands_ignored\": 3}");
-  EXPECT_NE(to_text(summary).find("collisions  2"), std::string::npos);
+            "\"messages_sent\": {\"laser_scan\": 600, \"odometry\": 600}, \"commands_ignored\": 3, "
+            "\"collision_events\": [{\"t_s\": 4.5, \"x\": 1, \"y\": 0.5, \"theta\": 0.25, \"left_mps\": -0.1, "
+            "\"right_mps\": -0.1, \"moving\": true, \"ran_into_robot\": true, \"obstacle\": \"moving[0]\", "
+            "\"state\": \"yield_aside\"}]}");
+  const std::string text = to_text(summary);
+  EXPECT_NE(text.find("collisions  3 (1 moving, 1 hit at rest, 1 hit while moving)"), std::string::npos) << text;
+  EXPECT_NE(text.find("hit while moving by moving[0] (state yield_aside)"), std::string::npos) << text;
 }
 
 TEST(Report, WritesVisiblePixelsAndTraceRows) {

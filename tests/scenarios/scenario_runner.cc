@@ -116,6 +116,20 @@ std::string last_state_of(const std::string& json) {
   return json.substr(at + key.size(), end - at - key.size());
 }
 
+// The simulator's collision_events array, one event object per line, without the brackets.
+std::string collision_events_of(const std::string& json) {
+  const std::string key = "\"collision_events\": [";
+  const auto at = json.find(key);
+  if (at == std::string::npos) return {};
+  const auto end = json.rfind(']');  // the array closes the summary; obstacle names hold brackets of their own
+  if (end == std::string::npos || end < at + key.size()) return {};
+  std::string events = json.substr(at + key.size(), end - at - key.size());
+  for (std::size_t pos = events.find("}, {"); pos != std::string::npos; pos = events.find("}, {", pos)) {
+    events.replace(pos, 4, "}\n{");
+  }
+  return events;
+}
+
 }  // namespace
 
 std::filesystem::path world_path(const std::string& world) {
@@ -403,11 +417,13 @@ ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::s
     result.collisions = static_cast<int>(json_number(out, "collisions"));
     result.collisions_moving = static_cast<int>(json_number(out, "collisions_moving"));
     result.collisions_at_rest = static_cast<int>(json_number(out, "collisions_at_rest"));
+    result.collisions_hit_moving = static_cast<int>(json_number(out, "collisions_hit_moving"));
   } catch (const std::exception& e) {
     result.failure = e.what();
     return result;
   }
   result.last_state = last_state_of(out);
+  result.collision_events = collision_events_of(out);
   std::vector<Eigen::Vector4d> trace = read_sim_trace(dir.path() / "trace.csv");
   if (trace.empty()) {
     result.failure = "empty trace";

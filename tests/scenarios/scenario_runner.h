@@ -48,12 +48,14 @@ struct ScenarioResult {
   int collisions = -1;              // ground truth, whole run
   int collisions_moving = -1;       // of those, begun while the robot moved (it ran into something)
   int collisions_at_rest = -1;      // and while it stood (a moving obstacle ran into it)
+  int collisions_hit_moving = -1;   // and while it moved, a moving obstacle coming into where it stood
   double path_m = 0.0;              // true trajectory length until the goal was reached (or the run ended)
   std::optional<double> optimal_m;  // shortest any-angle path to the goal's tolerance circle, when there is a goal
   std::optional<double> lattice_m;  // shortest 8-connected path on a 0.05 m lattice to the goal's cell (for comparison)
   double sim_s = 0.0;               // sim time from the first motion until the goal was reached (or the run ended)
   double wall_s = 0.0;              // wall time of the whole run
   std::string last_state;           // the behaviour's last state as the simulator received it
+  std::string collision_events;     // the simulator's first contacts (JSON objects, one per line), for a person
   Eigen::Vector3d final_pose = Eigen::Vector3d::Zero();  // x, y, theta of the last trace row
   // The true pose at every batch the simulator sent: sim time (s), x, y (m, world frame), theta (rad). Two lockstep
   // runs of one scenario must give the same rows.

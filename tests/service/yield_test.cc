@@ -162,6 +162,30 @@ TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
   EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, -0.4, 0.0, params, head_on).action, GuardAction::kPass);
 }
 
+TEST(SafetyGuard, AMotionThatClosesInOnAPersonComingAtTheRobotIsStopped) {
+  const geometry::Footprint bearcat =
+      geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
+  // A person 0.15 m off the robot's left side, drifting towards it at 0.2 m/s: standing still, the robot is touched
+  // within a second whatever it does, so the guard used to let every motion through.
+  TrackedObstacle person;
+  person.centre_W = {0.3, 0.8};
+  person.velocity_W = {0.0, -0.2};
+  person.radius_m = 0.25;
+  person.moving = true;
+  const std::vector<TrackedObstacle> beside{person};
+  const GuardParams params;
+  // Turning left in place swings the front left corner into the person; so does an arc to the left.
+  const GuardDecision turn_into = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.0, 0.8, params, beside);
+  EXPECT_EQ(turn_into.action, GuardAction::kStop);
+  EXPECT_EQ(turn_into.model, "moving");
+  EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.3, 0.8, params, beside).action, GuardAction::kStop);
+  // Turning or arcing away to the right, or driving on out of the person's way, opens the gap: not stopped.
+  EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.0, -0.8, params, beside).action, GuardAction::kPass);
+  EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.4, -0.8, params, beside).action, GuardAction::kPass);
+  const GuardDecision ahead = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.6, 0.0, params, beside);
+  EXPECT_EQ(ahead.action, GuardAction::kPass) << ahead.zone << " " << ahead.time_to_contact_s;
+}
+
 // The command source under the yielding: drives straight along its heading at a fixed speed.
 class Straight final : public Behaviour {
  public:

@@ -26,12 +26,18 @@ using client::json_string;
 
 RunSummary summarize(const Simulation& simulation, const std::string& robot_id, const std::string& world_file) {
   const SimulatedRobot& robot = simulation.robot();
+  std::vector<RunSummary::Collision> collisions;
+  for (std::size_t i = 0; i < robot.collision_events().size(); ++i) {
+    collisions.push_back({robot.collision_events()[i],
+                          i < simulation.collision_states().size() ? simulation.collision_states()[i] : ""});
+  }
   return RunSummary{.robot_id = robot_id,
                     .world_file = world_file,
                     .distance_m = robot.distance_m(),
                     .collisions = robot.collisions(),
                     .collisions_moving = robot.collisions_moving(),
                     .collisions_at_rest = robot.collisions_at_rest(),
+                    .collisions_hit_moving = robot.collisions_hit_moving(),
                     .sim_time_s = robot.time_s(),
                     .scans_sent = simulation.scan_count(),
                     .commands_received = simulation.command_count(),
@@ -40,10 +46,28 @@ RunSummary summarize(const Simulation& simulation, const std::string& robot_id, 
                     .last_state = simulation.last_state(),
                     .state_counts = simulation.state_counts(),
                     .messages_sent = simulation.message_counts(),
-                    .commands_ignored = simulation.ignored_command_count()};
+                    .commands_ignored = simulation.ignored_command_count(),
+                    .collision_events = std::move(collisions)};
 }
 
 namespace {
+
+// The contacts as a JSON array.
+std::string collisions_json(const std::vector<RunSummary::Collision>& collisions) {
+  std::string out;
+  for (const RunSummary::Collision& c : collisions) {
+    if (!out.empty()) out += ", ";
+    out += "{\"t_s\": " + number_text(c.event.time_s) + ", \"x\": " + number_text(c.event.X_WB.x) +
+           ", \"y\": " + number_text(c.event.X_WB.y) + ", \"theta\": " + number_text(c.event.X_WB.theta) +
+           ", \"left_mps\": " + number_text(c.event.wheels.left_mps) +
+           ", \"right_mps\": " + number_text(c.event.wheels.right_mps) +
+           ", \"moving\": " + (c.event.moving ? "true" : "false") +
+           ", \"ran_into_robot\": " + (c.event.ran_into_robot ? "true" : "false") +
+           ", \"obstacle\": " + json_string(c.event.obstacle) +
+           ", \"state\": " + json_string(c.state.empty() ? "-" : c.state) + "}";
+  }
+  return out;
+}
 
 // "key": count pairs for the JSON summary; an empty key is written as "-".
 std::string counts_json(const std::map<std::string, std::uint64_t>& counts) {
@@ -63,6 +87,7 @@ std::string to_json(const RunSummary& summary) {
          ", \"collisions\": " + std::to_string(summary.collisions) +
          ", \"collisions_moving\": " + std::to_string(summary.collisions_moving) +
          ", \"collisions_at_rest\": " + std::to_string(summary.collisions_at_rest) +
+         ", \"collisions_hit_moving\": " + std::to_string(summary.collisions_hit_moving) +
          ", \"sim_time_s\": " + number_text(summary.sim_time_s) +
          ", \"scans_sent\": " + std::to_string(summary.scans_sent) +
          ", \"commands_received\": " + std::to_string(summary.commands_received) +
@@ -71,7 +96,8 @@ std::string to_json(const RunSummary& summary) {
          "}, \"deadlock_reported\": " + (summary.deadlock_reported ? "true" : "false") +
          ", \"last_state\": " + json_string(summary.last_state) + ", \"state_counts\": {" +
          counts_json(summary.state_counts) + "}, \"messages_sent\": {" + counts_json(summary.messages_sent) +
-         "}, \"commands_ignored\": " + std::to_string(summary.commands_ignored) + "}";
+         "}, \"commands_ignored\": " + std::to_string(summary.commands_ignored) + ", \"collision_events\": [" +
+         collisions_json(summary.collision_events) + "]}";
 }
 
 std::string to_text(const RunSummary& summary) {
@@ -80,8 +106,16 @@ std::string to_text(const RunSummary& summary) {
        << std::setprecision(2) << "  sim time    " << summary.sim_time_s << " s\n"
        << std::setprecision(3) << "  distance    " << summary.distance_m << " m\n"
        << "  collisions  " << summary.collisions << " (" << summary.collisions_moving << " moving, "
-       << summary.collisions_at_rest << " hit at rest)\n"
-       << "  scans sent  " << summary.scans_sent << " sensor messages\n"
+       << summary.collisions_at_rest << " hit at rest, " << summary.collisions_hit_moving << " hit while moving)\n";
+  for (const RunSummary::Collision& c : summary.collision_events) {
+    text << std::setprecision(2) << "    t " << c.event.time_s << " s at (" << c.event.X_WB.x << ", " << c.event.X_WB.y
+         << ") wheels " << c.event.wheels.left_mps << " / " << c.event.wheels.right_mps << " m/s, "
+         << (!c.event.ran_into_robot ? "ran into "
+             : c.event.moving        ? "hit while moving by "
+                                     : "hit at rest by ")
+         << c.event.obstacle << " (state " << (c.state.empty() ? "-" : c.state) << ")\n";
+  }
+  text << "  scans sent  " << summary.scans_sent << " sensor messages\n"
        << "  commands    " << summary.commands_received
        << " (last state: " << (summary.last_state.empty() ? "-" : summary.last_state)
        << ", deadlock reported: " << (summary.deadlock_reported ? "yes" : "no") << ")\n"

@@ -147,16 +147,29 @@ void SimulatedRobot::step() {
     }
     // Standing still: only a moving obstacle can run into the robot.
     if (world_->has_moving_obstacles()) {
-      const bool contact = world_->find_collision(footprint_, X_WB_, time_s()).has_value();
-      if (contact && !in_contact_) ++collisions_at_rest_;
-      in_contact_ = contact;
+      const std::optional<std::string> hit = world_->find_collision(footprint_, X_WB_, time_s());
+      if (hit && !in_contact_) {
+        ++collisions_at_rest_;
+        if (collision_events_.size() < kMaxCollisionEvents) {
+          collision_events_.push_back({time_s(), X_WB_, wheels, false, true, *hit});
+        }
+      }
+      in_contact_ = hit.has_value();
     }
     return;
   }
   const geometry::BodyVelocity body = body_velocity(wheels);
   const geometry::Pose2 X_WB_next = geometry::integrate(X_WB_, body, kPhysicsStep_s);
-  if (world_->find_collision(footprint_, X_WB_next, time_s())) {
-    if (!in_contact_) ++collisions_moving_;
+  if (const std::optional<std::string> hit = world_->find_collision(footprint_, X_WB_next, time_s())) {
+    if (!in_contact_) {
+      // Where the robot stands, at the new time: an obstacle there came to the robot, not the robot to it.
+      const bool ran_into_robot =
+          world_->has_moving_obstacles() && world_->find_collision(footprint_, X_WB_, time_s()).has_value();
+      ++(ran_into_robot ? collisions_hit_moving_ : collisions_moving_);
+      if (collision_events_.size() < kMaxCollisionEvents) {
+        collision_events_.push_back({time_s(), X_WB_, wheels, true, ran_into_robot, *hit});
+      }
+    }
     in_contact_ = true;
     return;
   }

@@ -250,6 +250,7 @@ void Simulation::step() {
     robot_.command(WheelCommand{.left_mps = wheels.left_mps, .right_mps = wheels.right_mps});
   }
   robot_.step();
+  while (collision_states_.size() < robot_.collision_events().size()) collision_states_.push_back(last_state_);
 }
 
 }  // namespace occgeo::sim

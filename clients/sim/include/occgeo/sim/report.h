@@ -5,6 +5,7 @@
 #include <ostream>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "occgeo/geometry/pose.h"
 #include "occgeo/sim/simulation.h"
@@ -20,6 +21,7 @@ struct RunSummary {
   std::uint64_t collisions = 0;                        // contacts with obstacles, both kinds below
   std::uint64_t collisions_moving = 0;                 // the robot, moving, ran into an obstacle
   std::uint64_t collisions_at_rest = 0;                // a moving obstacle ran into the robot standing still
+  std::uint64_t collisions_hit_moving = 0;             // a moving obstacle ran into the robot while its wheels turned
   double sim_time_s = 0.0;                             // sim time simulated, seconds
   std::uint64_t scans_sent = 0;                        // sensor messages of every kind
   std::uint64_t commands_received = 0;                 // motion commands applied
@@ -29,6 +31,12 @@ struct RunSummary {
   std::map<std::string, std::uint64_t> state_counts;   // applied commands per behaviour state
   std::map<std::string, std::uint64_t> messages_sent;  // messages per kind (odometry, laser_scan, range_array, ...)
   std::uint64_t commands_ignored = 0;                  // motion commands not applied because --drive steered
+  // The first contacts, in order (SimulatedRobot::collision_events), each with the behaviour state then in effect.
+  struct Collision {
+    SimulatedRobot::CollisionEvent event;
+    std::string state;
+  };
+  std::vector<Collision> collision_events;
 };
 
 // The summary of a simulation run for the robot and world file given.
@@ -36,7 +44,8 @@ RunSummary summarize(const Simulation& simulation, const std::string& robot_id, 
 
 // One JSON object on one line: robot, world, distance_m, collisions, sim_time_s, scans_sent, commands_received,
 // final_pose {x, y, theta}, deadlock_reported, last_state, state_counts {state: commands}, messages_sent {kind: count},
-// commands_ignored.
+// commands_ignored, collisions_hit_moving, collision_events [{t_s, x, y, theta, left_mps, right_mps, moving,
+// ran_into_robot, obstacle, state}].
 std::string to_json(const RunSummary& summary);
 
 // A few lines for people.

@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "occgeo/geometry/kinematics.h"
 #include "occgeo/geometry/pose.h"
@@ -78,11 +80,28 @@ class SimulatedRobot {
   // Sum of the position changes of all steps, metres.
   [[nodiscard]] double distance_m() const { return distance_m_; }
   // Number of times the robot ran into an obstacle (transitions into contact, not blocked steps).
-  [[nodiscard]] std::uint64_t collisions() const { return collisions_moving_ + collisions_at_rest_; }
+  [[nodiscard]] std::uint64_t collisions() const {
+    return collisions_moving_ + collisions_hit_moving_ + collisions_at_rest_;
+  }
   // Contacts begun while the wheels turned (the robot ran into something) ...
   [[nodiscard]] std::uint64_t collisions_moving() const { return collisions_moving_; }
   // ... and while it stood still (a moving obstacle ran into it).
   [[nodiscard]] std::uint64_t collisions_at_rest() const { return collisions_at_rest_; }
+  // ... and while the wheels turned, but with a moving obstacle already inside the footprint where the robot stood:
+  // it ran into the robot (a robot backing or creeping away from someone walking faster).
+  [[nodiscard]] std::uint64_t collisions_hit_moving() const { return collisions_hit_moving_; }
+  // One contact as it began: when, where, what the wheels were doing and what was hit.
+  struct CollisionEvent {
+    double time_s = 0.0;
+    geometry::Pose2 X_WB;          // base_link when the contact began
+    geometry::WheelSpeeds wheels;  // rim speeds of the blocked step (zeros for a robot at rest)
+    bool moving = false;           // the wheels turned (else the robot stood)
+    bool ran_into_robot = false;   // a moving obstacle was already inside the footprint where the robot stood
+    std::string obstacle;          // the world's description of what was hit
+  };
+  // The first kMaxCollisionEvents contacts, in order.
+  static constexpr std::size_t kMaxCollisionEvents = 32;
+  [[nodiscard]] const std::vector<CollisionEvent>& collision_events() const { return collision_events_; }
   // Each wheel's (track's rim) true signed travel since the start, metres, positive forwards.
   [[nodiscard]] double left_travel_m() const { return left_travel_m_; }
   [[nodiscard]] double right_travel_m() const { return right_travel_m_; }
@@ -120,7 +139,9 @@ class SimulatedRobot {
   double right_travel_m_ = 0.0;
   std::uint64_t collisions_moving_ = 0;
   std::uint64_t collisions_at_rest_ = 0;
+  std::uint64_t collisions_hit_moving_ = 0;
   bool in_contact_ = false;
+  std::vector<CollisionEvent> collision_events_;
 };
 
 }  // namespace occgeo::sim

@@ -111,6 +111,8 @@ class Simulation {
   [[nodiscard]] const std::map<std::string, std::uint64_t>& state_counts() const { return state_counts_; }
   // The behaviour state of the last applied command; empty before the first.
   [[nodiscard]] const std::string& last_state() const { return last_state_; }
+  // The behaviour state in effect when each of the robot's collision_events() began.
+  [[nodiscard]] const std::vector<std::string>& collision_states() const { return collision_states_; }
   // Every obstacle pixel a noise-free beam of any sensor so far entered (laser beams, the servo beam, and sonar
   // acoustic axes whose own echo the specular rule accepted, see RangeArraySimulator::fire); always empty for shape
   // worlds.
@@ -155,6 +157,7 @@ class Simulation {
   std::uint64_t ignored_command_count_ = 0;
   std::map<std::string, std::uint64_t> state_counts_;
   std::string last_state_;
+  std::vector<std::string> collision_states_;
   std::set<Pixel> visible_pixels_;
 };
 

@@ -16,8 +16,9 @@
 // OctoMap with FCL, the PTEM's restricted region), then zones in the style of a collision monitor decide: stop
 // when contact is near in time or distance, slow down by a ratio when contact lies within the horizon, limit the
 // speeds when an obstacle is close to the footprint where it stands. Moving obstacles (tracked PTEM clusters) are
-// checked at their predicted positions: the guard stops or slows a motion that runs into where one will be, but never
-// a motion that only fails to get out of its way (the robot standing there would be hit as well).
+// checked at their predicted positions: the guard stops or slows a motion that runs into where one will be, or that
+// closes in on one coming at the robot faster than standing still would, but never a motion that only fails to get
+// out of its way (the robot standing there would be hit as well).
 
 namespace occgeo::service::control {
 
@@ -77,8 +78,9 @@ double predicted_gap(std::span<const TrackedObstacle> moving, const geometry::Fo
                      const geometry::Pose2& X_WB, double linear_mps, double angular_radps, double drive_s,
                      double horizon_s, double* at_s = nullptr);
 
-// The first time within horizon_s at which the footprint, driving the body velocity from X_WB, comes within margin_m
-// of a moving obstacle's predicted disc; nullopt when it never does.
+// The first time in [0, horizon_s] at which the footprint, driving the body velocity from X_WB, comes within margin_m
+// of a moving obstacle's predicted disc (0 when it is that close now, also for a horizon of 0); nullopt when it never
+// does.
 std::optional<double> predicted_contact_s(std::span<const TrackedObstacle> moving, const geometry::Footprint& footprint,
                                           const geometry::Pose2& X_WB, double linear_mps, double angular_radps,
                                           double horizon_s, double margin_m);
