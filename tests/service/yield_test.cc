@@ -139,16 +139,20 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
   EXPECT_EQ(tracker.tracks().size(), before.size());
 }
 
-TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
-  const geometry::Footprint bearcat =
-      geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
-  // A person 1.2 m ahead of the front, 1.4 m to the right, walking left at 0.7 m/s: crosses 2 s from now.
+// A tracked person (0.25 m disc) at centre_W walking at velocity_W, world frame.
+TrackedObstacle walking_person(const Eigen::Vector2d& centre_W, const Eigen::Vector2d& velocity_W) {
   TrackedObstacle person;
-  person.centre_W = {1.7, -1.4};
-  person.velocity_W = {0.0, 0.7};
+  person.centre_W = centre_W;
+  person.velocity_W = velocity_W;
   person.radius_m = 0.25;
   person.moving = true;
-  const std::vector<TrackedObstacle> moving{person};
+  return person;
+}
+
+TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
+  const geometry::Footprint bearcat = bearcat_shape().footprint;
+  // A person 1.2 m ahead of the front, 1.4 m to the right, walking left at 0.7 m/s: crosses 2 s from now.
+  const std::vector<TrackedObstacle> moving{walking_person({1.7, -1.4}, {0.0, 0.7})};
   const GuardParams params;
   const GuardDecision ahead = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.6, 0.0, params, moving);
   EXPECT_NE(ahead.action, GuardAction::kPass);
@@ -156,23 +160,15 @@ TEST(SafetyGuard, StopsAMotionIntoAWalkersPredictedPathButNotOneOutOfIt) {
   const GuardDecision without = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.6, 0.0, params);
   EXPECT_EQ(without.action, GuardAction::kPass);
   // Walking straight at the robot: backing away is what gets it out, and is not stopped.
-  person.centre_W = {2.5, 0.0};
-  person.velocity_W = {-0.6, 0.0};
-  const std::vector<TrackedObstacle> head_on{person};
+  const std::vector<TrackedObstacle> head_on{walking_person({2.5, 0.0}, {-0.6, 0.0})};
   EXPECT_EQ(guard_command({}, bearcat, {0.0, 0.0, 0.0}, -0.4, 0.0, params, head_on).action, GuardAction::kPass);
 }
 
 TEST(SafetyGuard, AMotionThatClosesInOnAPersonComingAtTheRobotIsStopped) {
-  const geometry::Footprint bearcat =
-      geometry::BoxFootprint{.length = 1.0, .width = 0.8, .height = 1.2, .center_x = 0.0};
-  // A person 0.15 m off the robot's left side, drifting towards it at 0.2 m/s: standing still, the robot is touched
-  // within a second whatever it does, so the guard used to let every motion through.
-  TrackedObstacle person;
-  person.centre_W = {0.3, 0.8};
-  person.velocity_W = {0.0, -0.2};
-  person.radius_m = 0.25;
-  person.moving = true;
-  const std::vector<TrackedObstacle> beside{person};
+  const geometry::Footprint bearcat = bearcat_shape().footprint;
+  // A person 0.15 m off the robot's left side (within the prediction margin already), drifting towards it at
+  // 0.2 m/s: standing still, the robot is touched within a second whatever it does.
+  const std::vector<TrackedObstacle> beside{walking_person({0.3, 0.8}, {0.0, -0.2})};
   const GuardParams params;
   // Turning left in place swings the front left corner into the person; so does an arc to the left.
   const GuardDecision turn_into = guard_command({}, bearcat, {0.0, 0.0, 0.0}, 0.0, 0.8, params, beside);
