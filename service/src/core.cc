@@ -29,7 +29,7 @@ std::uint64_t next_snapshot_generation() {
 }  // namespace
 
 World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand,
-             std::optional<IngestStrand> octree_lane)
+             std::optional<IngestStrand> octree_lane, std::optional<IngestStrand> publish_lane)
     : name_(std::move(name)),
       grid_(std::move(grid)),
       ptem_params_(params.ptem),
@@ -43,6 +43,7 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
       octree_lane_(params.octomap_publish_every_messages == 0 && params.octomap.min_publish_interval_s > 0.0
                        ? std::move(octree_lane)
                        : std::nullopt),
+      publish_lane_(octree_lane_ ? std::move(publish_lane) : std::nullopt),
       octomap_timer_(octree_lane_ ? *octree_lane_ : strand_),
       octomap_publish_every_messages_(params.octomap_publish_every_messages) {
   auto grid_snapshot = grid_.snapshot();
@@ -58,22 +59,72 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
 }
 
 void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
-  auto grid = grid_.snapshot();
+  stage_on_strand(touched);
+  publish_staged_on_strand();
+}
+
+void World::stage_on_strand(std::optional<mapping::CellBox> touched) {
+  publish_staged_on_strand();  // a publication staged before is never dropped
+  staged_ = StagedPublication{grid_.snapshot(), ptem_.snapshot(), grid_.take_occupancy_changes(), touched};
+  latest_grid_on_strand_ = staged_->grid;
+  latest_ptem_on_strand_ = staged_->ptem;
+}
+
+void World::publish_staged_on_strand() {
+  if (!staged_) return;
+  StagedPublication staged = std::move(*staged_);
+  staged_.reset();
+  if (!publish_lane_) {
+    publish_here(staged);
+    return;
+  }
+  // A lane that cannot keep up (a driver flooding scans without waiting for acks) slows ingest instead of holding an
+  // ever longer queue of grid versions.
+  if (publish_backlog_.load(std::memory_order_acquire) >= kPublishBacklogMessages) wait_for_publications_on_strand();
+  publish_backlog_.fetch_add(1, std::memory_order_acq_rel);
+  asio::post(*publish_lane_, [self = shared_from_this(), staged = std::move(staged)]() mutable {
+    self->publish_here(staged);
+    self->publish_backlog_.fetch_sub(1, std::memory_order_acq_rel);
+  });
+}
+
+void World::publish_here(StagedPublication& staged) {
   // The grid's log of flipped cells keeps this step in proportion to what changed; `touched` (the area the
   // messages could reach) is the fallback when the log overflowed.
-  if (const auto changed = grid_.take_occupancy_changes()) {
-    distance_field_.update(grid, std::span<const geometry::CellIndex>(*changed));
+  if (staged.changed) {
+    distance_field_.update(staged.grid, std::span<const geometry::CellIndex>(*staged.changed));
   } else {
-    distance_field_.update(grid, touched);
+    distance_field_.update(staged.grid, staged.touched);
   }
-  auto ptem = ptem_.snapshot();
   auto distance = distance_field_.snapshot();
-  // The octree's snapshot is its own (publish_octomap_here), possibly from the lane.
+  // The octree's snapshot is its own (publish_octomap_here), possibly from the octree lane.
   const std::lock_guard lock(snapshot_mutex_);
-  snapshot_.grid = std::move(grid);
-  snapshot_.ptem = std::move(ptem);
+  snapshot_.grid = std::move(staged.grid);
+  snapshot_.ptem = std::move(staged.ptem);
   snapshot_.distance = std::move(distance);
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
+}
+
+void World::after_publications_on_strand(std::function<void()> reply) {
+  if (publish_lane_) {
+    asio::post(*publish_lane_, std::move(reply));
+  } else {
+    reply();
+  }
+}
+
+void World::wait_for_publications_on_strand() {
+  if (!publish_lane_) return;
+  std::promise<void> done;
+  asio::post(*publish_lane_, [&done] { done.set_value(); });
+  done.get_future().wait();
+}
+
+WorldSnapshot World::snapshots_on_strand() const {
+  WorldSnapshot models = snapshots();
+  if (latest_grid_on_strand_) models.grid = latest_grid_on_strand_;
+  if (latest_ptem_on_strand_) models.ptem = latest_ptem_on_strand_;
+  return models;
 }
 
 void World::apply_octree_work_on_strand(std::vector<OctreeWork> work) {
@@ -357,7 +408,8 @@ void ServerCore::drain() {
     asio::post(robot->world().strand(), [robot] { robot->stop_watchdog_on_strand(); });
   }
   ingest_pool_.join();
-  octree_pool_.join();  // after the ingest strands, which hand it work
+  octree_pool_.join();   // after the ingest strands, which hand it work
+  publish_pool_.join();  // likewise
   for (const auto& world : worlds()) world->retire_octree_lane();
   query_pool_.join();
 }
@@ -366,9 +418,9 @@ std::shared_ptr<World> ServerCore::world(const std::string& name) {
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot = std::make_shared<World>(name, mapping::HimmGrid(config_.himm), world_params(name),
-                                   asio::make_strand(ingest_pool_.get_executor()),
-                                   asio::make_strand(octree_pool_.get_executor()));
+    slot = std::make_shared<World>(
+        name, mapping::HimmGrid(config_.himm), world_params(name), asio::make_strand(ingest_pool_.get_executor()),
+        asio::make_strand(octree_pool_.get_executor()), asio::make_strand(publish_pool_.get_executor()));
     slot->attach_journal(durability::make_world_journal(config_, metrics_, name));
   }
   return slot;
@@ -391,9 +443,9 @@ std::shared_ptr<World> ServerCore::add_world(const std::string& name, mapping::H
   const std::lock_guard lock(registry_mutex_);
   auto& slot = worlds_[name];
   if (!slot) {
-    slot = std::make_shared<World>(name, std::move(grid), world_params(name),
-                                   asio::make_strand(ingest_pool_.get_executor()),
-                                   asio::make_strand(octree_pool_.get_executor()));
+    slot = std::make_shared<World>(
+        name, std::move(grid), world_params(name), asio::make_strand(ingest_pool_.get_executor()),
+        asio::make_strand(octree_pool_.get_executor()), asio::make_strand(publish_pool_.get_executor()));
   }
   return slot;
 }

@@ -95,8 +95,11 @@ struct WorldParams {
 class World : public std::enable_shared_from_this<World> {
  public:
   // octree_lane: where the octree's work runs when it is published on a timer; nullopt keeps it on `strand`.
+  // publish_lane: where the distance field is updated and publications are made, with an octree lane (see
+  // publish_staged_on_strand); nullopt, or no octree lane, keeps them on `strand`.
   World(std::string name, mapping::HimmGrid grid, const WorldParams& params, IngestStrand strand,
-        std::optional<IngestStrand> octree_lane = std::nullopt);
+        std::optional<IngestStrand> octree_lane = std::nullopt,
+        std::optional<IngestStrand> publish_lane = std::nullopt);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] IngestStrand& strand() { return strand_; }
@@ -130,19 +133,44 @@ class World : public std::enable_shared_from_this<World> {
   // compare; when it overflowed, those inside `touched` (it must hold every cell whose occupancy may
   // have flipped since the last publication; nullopt compares the whole grid). The OctoMap is published too when its
   // last snapshot is older than octomap.min_publish_interval_s; otherwise a timer on the strand publishes it when that
-  // interval has passed, so readers never see it lag by more. Call only from the world's strand.
+  // interval has passed, so readers never see it lag by more. With a publish lane all of this but the octree happens
+  // there, after the call returns (see stage_on_strand). Call only from the world's strand.
   void publish_on_strand(std::optional<mapping::CellBox> touched = std::nullopt);
+  // publish_on_strand in two steps, for a scan that steers its robot: stage_on_strand takes the grid's and the PTEM's
+  // snapshots, which snapshots_on_strand then gives the robot's command, and publish_staged_on_strand, after the
+  // command went out, brings the distance field in step and makes grid, PTEM and field visible to readers together.
+  // A flipped cell costs the field a wavefront out to max_distance_m (about a millisecond in the open at 0.1 m cells)
+  // and no command reads the field, so with a publish lane that step runs there, in publication order, and the strand
+  // goes on to the next message (another robot's scan) at once. Both only from the world's strand;
+  // publish_staged_on_strand does nothing when nothing is staged.
+  void stage_on_strand(std::optional<mapping::CellBox> touched = std::nullopt);
+  void publish_staged_on_strand();
+  // Runs reply once every publication staged before has been made (on the publish lane, or here without one): a
+  // driver's acks and rejections go through it, so an ack means its message is in the published models and replies
+  // keep the messages' order. Call only from the world's strand.
+  void after_publications_on_strand(std::function<void()> reply);
+  // Returns once every publication staged before has been made, e.g. before a restored world takes connections. Call
+  // only from the world's strand (or before any work reaches it), never from the publish lane.
+  void wait_for_publications_on_strand();
+  // The models as the strand has them: the grid and PTEM of the latest message staged or published, with the latest
+  // published octree and field. Call only from the world's strand.
+  [[nodiscard]] WorldSnapshot snapshots_on_strand() const;
   // Publishes the OctoMap now, with all octree work handed over before (e.g. before an export); call only from the
   // world's strand.
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
   // Once the octree pool has been joined (ServerCore::drain), the octree's work runs on the caller, e.g. the final
   // snapshot at shutdown. Call only when no thread uses the world's strands.
-  void retire_octree_lane() { octree_lane_.reset(); }
+  void retire_octree_lane() {
+    octree_lane_.reset();
+    publish_lane_.reset();
+  }
   // True when the octree's work runs on a lane of its own (published on a timer); false when it runs on the strand,
   // inline and in step with the grid (octomap_publish_every_messages, as lockstep runs and tests use).
   [[nodiscard]] bool octree_has_lane() const { return octree_lane_.has_value(); }
   // How many messages' octree work the lane may hold before the ingest strand waits for it.
   static constexpr int kOctreeBacklogMessages = 32;
+  // How many publications the publish lane may hold before the ingest strand waits for it.
+  static constexpr int kPublishBacklogMessages = 32;
   // What the models take as of their latest snapshots; safe from any thread, costs a walk over the snapshots' tiles
   // and blocks (not their cells).
   [[nodiscard]] WorldMemory memory() const;
@@ -170,9 +198,11 @@ class World : public std::enable_shared_from_this<World> {
   mapping::DistanceField distance_field_;
   mapping::DistanceFieldParams distance_field_params_;  // also the octree band fields'
   IngestStrand strand_;
-  std::optional<IngestStrand> octree_lane_;  // set when the octree's work runs off the ingest strand
-  std::atomic<int> octree_backlog_{0};       // messages handed to the lane and not yet applied
-  asio::steady_timer octomap_timer_;         // on the octree lane when there is one
+  std::optional<IngestStrand> octree_lane_;   // set when the octree's work runs off the ingest strand
+  std::optional<IngestStrand> publish_lane_;  // set with an octree lane: the field's updates and the publications
+  std::atomic<int> publish_backlog_{0};       // publications handed to the publish lane and not yet made
+  std::atomic<int> octree_backlog_{0};        // messages handed to the lane and not yet applied
+  asio::steady_timer octomap_timer_;          // on the octree lane when there is one
   bool octomap_timer_armed_ = false;
   std::uint32_t octomap_publish_every_messages_ = 0;
   std::uint32_t messages_since_octomap_ = 0;
@@ -185,6 +215,19 @@ class World : public std::enable_shared_from_this<World> {
   static constexpr std::size_t kMaxOctreeBands = 4;
   std::vector<std::unique_ptr<OctreeBandField>> octree_bands_;
   std::shared_ptr<OctreeBandRequests> octree_band_requests_ = std::make_shared<OctreeBandRequests>();
+  // What stage_on_strand took, until publish_staged_on_strand hands it on; only on the strand.
+  struct StagedPublication {
+    std::shared_ptr<const mapping::GridSnapshot> grid;
+    std::shared_ptr<const mapping::PtemSnapshot> ptem;
+    std::optional<std::vector<geometry::CellIndex>> changed;  // the grid's flipped cells; nullopt: the log overflowed
+    std::optional<mapping::CellBox> touched;
+  };
+  std::optional<StagedPublication> staged_;
+  // The grid and PTEM of the latest message staged, for snapshots_on_strand; only on the strand.
+  std::shared_ptr<const mapping::GridSnapshot> latest_grid_on_strand_;
+  std::shared_ptr<const mapping::PtemSnapshot> latest_ptem_on_strand_;
+  // Brings the distance field in step with `staged` and publishes it; on the publish lane, or the strand without one.
+  void publish_here(StagedPublication& staged);
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers
   WorldSnapshot snapshot_;
   // Changes with every change of snapshot_, unique across worlds (see snapshots_for_this_thread).
@@ -494,6 +537,9 @@ class ServerCore {
   asio::thread_pool ingest_pool_{1};
   // The worlds' octree lanes (see World): one thread, so that a scan's octree insertion never delays a robot's command.
   asio::thread_pool octree_pool_{1};
+  // The worlds' publish lanes (see World::publish_staged_on_strand): one thread at the ingest pool's priority, so that
+  // a distance field's update never delays the next scan's command and readers see each message soon after it.
+  asio::thread_pool publish_pool_{1};
   static constexpr std::size_t kQueryThreads = 2;
   asio::thread_pool query_pool_{kQueryThreads};
   mutable std::mutex registry_mutex_;

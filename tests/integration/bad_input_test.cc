@@ -101,8 +101,16 @@ class BadInput : public ::testing::Test {
     driver_ = std::make_unique<client::Connection>(open_driver_session(server_->address(), "robot-a"));
     send_odometry(1, 0.0);
     // One good scan so the map has content, answered by a motion command.
-    const auto command = send_scan_expect_command(1, 0.1, std::vector<float>(181, 3.0F));
-    ASSERT_TRUE(command.has_value());
+    send_scan(1, 0.1, std::vector<float>(181, 3.0F));
+    // The ack says the scan is in the published map (the command leaves before the publication).
+    bool commanded = false, acknowledged = false;
+    for (int i = 0; i < 10 && !(commanded && acknowledged); ++i) {
+      const auto reply = driver_->receive(std::chrono::seconds(5));
+      if (!reply) break;
+      commanded = commanded || (reply->has_motion_command() && reply->motion_command().answers_scan_seq() == 1);
+      acknowledged = acknowledged || (reply->has_scan_ack() && reply->scan_ack().seq() == 1);
+    }
+    ASSERT_TRUE(commanded && acknowledged);
     map_before_ = grid();
   }
 

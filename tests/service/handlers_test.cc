@@ -32,7 +32,9 @@ class Handlers : public ::testing::Test {
     auto session = driver(robot_id);
     handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
     handle_laser_scan(session, scan(1, 0.1, 3.0F));
-    EXPECT_TRUE(session->next_of(v1::ServerMessage::kMotionCommand));
+    EXPECT_TRUE(session->take_first_of(v1::ServerMessage::kMotionCommand));
+    // The ack, not the command, says the scan is in the published models: the command leaves before the publication.
+    EXPECT_TRUE(session->take_first_of(v1::ServerMessage::kScanAck));
     return session;
   }
 
@@ -161,6 +163,26 @@ TEST_F(Handlers, ScanBeforeOdometryIsRejectedAndLeavesTheMapAlone) {
   EXPECT_EQ(reply->error().code(), v1::ERROR_OUT_OF_ORDER);
   core_.drain();
   EXPECT_EQ(core_.world("default")->snapshot()->version(), 0U);
+}
+
+// A scan's ack is registered after its publication, off the world strand; the rejection of the next message (seq not
+// increased) is decided on the strand at once, and must still reach the driver after that ack.
+TEST_F(Handlers, ARejectionNeverOvertakesTheAckOfTheScanBeforeIt) {
+  auto session = driver("r1");
+  handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+  for (std::uint64_t seq = 1; seq <= 20; ++seq) {
+    handle_laser_scan(session, scan(seq, 0.1 * static_cast<double>(seq), 2.0F + 0.05F * static_cast<float>(seq)));
+    handle_laser_scan(session, scan(seq, 0.1 * static_cast<double>(seq) + 0.01, 1.5F));  // same seq, other ranges
+    std::vector<v1::ServerMessage::BodyCase> replies;
+    for (int i = 0; i < 3 && replies.size() < 2; ++i) {
+      const auto reply = session->next();
+      ASSERT_TRUE(reply) << "scan " << seq;
+      if (reply->has_scan_ack() || reply->has_error()) replies.push_back(reply->body_case());
+    }
+    ASSERT_EQ(replies.size(), 2U) << "scan " << seq;
+    EXPECT_EQ(replies[0], v1::ServerMessage::kScanAck) << "scan " << seq;
+    EXPECT_EQ(replies[1], v1::ServerMessage::kError) << "scan " << seq;
+  }
 }
 
 TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {

@@ -272,6 +272,7 @@ void restore_worlds(ServerCore& core) {
     journal->restore_delivered(std::move(delivered));
     world->attach_journal(std::move(journal));
     world->publish_on_strand();
+    world->wait_for_publications_on_strand();  // readers see the restored world from the first connection on
     world->publish_octomap_on_strand();
     log::info(
         "world_restored",

@@ -248,7 +248,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
     return command;
   }
   const std::optional<geometry::Pose2> X_WB = robot.state().X_WB;
-  const WorldSnapshot snapshot = robot.world().snapshots();
+  const WorldSnapshot snapshot = robot.world().snapshots_on_strand();
   control::BehaviourCommand wanted;
   std::vector<Eigen::Vector2d> path_W;  // what the behaviour plans from here, for the status and the web view
   v1::BehaviourState state = v1::BEHAVIOUR_STATE_TELEOP;

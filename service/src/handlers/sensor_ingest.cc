@@ -19,10 +19,12 @@ void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldE
 
 namespace {
 
-// Hands an accepted sensor message to the observers recording the session: a copy, with where it was placed and which
-// cells it may have changed. Posting it is all that happens here; a slow observer's queue drops, never this strand.
-void publish_accepted(const SessionPtr& session, World& world, const SensorMessageHeader& header,
-                      const geometry::Pose2& X_WB, const std::optional<mapping::CellBox>& touched) {
+// The event that hands an accepted sensor message to the observers recording the session: a copy, with where it was
+// placed and which cells it may have changed; nullptr for a kind they are not sent. Posting it is all that happens
+// later; a slow observer's queue drops, never this strand.
+std::shared_ptr<v1::WatchEvent> accepted_event(World& world, const SensorMessageHeader& header,
+                                               const geometry::Pose2& X_WB,
+                                               const std::optional<mapping::CellBox>& touched) {
   auto event = std::make_shared<v1::WatchEvent>();
   event->set_seq(header.seq);
   event->set_world_version(world.grid_on_strand().version());
@@ -46,9 +48,9 @@ void publish_accepted(const SessionPtr& session, World& world, const SensorMessa
   } else if (header.kind == "point_cloud") {
     event->mutable_point_cloud()->CheckTypeAndMergeFrom(message);
   } else {
-    return;
+    return nullptr;
   }
-  session->publish_data(std::move(event));
+  return event;
 }
 
 }  // namespace
@@ -74,14 +76,16 @@ bool ingest_sensor_message_on_strand(
     ack.mutable_scan_ack()->set_seq(header.seq);
     ack.mutable_scan_ack()->set_world_version(world_of_robot.grid_on_strand().version());
     ack.mutable_scan_ack()->set_duplicate(true);
-    world_journal->when_durable(
-        world_journal->last_lsn(), [session, ack = std::move(ack)](const std::string* error) mutable {
-          if (!error) {
-            session->send(ack);
-            return;
-          }
-          session->send_error(v1::ERROR_INTERNAL, "durability", *error + "; the resent message is not acknowledged", 0,
-                              ack.scan_ack().seq());
+    world_of_robot.after_publications_on_strand(
+        [world_journal, lsn = world_journal->last_lsn(), session, ack = std::move(ack)]() mutable {
+          world_journal->when_durable(lsn, [session, ack = std::move(ack)](const std::string* error) mutable {
+            if (!error) {
+              session->send(ack);
+              return;
+            }
+            session->send_error(v1::ERROR_INTERNAL, "durability", *error + "; the resent message is not acknowledged",
+                                0, ack.scan_ack().seq());
+          });
         });
     return false;
   }
@@ -108,10 +112,15 @@ bool ingest_sensor_message_on_strand(
     };
     // Replies to a driver's sensor messages keep the messages' order: under the batch policy the acks of earlier
     // messages may still wait for their fsync, and this rejection must not overtake them.
+    // Nor may it overtake the acks still waiting for their publication.
     if (durability::WorldJournal* journal = robot.world().journal()) {
-      journal->when_durable(journal->last_lsn(), std::move(send_rejection));
+      robot.world().after_publications_on_strand(
+          [journal, lsn = journal->last_lsn(), send_rejection = std::move(send_rejection)]() mutable {
+            journal->when_durable(lsn, std::move(send_rejection));
+          });
     } else {
-      send_rejection(nullptr);
+      robot.world().after_publications_on_strand(
+          [send_rejection = std::move(send_rejection)] { send_rejection(nullptr); });
     }
     return false;
   }
@@ -139,8 +148,15 @@ bool ingest_sensor_message_on_strand(
   // Without a lane the octree is updated here, in step with the grid, as lockstep runs expect.
   const bool defer_to_after_command = after_command && world.octree_has_lane();
   if (!defer_to_after_command) world.apply_octree_work_on_strand(std::move(target.octree_work));
-  world.publish_on_strand(target.touched);
-  if (header.message && session->data_watched()) publish_accepted(session, world, header, *before.X_WB, target.touched);
+  if (after_command) {
+    world.stage_on_strand(target.touched);
+  } else {
+    world.publish_on_strand(target.touched);
+  }
+  // Sent once published, like the ack: an observer that asks for the grid's changes since the event's world_version
+  // must find them.
+  std::shared_ptr<v1::WatchEvent> watch_event =
+      header.message && session->data_watched() ? accepted_event(world, header, *before.X_WB, target.touched) : nullptr;
 
   // The robot's state first: a client that saw the ack and then asks for the status must find the message counted.
   robot.update_state([&](RobotState& state) {
@@ -154,7 +170,7 @@ bool ingest_sensor_message_on_strand(
   v1::ServerMessage ack;
   ack.mutable_scan_ack()->set_seq(header.seq);
   ack.mutable_scan_ack()->set_world_version(world.grid_on_strand().version());
-  auto acknowledge = [journal, lsn, session, ack = std::move(ack), seq = header.seq]() mutable {
+  auto acknowledge_once_published = [journal, lsn, session, ack = std::move(ack), seq = header.seq]() mutable {
     if (!journal) {
       session->send(ack);
       return;
@@ -169,8 +185,18 @@ bool ingest_sensor_message_on_strand(
           *error + "; the message is in the live map but was not made durable, so it is not acknowledged", 0, seq);
     });
   };
-  if (defer_to_after_command) {
-    after_command->hold(std::move(target.octree_work), std::move(acknowledge));
+  auto acknowledge = [&world, session, watch_event = std::move(watch_event),
+                      reply = std::move(acknowledge_once_published)]() mutable {
+    world.after_publications_on_strand(
+        [session, watch_event = std::move(watch_event), reply = std::move(reply)]() mutable {
+          if (watch_event) session->publish_data(std::move(watch_event));
+          reply();
+        });
+  };
+  if (after_command) {
+    // Acknowledged once published: a client that saw the ack reads this message in every model but the octree.
+    after_command->hold(defer_to_after_command ? std::move(target.octree_work) : std::vector<OctreeWork>{},
+                        std::move(acknowledge));
   } else {
     acknowledge();
   }

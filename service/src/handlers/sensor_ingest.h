@@ -27,6 +27,7 @@ class WorkAfterCommand {
  public:
   explicit WorkAfterCommand(World& world) : world_(world) {}
   ~WorkAfterCommand() {
+    world_.publish_staged_on_strand();
     if (!octree_work_.empty()) world_.apply_octree_work_on_strand(std::move(octree_work_));
     if (acknowledge_) acknowledge_();
   }
@@ -60,9 +61,11 @@ void reject_sensor_message(const SessionPtr& session, Robot& robot, const FieldE
 // written (disk full, I/O error) gets ERROR_INTERNAL with field "durability" instead, and the
 // message is not applied.
 //
-// With after_command and an octree lane, the message's octree work and its ack are handed to it: the caller computes
-// and sends the robot's command first (the command does not read this message's octree update, and waking the lane
-// first let it take the core from the strand), and the holder passes both on when it goes out of scope.
+// With after_command, the publication is only staged (World::stage_on_strand): the caller computes and sends the
+// robot's command from the staged grid and PTEM first, and the holder brings the distance field in step and publishes
+// when it goes out of scope, so readers still see every model of one message together. With an octree lane too, the
+// message's octree work and its ack are handed to the holder as well (the command does not read this message's octree
+// update, and waking the lane first let it take the core from the strand); it passes both on after the publication.
 bool ingest_sensor_message_on_strand(
     const SessionPtr& session, Robot& robot, const SensorMessageHeader& header,
     const std::function<void(const geometry::Pose2& X_WB, IngestTarget& target)>& insert,
