@@ -410,7 +410,7 @@ void ServerCore::drain() {
   ingest_pool_.join();
   octree_pool_.join();   // after the ingest strands, which hand it work
   publish_pool_.join();  // likewise
-  for (const auto& world : worlds()) world->retire_octree_lane();
+  for (const auto& world : worlds()) world->retire_lanes();
   query_pool_.join();
 }
 

@@ -158,9 +158,9 @@ class World : public std::enable_shared_from_this<World> {
   // Publishes the OctoMap now, with all octree work handed over before (e.g. before an export); call only from the
   // world's strand.
   std::shared_ptr<const mapping::OctoMapSnapshot> publish_octomap_on_strand();
-  // Once the octree pool has been joined (ServerCore::drain), the octree's work runs on the caller, e.g. the final
-  // snapshot at shutdown. Call only when no thread uses the world's strands.
-  void retire_octree_lane() {
+  // Once the octree and publish pools have been joined (ServerCore::drain), the octree's work and the publications
+  // run on the caller, e.g. the final snapshot at shutdown. Call only when no thread uses the world's strands.
+  void retire_lanes() {
     octree_lane_.reset();
     publish_lane_.reset();
   }
