@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -30,7 +31,7 @@ constexpr std::int32_t kInfiniteSquared = std::numeric_limits<std::int32_t>::max
 // (offsets) are int16.
 constexpr double kMaxDistanceCells = 2000.0;
 
-std::int32_t squared_half_cells(std::int32_t dx, std::int32_t dy) {
+inline std::int32_t squared_half_cells(std::int32_t dx, std::int32_t dy) {
   const std::int32_t ax = std::max(2 * std::abs(dx) - 1, 0);
   const std::int32_t ay = std::max(2 * std::abs(dy) - 1, 0);
   return ax * ax + ay * ay;
@@ -274,7 +275,8 @@ void DistanceFieldParams::validate() const {
 // The cells live in 64x64 blocks allocated where a wavefront first writes, found through a directory (a dense array of
 // block pointers over the blocks' bounding box, grown as needed), so the field has no extent of its own and its memory
 // follows the area within max_distance of what the grid has seen. A reference is the nearest cell's offset from the
-// cell (|offset| <= 2000 cells fits int16).
+// cell (|offset| <= 2000 cells fits int16). A block's cells are row-major, so that the neighbours of a cell inside it
+// (all but its edge rows and columns) are at fixed offsets and need no directory look-up.
 class DistanceField::Brushfire {
  public:
   static constexpr std::int32_t kBlockShift = DistanceFieldSnapshot::kBlockShift;
@@ -284,7 +286,9 @@ class DistanceField::Brushfire {
   static constexpr std::int16_t kNone = DistanceFieldSnapshot::kNone;
 
   explicit Brushfire(std::int32_t max_squared)
-      : buckets_(static_cast<std::size_t>(max_squared) + 1), max_squared_(max_squared) {}
+      : buckets_(static_cast<std::size_t>(max_squared) + 1),
+        filled_((static_cast<std::size_t>(max_squared) + 64) / 64, 0),
+        max_squared_(max_squared) {}
 
   [[nodiscard]] bool is_obstacle(std::int32_t x, std::int32_t y) const {
     const Cell* c = find(x, y);
@@ -303,45 +307,51 @@ class DistanceField::Brushfire {
   }
 
   void set_obstacle(std::int32_t x, std::int32_t y) {
-    Cell& c = at(x, y);
+    Block& block = block_at(x, y);
+    Cell& c = block.cells[local_index(x, y)];
     if (c.dx == 0 && c.dy == 0) return;
     c.dx = c.dy = 0;
     c.squared = 0;
     c.raise = false;
     c.state = State::kLowerQueued;
-    push(0, x, y);
+    push(0, x, y, block);
   }
 
   void remove_obstacle(std::int32_t x, std::int32_t y) {
-    Cell* c = find(x, y);
-    if (c == nullptr || !(c->dx == 0 && c->dy == 0)) return;
-    c->raise = true;
-    c->dx = c->dy = kNone;
-    c->squared = kInfiniteSquared;
-    c->state = State::kRaiseQueued;
-    push(0, x, y);
+    Block* block = find_block(x, y);
+    if (block == nullptr) return;
+    Cell& c = block->cells[local_index(x, y)];
+    if (!(c.dx == 0 && c.dy == 0)) return;
+    c.raise = true;
+    c.dx = c.dy = kNone;
+    c.squared = kInfiniteSquared;
+    c.state = State::kRaiseQueued;
+    push(0, x, y, *block);
   }
 
   // Runs the wavefronts until the queue is empty; returns the number of cells taken off it.
   std::size_t propagate() {
     std::size_t processed = 0;
     while (queued_ > 0) {
-      while (buckets_[next_bucket_].empty()) ++next_bucket_;
-      const std::uint64_t packed = buckets_[next_bucket_].back();
-      buckets_[next_bucket_].pop_back();
+      next_bucket_ = next_filled_bucket(next_bucket_);
+      std::vector<std::uint64_t>& bucket = buckets_[next_bucket_];
+      const std::uint64_t packed = bucket.back();
+      bucket.pop_back();
+      if (bucket.empty()) filled_[next_bucket_ >> 6U] &= ~(std::uint64_t{1} << (next_bucket_ & 63U));
       --queued_;
       ++processed;
       const auto x = static_cast<std::int32_t>(static_cast<std::uint32_t>(packed));
       const auto y = static_cast<std::int32_t>(static_cast<std::uint32_t>(packed >> 32U));
-      Cell& c = *find(x, y);
+      Block& block = *find_block(x, y);
+      Cell& c = block.cells[local_index(x, y)];
       if (c.state == State::kLowerDone) continue;
       if (c.raise) {
-        raise(x, y);
+        raise(x, y, block);
         c.raise = false;
         c.state = State::kRaiseDone;
-      } else if (c.dx != kNone && is_obstacle(x + c.dx, y + c.dy)) {
+      } else if (c.dx != kNone && refers_to_obstacle(block, x, y, c)) {
         c.state = State::kLowerDone;
-        lower(x, y, c);
+        lower(x, y, block, c);
       }
     }
     next_bucket_ = 0;
@@ -353,13 +363,20 @@ class DistanceField::Brushfire {
   // Costs what the updates since the previous call wrote, plus a pointer per chunk (64 blocks).
   [[nodiscard]] DistanceFieldSnapshot::RefDirectory references(DistanceFieldUpdate& result) {
     using Snapshot = DistanceFieldSnapshot;
-    result.copied_blocks = dirty_slots_.size();
+    result.copied_blocks = dirty_blocks_.size();
+    std::vector<std::size_t> dirty_slots;
+    dirty_slots.reserve(dirty_blocks_.size());
+    for (Block* block : dirty_blocks_) {
+      block->dirty = false;
+      dirty_slots.push_back(static_cast<std::size_t>(slot(block->bx, block->by)));
+    }
+    dirty_blocks_.clear();
     const auto chunk_of = [this](std::size_t b) {
       const auto [i, j] = column_row(b);
       return static_cast<std::size_t>(j >> kChunkShift) * static_cast<std::size_t>(chunks_x()) +
              static_cast<std::size_t>(i >> kChunkShift);
     };
-    std::sort(dirty_slots_.begin(), dirty_slots_.end(), [&chunk_of](std::size_t a, std::size_t b) {
+    std::sort(dirty_slots.begin(), dirty_slots.end(), [&chunk_of](std::size_t a, std::size_t b) {
       return std::pair(chunk_of(a), a) < std::pair(chunk_of(b), b);
     });
     std::shared_ptr<Snapshot::RefChunk> copy;
@@ -370,8 +387,7 @@ class DistanceField::Brushfire {
       published_[copy_slot] = std::move(copy);
       copy.reset();
     };
-    for (const std::size_t b : dirty_slots_) {
-      dirty_[b] = 0;
+    for (const std::size_t b : dirty_slots) {
       const std::size_t chunk = chunk_of(b);
       if (!copy || chunk != copy_slot) {
         finish_copy();
@@ -380,9 +396,14 @@ class DistanceField::Brushfire {
                                  : std::make_shared<Snapshot::RefChunk>();
         copy_slot = chunk;
       }
-      auto refs = std::make_shared<Snapshot::RefBlock>();
+      auto refs = std::make_shared_for_overwrite<Snapshot::RefBlock>();  // Every reference is written below.
       const Block& block = *blocks_[b];
-      for (std::size_t i = 0; i < block.cells.size(); ++i) refs->refs[i] = {block.cells[i].dx, block.cells[i].dy};
+      for (std::int32_t ly = 0; ly < kBlockCells; ++ly) {
+        for (std::int32_t lx = 0; lx < kBlockCells; ++lx) {
+          const Cell& cell = block.cells[local_index(lx, ly)];
+          refs->refs[DistanceFieldSnapshot::index_in_block(lx, ly)] = {cell.dx, cell.dy};
+        }
+      }
       const auto [i, j] = column_row(b);
       auto& in_chunk =
           copy->blocks[static_cast<std::size_t>((j & (kChunkBlocks - 1)) * kChunkBlocks + (i & (kChunkBlocks - 1)))];
@@ -390,7 +411,6 @@ class DistanceField::Brushfire {
       in_chunk = std::move(refs);
     }
     finish_copy();
-    dirty_slots_.clear();
     return {block_x0_ >> kChunkShift, block_y0_ >> kChunkShift, chunks_x(), published_,
             published_chunks_,        published_blocks_};
   }
@@ -405,10 +425,15 @@ class DistanceField::Brushfire {
     bool raise = false;
   };
   struct Block {
-    std::array<Cell, static_cast<std::size_t>(kBlockCells) * kBlockCells> cells{};
+    std::array<Cell, static_cast<std::size_t>(kBlockCells) * kBlockCells> cells{};  // Row-major.
+    std::int32_t bx = 0, by = 0;                                                    // Where the block lies, in blocks.
+    bool dirty = false;  // A reference changed since the last references().
   };
 
-  static std::size_t local_index(std::int32_t x, std::int32_t y) { return DistanceFieldSnapshot::index_in_block(x, y); }
+  static std::size_t local_index(std::int32_t x, std::int32_t y) {
+    return static_cast<std::size_t>(y & (kBlockCells - 1)) * kBlockCells +
+           static_cast<std::size_t>(x & (kBlockCells - 1));
+  }
 
   // The slot of block (bx, by) in the directory, or -1 outside it.
   [[nodiscard]] std::ptrdiff_t slot(std::int32_t bx, std::int32_t by) const {
@@ -418,17 +443,18 @@ class DistanceField::Brushfire {
     return static_cast<std::ptrdiff_t>(j) * blocks_x_ + i;
   }
 
-  [[nodiscard]] const Cell* find(std::int32_t x, std::int32_t y) const {
+  // The block holding cell (x, y), or nullptr when none was written there.
+  [[nodiscard]] Block* find_block(std::int32_t x, std::int32_t y) const {
     const std::ptrdiff_t b = slot(x >> kBlockShift, y >> kBlockShift);
-    if (b < 0 || !blocks_[static_cast<std::size_t>(b)]) return nullptr;
-    return &blocks_[static_cast<std::size_t>(b)]->cells[local_index(x, y)];
+    return b < 0 ? nullptr : blocks_[static_cast<std::size_t>(b)].get();
   }
-  [[nodiscard]] Cell* find(std::int32_t x, std::int32_t y) {
-    return const_cast<Cell*>(std::as_const(*this).find(x, y));  // NOLINT(cppcoreguidelines-pro-type-const-cast)
+  [[nodiscard]] const Cell* find(std::int32_t x, std::int32_t y) const {
+    const Block* block = find_block(x, y);
+    return block == nullptr ? nullptr : &block->cells[local_index(x, y)];
   }
 
-  // Cell (x, y), its block allocated (and the directory grown) when missing.
-  Cell& at(std::int32_t x, std::int32_t y) {
+  // The block holding cell (x, y), allocated (and the directory grown) when missing.
+  Block& block_at(std::int32_t x, std::int32_t y) {
     const std::int32_t bx = x >> kBlockShift, by = y >> kBlockShift;
     std::ptrdiff_t b = slot(bx, by);
     if (b < 0) {
@@ -438,9 +464,46 @@ class DistanceField::Brushfire {
     auto& block = blocks_[static_cast<std::size_t>(b)];
     if (!block) {
       block = std::make_unique<Block>();
-      mark_dirty(static_cast<std::size_t>(b));
+      block->bx = bx;
+      block->by = by;
+      mark_dirty(*block);
     }
-    return block->cells[local_index(x, y)];
+    return *block;
+  }
+
+  // Whether the cell c at (x, y) in block still refers to an occupied cell; without a directory look-up when that cell
+  // is in the same block.
+  [[nodiscard]] bool refers_to_obstacle(const Block& block, std::int32_t x, std::int32_t y, const Cell& c) const {
+    const std::int32_t rx = x + c.dx, ry = y + c.dy;
+    const Cell* ref = (rx >> kBlockShift) == block.bx && (ry >> kBlockShift) == block.by
+                          ? &block.cells[local_index(rx, ry)]
+                          : find(rx, ry);
+    return ref != nullptr && ref->dx == 0 && ref->dy == 0;
+  }
+
+  // Calls visit(nx, ny, neighbour, its block) for the 8 neighbours of cell (x, y) in block; neighbour is nullptr (and
+  // its block too) where no block was written. The neighbours of a cell off its block's edge are at fixed offsets.
+  template <typename Visit>
+  void for_each_neighbour(std::int32_t x, std::int32_t y, Block& block, Visit&& visit) {
+    const std::int32_t lx = x & (kBlockCells - 1), ly = y & (kBlockCells - 1);
+    if (lx > 0 && ly > 0 && lx < kBlockCells - 1 && ly < kBlockCells - 1) {
+      Cell* centre = &block.cells[local_index(x, y)];
+      for (std::int32_t dy = -1; dy <= 1; ++dy) {
+        for (std::int32_t dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0) continue;
+          visit(x + dx, y + dy, centre + (dy * kBlockCells + dx), &block);
+        }
+      }
+      return;
+    }
+    for (std::int32_t ny = y - 1; ny <= y + 1; ++ny) {
+      for (std::int32_t nx = x - 1; nx <= x + 1; ++nx) {
+        if (nx == x && ny == y) continue;
+        Block* neighbour_block = find_block(nx, ny);
+        visit(nx, ny, neighbour_block == nullptr ? nullptr : &neighbour_block->cells[local_index(nx, ny)],
+              neighbour_block);
+      }
+    }
   }
 
   [[nodiscard]] std::int32_t chunks_x() const { return blocks_x_ >> kChunkShift; }
@@ -450,10 +513,10 @@ class DistanceField::Brushfire {
             static_cast<std::int32_t>(b / static_cast<std::size_t>(blocks_x_))};
   }
 
-  void mark_dirty(std::size_t b) {
-    if (dirty_[b] != 0) return;
-    dirty_[b] = 1;
-    dirty_slots_.push_back(b);
+  void mark_dirty(Block& block) {
+    if (block.dirty) return;
+    block.dirty = true;
+    dirty_blocks_.push_back(&block);
   }
 
   // Makes the directory cover block (bx, by), with room for 8 more blocks on each side so that it seldom regrows; its
@@ -476,12 +539,7 @@ class DistanceField::Brushfire {
     };
     const std::size_t count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     std::vector<std::unique_ptr<Block>> blocks(count);
-    std::vector<std::uint8_t> dirty(count, 0);
-    for (std::size_t from = 0; from < blocks_.size(); ++from) {
-      blocks[new_slot(from)] = std::move(blocks_[from]);
-      dirty[new_slot(from)] = dirty_[from];
-    }
-    for (std::size_t& b : dirty_slots_) b = new_slot(b);
+    for (std::size_t from = 0; from < blocks_.size(); ++from) blocks[new_slot(from)] = std::move(blocks_[from]);
     const std::int32_t new_chunks_x = width >> kChunkShift;
     DistanceFieldSnapshot::RefChunks published(count >> (2 * kChunkShift));
     for (std::size_t from = 0; from < published_.size(); ++from) {
@@ -492,7 +550,6 @@ class DistanceField::Brushfire {
                 static_cast<std::size_t>(((block_x0_ - x0) >> kChunkShift) + i)] = std::move(published_[from]);
     }
     blocks_ = std::move(blocks);
-    dirty_ = std::move(dirty);
     published_ = std::move(published);
     block_x0_ = x0;
     block_y0_ = y0;
@@ -501,73 +558,78 @@ class DistanceField::Brushfire {
   }
 
   // Every change of a cell's reference goes with a push of that cell, so this is where its block becomes dirty.
-  void push(std::int32_t squared, std::int32_t x, std::int32_t y) {
-    mark_dirty(static_cast<std::size_t>(slot(x >> kBlockShift, y >> kBlockShift)));
-    buckets_[static_cast<std::size_t>(squared)].push_back(static_cast<std::uint32_t>(x) |
-                                                          std::uint64_t{static_cast<std::uint32_t>(y)} << 32U);
+  void push(std::int32_t squared, std::int32_t x, std::int32_t y, Block& block) {
+    mark_dirty(block);
+    const auto bucket = static_cast<std::size_t>(squared);
+    buckets_[bucket].push_back(static_cast<std::uint32_t>(x) | std::uint64_t{static_cast<std::uint32_t>(y)} << 32U);
+    filled_[bucket >> 6U] |= std::uint64_t{1} << (bucket & 63U);
     next_bucket_ = std::min(next_bucket_, static_cast<std::size_t>(squared));
     ++queued_;
   }
 
   // Invalidates the neighbours that refer to a removed obstacle, and queues those that refer to a live one so that
   // their wavefront refills the invalidated cells. Neighbours in blocks never written hold no reference: skipped.
-  void raise(std::int32_t x, std::int32_t y) {
-    for (std::int32_t ny = y - 1; ny <= y + 1; ++ny) {
-      for (std::int32_t nx = x - 1; nx <= x + 1; ++nx) {
-        if (nx == x && ny == y) continue;
-        Cell* n = find(nx, ny);
-        if (n == nullptr || n->dx == kNone || n->raise) continue;
-        if (!is_obstacle(nx + n->dx, ny + n->dy)) {
-          push(n->squared, nx, ny);
-          n->state = State::kLowerQueued;
-          n->raise = true;
-          n->dx = n->dy = kNone;
-          n->squared = kInfiniteSquared;
-        } else if (n->state != State::kLowerQueued) {
-          push(n->squared, nx, ny);
-          n->state = State::kLowerQueued;
-        }
+  void raise(std::int32_t x, std::int32_t y, Block& block) {
+    for_each_neighbour(x, y, block, [this](std::int32_t nx, std::int32_t ny, Cell* n, Block* n_block) {
+      if (n == nullptr || n->dx == kNone || n->raise) return;
+      if (!refers_to_obstacle(*n_block, nx, ny, *n)) {
+        push(n->squared, nx, ny, *n_block);
+        n->state = State::kLowerQueued;
+        n->raise = true;
+        n->dx = n->dy = kNone;
+        n->squared = kInfiniteSquared;
+      } else if (n->state != State::kLowerQueued) {
+        push(n->squared, nx, ny, *n_block);
+        n->state = State::kLowerQueued;
       }
-    }
+    });
   }
 
   // Offers c's obstacle to the neighbours; they take it when it is nearer than theirs (or as near, and theirs is gone).
-  void lower(std::int32_t x, std::int32_t y, const Cell& c) {
+  void lower(std::int32_t x, std::int32_t y, Block& block, const Cell& c) {
     const std::int32_t ref_x = x + c.dx;
     const std::int32_t ref_y = y + c.dy;
-    for (std::int32_t ny = y - 1; ny <= y + 1; ++ny) {
-      for (std::int32_t nx = x - 1; nx <= x + 1; ++nx) {
-        if (nx == x && ny == y) continue;
-        const std::int32_t squared = squared_half_cells(nx - ref_x, ny - ref_y);
-        if (squared > max_squared_) continue;
-        Cell* existing = find(nx, ny);
-        if (existing != nullptr) {
-          if (existing->raise) continue;
-          const bool overwrite = squared < existing->squared ||
-                                 (squared == existing->squared &&
-                                  (existing->dx == kNone || !is_obstacle(nx + existing->dx, ny + existing->dy)));
-          if (!overwrite) continue;
-        }
-        Cell& n = existing != nullptr ? *existing : at(nx, ny);
-        push(squared, nx, ny);
-        n.state = State::kLowerQueued;
-        n.squared = squared;
-        n.dx = static_cast<std::int16_t>(ref_x - nx);
-        n.dy = static_cast<std::int16_t>(ref_y - ny);
+    for_each_neighbour(x, y, block, [&](std::int32_t nx, std::int32_t ny, Cell* existing, Block* n_block) {
+      const std::int32_t squared = squared_half_cells(nx - ref_x, ny - ref_y);
+      if (squared > max_squared_) return;
+      if (existing != nullptr) {
+        if (existing->raise) return;
+        const bool overwrite = squared < existing->squared ||
+                               (squared == existing->squared &&
+                                (existing->dx == kNone || !refers_to_obstacle(*n_block, nx, ny, *existing)));
+        if (!overwrite) return;
+      } else {
+        n_block = &block_at(nx, ny);
+        existing = &n_block->cells[local_index(nx, ny)];
       }
-    }
+      Cell& n = *existing;
+      push(squared, nx, ny, *n_block);
+      n.state = State::kLowerQueued;
+      n.squared = squared;
+      n.dx = static_cast<std::int16_t>(ref_x - nx);
+      n.dy = static_cast<std::int16_t>(ref_y - ny);
+    });
   }
 
   std::int32_t block_x0_ = 0, block_y0_ = 0, blocks_x_ = 0, blocks_y_ = 0;
   // The directory, row-major, its edges on chunk boundaries; nullptr: no cell written there.
   std::vector<std::unique_ptr<Block>> blocks_;
-  std::vector<std::uint8_t> dirty_;             // Per block: a reference changed since the last references().
-  std::vector<std::size_t> dirty_slots_;        // The blocks whose dirty_ is set, for references() to visit only those.
+  std::vector<Block*> dirty_blocks_;            // The blocks whose dirty is set, for references() to visit only those.
   DistanceFieldSnapshot::RefChunks published_;  // The chunks the last references() returned, row-major.
   std::size_t published_chunks_ = 0;            // Of those, the ones written (not nullptr).
   std::size_t published_blocks_ = 0;            // Blocks in those chunks that are not nullptr.
-  // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32.
+  // The first non-empty bucket from `from` on; there is one while anything is queued.
+  [[nodiscard]] std::size_t next_filled_bucket(std::size_t from) const {
+    std::size_t word = from >> 6U;
+    std::uint64_t bits = filled_[word] & (~std::uint64_t{0} << (from & 63U));
+    while (bits == 0) bits = filled_[++word];
+    return (word << 6U) + static_cast<std::size_t>(std::countr_zero(bits));
+  }
+
+  // Bucketed priority queue keyed by squared distance (the keys are small integers): cells as x | y << 32. The keys
+  // in use are sparse (sums of two odd squares), so a bit per bucket says which are filled.
   std::vector<std::vector<std::uint64_t>> buckets_;
+  std::vector<std::uint64_t> filled_;
   std::size_t next_bucket_ = 0;
   std::size_t queued_ = 0;
   std::int32_t max_squared_;

@@ -81,11 +81,48 @@ void World::publish_staged_on_strand() {
   // A lane that cannot keep up (a driver flooding scans without waiting for acks) slows ingest instead of holding an
   // ever longer queue of grid versions.
   if (publish_backlog_.load(std::memory_order_acquire) >= kPublishBacklogMessages) wait_for_publications_on_strand();
+  {
+    // While the lane has not yet taken the previous publication, this one joins it: a lane that falls behind makes
+    // one field update and one publication for all the messages it missed, and their replies, posted after them,
+    // still follow it.
+    const std::lock_guard lock(pending_publication_mutex_);
+    if (pending_publication_) {
+      merge_publications(*pending_publication_, std::move(staged));
+      merged_publications_.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    pending_publication_ = std::move(staged);
+  }
   publish_backlog_.fetch_add(1, std::memory_order_acq_rel);
-  asio::post(*publish_lane_, [self = shared_from_this(), staged = std::move(staged)]() mutable {
-    self->publish_here(staged);
+  asio::post(*publish_lane_, [self = shared_from_this()] {
+    std::optional<StagedPublication> pending;
+    {
+      const std::lock_guard lock(self->pending_publication_mutex_);
+      pending.swap(self->pending_publication_);
+    }
+    self->publish_here(*pending);
     self->publish_backlog_.fetch_sub(1, std::memory_order_acq_rel);
   });
+}
+
+void World::merge_publications(StagedPublication& into, StagedPublication&& later) {
+  into.grid = std::move(later.grid);
+  into.ptem = std::move(later.ptem);
+  // The field re-reads each logged cell from the latest grid, so the logs add up (a cell flipped twice is looked at
+  // twice and ends as the grid has it); past the grid's own log limit, the areas the messages touched answer.
+  if (into.changed && later.changed &&
+      into.changed->size() + later.changed->size() <= mapping::HimmGrid::kMaxOccupancyChanges) {
+    into.changed->insert(into.changed->end(), later.changed->begin(), later.changed->end());
+  } else {
+    into.changed.reset();
+  }
+  if (into.touched && later.touched) {
+    into.touched = mapping::CellBox{
+        {std::min(into.touched->min.ix, later.touched->min.ix), std::min(into.touched->min.iy, later.touched->min.iy)},
+        {std::max(into.touched->max.ix, later.touched->max.ix), std::max(into.touched->max.iy, later.touched->max.iy)}};
+  } else {
+    into.touched.reset();  // one of them could reach anywhere in the grid's tiles
+  }
 }
 
 void World::publish_here(StagedPublication& staged) {
@@ -97,6 +134,7 @@ void World::publish_here(StagedPublication& staged) {
     distance_field_.update(staged.grid, staged.touched);
   }
   auto distance = distance_field_.snapshot();
+  publications_.fetch_add(1, std::memory_order_relaxed);
   // The octree's snapshot is its own (publish_octomap_here), possibly from the octree lane.
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_.grid = std::move(staged.grid);

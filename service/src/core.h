@@ -171,6 +171,12 @@ class World : public std::enable_shared_from_this<World> {
   static constexpr int kOctreeBacklogMessages = 32;
   // How many publications the publish lane may hold before the ingest strand waits for it.
   static constexpr int kPublishBacklogMessages = 32;
+  // Publications made (grid, field and PTEM together), and messages that went out in a later message's publication
+  // because the publish lane had not caught up with them; safe from any thread.
+  [[nodiscard]] std::uint64_t publications() const { return publications_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t merged_publications() const {
+    return merged_publications_.load(std::memory_order_relaxed);
+  }
   // What the models take as of their latest snapshots; safe from any thread, costs a walk over the snapshots' tiles
   // and blocks (not their cells).
   [[nodiscard]] WorldMemory memory() const;
@@ -223,6 +229,13 @@ class World : public std::enable_shared_from_this<World> {
     std::optional<mapping::CellBox> touched;
   };
   std::optional<StagedPublication> staged_;
+  // The publication handed to the publish lane and not yet taken by it, into which later ones merge.
+  std::mutex pending_publication_mutex_;
+  std::optional<StagedPublication> pending_publication_;
+  std::atomic<std::uint64_t> publications_{0};         // grid, field and PTEM published together
+  std::atomic<std::uint64_t> merged_publications_{0};  // messages published with a later one's publication
+  // Makes `into` the publication of both: the later models, the flipped cells and touched areas of both.
+  static void merge_publications(StagedPublication& into, StagedPublication&& later);
   // The grid and PTEM of the latest message staged, for snapshots_on_strand; only on the strand.
   std::shared_ptr<const mapping::GridSnapshot> latest_grid_on_strand_;
   std::shared_ptr<const mapping::PtemSnapshot> latest_ptem_on_strand_;

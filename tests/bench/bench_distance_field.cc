@@ -3,6 +3,7 @@
 //  - clearance per query of a 1.0 x 0.8 m box footprint: the field vs geometry::compute_clearance (exact ring search)
 //    vs FCL 0.7 box-box distance over the cells near the footprint (GST_INDEP), with ratios printed at the end;
 //  - incremental update per scan: the own 2D brushfire vs dynamicEDT3D (one z layer) fed the same changed cells;
+//  - incremental update per step of a person walking through the room, both;
 //  - full rebuild of the field over the same box, both.
 
 #include <benchmark/benchmark.h>
@@ -173,6 +174,131 @@ void BM_FieldUpdatePerScan(benchmark::State& state) {
 }
 BENCHMARK(BM_FieldUpdatePerScan)->Unit(benchmark::kMicrosecond);
 
+// A person (a disc of 0.25 m radius) walking across the room and back at one cell per step, the room's walls and boxes
+// standing still: each step frees the cells behind the person and occupies the ones ahead, and the wavefronts of those
+// few cells are the whole update, as they are in a world with people or other robots in it.
+struct WalkStep {
+  std::shared_ptr<const GridSnapshot> grid;
+  std::vector<geometry::CellIndex> changed;
+};
+
+const std::vector<WalkStep>& walk_steps() {
+  static const std::vector<WalkStep> kSteps = [] {
+    const HimmParams params;
+    HimmGrid grid(params);
+    const geometry::GridGeometry cells(params.cell_size_m);
+    const auto fill = [&](const bench::Box& box, bool outline) {
+      const geometry::CellIndex lo = cells.cell_of({box.min_x, box.min_y});
+      const geometry::CellIndex hi = cells.cell_of({box.max_x, box.max_y});
+      for (std::int32_t y = lo.iy; y <= hi.iy; ++y) {
+        for (std::int32_t x = lo.ix; x <= hi.ix; ++x) {
+          if (outline && x != lo.ix && x != hi.ix && y != lo.iy && y != hi.iy) continue;
+          grid.set_certainty({x, y}, static_cast<std::uint8_t>(params.max_certainty));
+        }
+      }
+    };
+    fill(bench::kRoom, true);
+    for (const bench::Box& box : bench::kObstacles) fill(box, false);
+    const auto person_cells = [&](double cx, double cy) {
+      std::vector<geometry::CellIndex> result;
+      constexpr double kRadius = 0.25;
+      const geometry::CellIndex lo = cells.cell_of({cx - kRadius, cy - kRadius});
+      const geometry::CellIndex hi = cells.cell_of({cx + kRadius, cy + kRadius});
+      for (std::int32_t y = lo.iy; y <= hi.iy; ++y) {
+        for (std::int32_t x = lo.ix; x <= hi.ix; ++x) {
+          const Eigen::Vector2d centre = cells.center_of({x, y});
+          if (std::hypot(centre.x() - cx, centre.y() - cy) <= kRadius) result.push_back({x, y});
+        }
+      }
+      return result;
+    };
+    // Out from x = 1 m to 19 m along y = 10 m (between the boxes) and back, one cell per step; the sequence is a
+    // loop, so the benchmark can replay it for as long as it needs.
+    std::vector<double> xs;
+    for (int i = 10; i <= 190; ++i) xs.push_back(i * params.cell_size_m);
+    for (int i = 189; i >= 11; --i) xs.push_back(i * params.cell_size_m);
+    std::vector<geometry::CellIndex> current = person_cells(xs.back(), 10.0);
+    for (const auto& c : current) grid.set_certainty(c, static_cast<std::uint8_t>(params.max_certainty));
+    std::vector<WalkStep> result;
+    for (const double x : xs) {
+      const std::vector<geometry::CellIndex> next = person_cells(x, 10.0);
+      WalkStep step;
+      const auto in = [](const std::vector<geometry::CellIndex>& set, const geometry::CellIndex& c) {
+        return std::find(set.begin(), set.end(), c) != set.end();
+      };
+      for (const auto& c : current) {
+        if (!in(next, c)) {
+          grid.set_certainty(c, 0);
+          step.changed.push_back(c);
+        }
+      }
+      for (const auto& c : next) {
+        if (!in(current, c)) {
+          grid.set_certainty(c, static_cast<std::uint8_t>(params.max_certainty));
+          step.changed.push_back(c);
+        }
+      }
+      step.grid = grid.snapshot();
+      result.push_back(std::move(step));
+      current = next;
+    }
+    return result;
+  }();
+  return kSteps;
+}
+
+void BM_FieldUpdateMovingPerson(benchmark::State& state) {
+  const auto& all = walk_steps();
+  DistanceField field(field_params());
+  static_cast<void>(field.update(all.back().grid));
+  std::size_t i = 0;
+  std::size_t processed = 0;
+  std::size_t changed = 0;
+  for (auto _ : state) {
+    const WalkStep& step = all[i++ % all.size()];
+    const DistanceFieldUpdate update = field.update(step.grid, step.changed);
+    processed += update.processed_cells;
+    changed += update.changed_cells;
+  }
+  const auto steps = static_cast<double>(state.iterations());
+  state.counters["changed_cells/step"] = static_cast<double>(changed) / steps;
+  state.counters["processed_cells/step"] = static_cast<double>(processed) / steps;
+  state.counters["s/processed_cell"] =
+      benchmark::Counter(static_cast<double>(processed), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_FieldUpdateMovingPerson)->Unit(benchmark::kMicrosecond);
+
+// The same walk fed to dynamicEDT3D (one z layer over the room grown by the cap): occupyCell/clearCell, then update().
+void BM_DynamicEdt3dUpdateMovingPerson(benchmark::State& state) {
+  const auto& all = walk_steps();
+  const GridSnapshot& last = *all.back().grid;
+  const auto reach = static_cast<std::int32_t>(std::ceil(kMaxDistance / last.cell_size())) + 1;
+  const CellBox tiles = *last.tile_bounds();
+  const CellBox box{{tiles.min.ix - reach, tiles.min.iy - reach}, {tiles.max.ix + reach, tiles.max.iy + reach}};
+  const int max_squared = static_cast<int>(std::pow(kMaxDistance / last.cell_size(), 2));
+  DynamicEDT3D edt(max_squared);
+  edt.initializeEmpty(box.max.ix - box.min.ix + 1, box.max.iy - box.min.iy + 1, 1, true);
+  last.for_each_occupied(box.min, box.max, [&](const geometry::CellIndex& c) {
+    edt.occupyCell(c.ix - box.min.ix, c.iy - box.min.iy, 0);
+    return true;
+  });
+  edt.update();
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const WalkStep& step = all[i++ % all.size()];
+    for (const auto& c : step.changed) {
+      if (step.grid->occupied(c)) {
+        edt.occupyCell(c.ix - box.min.ix, c.iy - box.min.iy, 0);
+      } else {
+        edt.clearCell(c.ix - box.min.ix, c.iy - box.min.iy, 0);
+      }
+    }
+    edt.update();
+  }
+  benchmark::DoNotOptimize(edt.getDistance(0, 0, 0));
+}
+BENCHMARK(BM_DynamicEdt3dUpdateMovingPerson)->Unit(benchmark::kMicrosecond);
+
 // The same scans fed to dynamicEDT3D (one z layer, same box and cap): occupyCell/clearCell for the cells whose
 // occupancy flipped (found outside the timing), then update().
 void BM_DynamicEdt3dUpdatePerScan(benchmark::State& state) {
@@ -275,6 +401,7 @@ class RatioReporter : public benchmark::ConsoleReporter {
     ratio("BM_ClearanceExactSearch", "BM_ClearanceField");
     ratio("BM_ClearanceFcl", "BM_ClearanceField");
     ratio("BM_DynamicEdt3dUpdatePerScan", "BM_FieldUpdatePerScan");
+    ratio("BM_DynamicEdt3dUpdateMovingPerson", "BM_FieldUpdateMovingPerson");
     ratio("BM_DynamicEdt3dFullBuild", "BM_FieldFullBuild");
   }
 

@@ -315,6 +315,20 @@ TEST_F(MetricsEndpoint, ReportsModelSizesAndResidentMemoryAsTheStatusDoes) {
   EXPECT_EQ(gauge("octomap"), static_cast<double>(world.octomap_bytes()));
   EXPECT_EQ(gauge("ptem"), static_cast<double>(world.ptem_bytes()));
   EXPECT_GT(metrics.value("occgeo_process_resident_bytes").value_or(0), static_cast<double>(1U << 20));
+
+  // Every sensor message the world took is published, in a publication of its own or in a later message's.
+  double ingested = 0.0;
+  for (const auto& sample : metrics.samples) {
+    if (sample.name == "occgeo_scans_ingested_total" && sample.labels.at("world") == "default")
+      ingested += sample.value;
+  }
+  EXPECT_GT(ingested, 0.0);
+  EXPECT_EQ(metrics.types.at("occgeo_world_publications"), "gauge");
+  const auto publications = metrics.value("occgeo_world_publications", {{"world", "default"}});
+  const auto merged = metrics.value("occgeo_world_merged_publications", {{"world", "default"}});
+  ASSERT_TRUE(publications && merged);
+  EXPECT_GE(*publications, 1.0);
+  EXPECT_EQ(*publications + *merged, ingested);
 }
 
 TEST_F(MetricsEndpoint, ServesThePageAnswers404ForUnknownPathsAndCanBeTurnedOff) {

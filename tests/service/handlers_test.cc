@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <future>
 
 #include "fake_session.h"
 #include "handlers/robot_control.h"
@@ -183,6 +184,68 @@ TEST_F(Handlers, ARejectionNeverOvertakesTheAckOfTheScanBeforeIt) {
     EXPECT_EQ(replies[0], v1::ServerMessage::kScanAck) << "scan " << seq;
     EXPECT_EQ(replies[1], v1::ServerMessage::kError) << "scan " << seq;
   }
+}
+
+// A publish lane that falls behind (here held up on purpose) publishes the scans it missed in one publication, whose
+// distance field is the one the published grid has, and still acks each scan, in order, after it.
+TEST_F(Handlers, ScansAPublishLaneFellBehindOnArePublishedTogetherAndEachIsAckedAfterIt) {
+  auto session = driver("r1");
+  handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+  const auto world = core_.world("default");
+  const auto wait_on = [](auto post) {
+    std::promise<void> done;
+    post([&done] { done.set_value(); });
+    done.get_future().wait();
+  };
+  // Everything the odometry started has run: on the strand, then on the publish lane.
+  wait_on([&world](auto job) { asio::post(world->strand(), std::move(job)); });
+  wait_on([&world](auto job) { world->after_publications_on_strand(std::move(job)); });
+
+  std::promise<void> lane_blocked;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  world->after_publications_on_strand([&lane_blocked, released] {
+    lane_blocked.set_value();
+    released.wait();
+  });
+  lane_blocked.get_future().wait();
+  const std::uint64_t publications_before = world->publications();
+  const std::uint64_t merged_before = world->merged_publications();
+  constexpr std::uint64_t kScans = 6;
+  for (std::uint64_t seq = 1; seq <= kScans; ++seq) {
+    // Each scan's arc is half a metre beyond the previous one: its cells become occupied and the previous arc's free.
+    handle_laser_scan(session, scan(seq, 0.1 * static_cast<double>(seq), 0.5F + 0.5F * static_cast<float>(seq)));
+  }
+  // Commands do not wait for the publication; the last one says every scan but the last was staged.
+  for (std::uint64_t seq = 1; seq <= kScans; ++seq) {
+    const auto command = session->take_first_of(v1::ServerMessage::kMotionCommand);
+    ASSERT_TRUE(command) << "scan " << seq;
+    EXPECT_EQ(command->motion_command().answers_scan_seq(), seq);
+  }
+  release.set_value();
+  for (std::uint64_t seq = 1; seq <= kScans; ++seq) {
+    const auto ack = session->take_first_of(v1::ServerMessage::kScanAck);
+    ASSERT_TRUE(ack) << "scan " << seq;
+    EXPECT_EQ(ack->scan_ack().seq(), seq);
+  }
+  const std::uint64_t publications = world->publications() - publications_before;
+  const std::uint64_t merged = world->merged_publications() - merged_before;
+  EXPECT_EQ(publications + merged, kScans);
+  EXPECT_LE(publications, 2U) << "the scans staged while the lane was held go out in one publication";
+
+  const WorldSnapshot models = world->snapshots();
+  EXPECT_EQ(models.distance->version(), models.grid->version());
+  mapping::DistanceField fresh(core_.config().distance_field);
+  static_cast<void>(fresh.update(models.grid));
+  const auto bounds = models.distance->bounds();
+  ASSERT_TRUE(bounds);
+  std::size_t differing = 0;
+  for (std::int32_t y = bounds->min.iy; y <= bounds->max.iy; ++y) {
+    for (std::int32_t x = bounds->min.ix; x <= bounds->max.ix; ++x) {
+      if (models.distance->distance({x, y}) != fresh.snapshot()->distance({x, y})) ++differing;
+    }
+  }
+  EXPECT_EQ(differing, 0U) << "cells whose published distance is not the published grid's";
 }
 
 TEST_F(Handlers, ScanIsMappedFromTheSensorMountAndAnsweredByACommand) {

@@ -59,9 +59,19 @@ Response make_response(const Request& request, bhttp::status status, std::string
   return response;
 }
 
-// Brings the memory gauges up to date for a scrape: each world's model sizes and the process's resident memory.
-void record_memory_metrics(ServerCore& core) {
+// Brings the gauges read from the worlds up to date for a scrape: each world's model sizes and publications, and the
+// process's resident memory.
+void record_world_gauges(ServerCore& core) {
   for (const auto& world : core.worlds()) {
+    core.metrics()
+        .gauge("occgeo_world_publications", {{"world", world->name()}},
+               "Versions of a world's grid, distance field and PTEM published together since the server started")
+        .set(static_cast<std::int64_t>(world->publications()));
+    core.metrics()
+        .gauge("occgeo_world_merged_publications", {{"world", world->name()}},
+               "Sensor messages of a world published with a later message's publication because the publish lane "
+               "was behind, since the server started")
+        .set(static_cast<std::int64_t>(world->merged_publications()));
     const WorldMemory memory = world->memory();
     for (const auto& [model, bytes] :
          {std::pair{"grid", memory.grid_bytes}, std::pair{"distance_field", memory.distance_field_bytes},
@@ -89,7 +99,7 @@ Response route(ServerCore& core, const Request& request) {
     return response;
   }
   if (target == "/metrics") {
-    record_memory_metrics(core);
+    record_world_gauges(core);
     return make_response(request, bhttp::status::ok, "text/plain; version=0.0.4; charset=utf-8",
                          core.metrics().render());
   }
