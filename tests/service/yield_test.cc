@@ -139,6 +139,52 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
   EXPECT_EQ(tracker.tracks().size(), before.size());
 }
 
+// A walker who passes out of the laser's arc (behind the robot) is kept, coasting on its velocity, for
+// lost_out_of_view_after_s: the robot cannot see them go on, and a turn on the spot would swing its back into them. One
+// who vanishes in plain view is dropped after lost_after_s.
+TEST(ClusterTracker, AWalkerOutOfTheLasersArcCoastsOneGoneInViewIsDropped) {
+  const LaserArc arc{0.0, -kPi / 2, kPi / 2};
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  {
+    World world;
+    const Disc behind{{2.0, 1.0}, {-0.6, 0.0}, 0.25};  // out of the arc (x < -0.25) from t = 3.75 s
+    world.discs = {behind};
+    mapping::PtemModel model(mapping::PtemParams{});
+    ClusterTracker tracker;
+    for (int k = 0; k <= 50; ++k) {
+      const double t = k * kScanPeriod_s;
+      insert(model, world, {0.0, 0.0}, 0.0, t, points, ranges);
+      tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m, arc);
+    }
+    // At t = 5 s, 1.25 s out of view: still there, behind the robot, where its velocity took it (the velocity of a
+    // disc half out of the arc is underestimated: its visible part lags).
+    const std::vector<TrackedObstacle> moving = tracker.moving();
+    const TrackedObstacle* walker = nearest_track(moving, behind.at(5.0));
+    ASSERT_NE(walker, nullptr) << "the walker who went behind the robot was dropped";
+    EXPECT_LT(walker->centre_W.x(), -0.25) << walker->centre_W.transpose();
+    EXPECT_LT((walker->centre_W - behind.at(5.0)).norm(), 0.8) << walker->centre_W.transpose();
+    EXPECT_DOUBLE_EQ(walker->stamp_s, 5.0);
+  }
+  {
+    World world;
+    const Disc ahead{{3.0, -1.5}, {0.0, 0.6}, 0.25};
+    world.discs = {ahead};
+    mapping::PtemModel model(mapping::PtemParams{});
+    ClusterTracker tracker;
+    bool was_moving = false;
+    for (int k = 0; k <= 30; ++k) {
+      const double t = k * kScanPeriod_s;
+      if (k == 20) world.discs.clear();  // gone at t = 2 s, in the middle of the laser's view
+      insert(model, world, {0.0, 0.0}, 0.0, t, points, ranges);
+      tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m, arc);
+      if (k == 19) was_moving = !tracker.moving().empty();
+    }
+    EXPECT_TRUE(was_moving);
+    EXPECT_TRUE(tracker.moving().empty()) << "a walker unseen in view for a second is still tracked";
+  }
+}
+
 // A tracked person (0.25 m disc) at centre_W walking at velocity_W, world frame.
 TrackedObstacle walking_person(const Eigen::Vector2d& centre_W, const Eigen::Vector2d& velocity_W) {
   TrackedObstacle person;

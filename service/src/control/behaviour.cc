@@ -803,7 +803,13 @@ class YieldWrapper final : public Behaviour {
           X_WB.position() + robot_.laser_x_m * Eigen::Vector2d(std::cos(X_WB.theta), std::sin(X_WB.theta));
       const double range_m =
           input.scan.range_max_m > 0.0 ? input.scan.range_max_m : std::numeric_limits<double>::infinity();
-      tracker_.update(*input.ptem, p_WS, range_m);
+      std::optional<LaserArc> arc;
+      if (!input.scan.ranges_m.empty()) {
+        arc = LaserArc{X_WB.theta, input.scan.angle_min_rad,
+                       input.scan.angle_min_rad +
+                           input.scan.angle_increment_rad * static_cast<double>(input.scan.ranges_m.size() - 1)};
+      }
+      tracker_.update(*input.ptem, p_WS, range_m, arc);
     }
     // The robot's own velocity over the last cycle, world frame.
     Eigen::Vector2d robot_velocity_W = Eigen::Vector2d::Zero();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <tuple>
 
 namespace occgeo::service::control {
@@ -28,12 +29,19 @@ ClusterTracker::ClusterTracker(const ClusterTrackerParams& params) : params_(par
 std::vector<TrackedObstacle> ClusterTracker::moving() const {
   std::vector<TrackedObstacle> out;
   for (const TrackedObstacle& track : tracks_) {
-    if (track.moving) out.push_back(track);
+    if (!track.moving) continue;
+    TrackedObstacle now = track;
+    if (stamp_s_) {
+      now.centre_W = track.predicted_W(*stamp_s_ - track.stamp_s);
+      now.stamp_s = *stamp_s_;
+    }
+    out.push_back(now);
   }
   return out;
 }
 
-void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::Vector2d& p_WS, double max_range_m) {
+void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::Vector2d& p_WS, double max_range_m,
+                            const std::optional<LaserArc>& arc) {
   if (scan_count_ && *scan_count_ == snapshot.scan_count()) return;
   scan_count_ = snapshot.scan_count();
   const double stamp_s = snapshot.latest_stamp_s().value_or(stamp_s_.value_or(0.0));
@@ -119,10 +127,21 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
     next.push_back(track);
     next_states.push_back(state);
   }
-  // A moving track not seen in this scan (occluded, or out of view for a moment) coasts until lost_after_s; a still
-  // one is just gone (a wall's fragments come and go with the occlusions in front of it).
+  // A moving track not seen in this scan (occluded, or out of view for a moment) coasts until lost_after_s, or
+  // lost_out_of_view_after_s while predicted where the laser does not look; a still one is just gone (a wall's
+  // fragments come and go with the occlusions in front of it).
+  const auto out_of_view = [&](const Eigen::Vector2d& p_W) {
+    if (!arc) return false;
+    const Eigen::Vector2d d_W = p_W - p_WS;
+    const double bearing = std::remainder(std::atan2(d_W.y(), d_W.x()) - arc->heading_rad, 2.0 * std::numbers::pi);
+    return bearing < arc->angle_min_rad || bearing > arc->angle_max_rad;
+  };
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
-    if (track_taken[t] || !tracks_[t].moving || stamp_s - tracks_[t].stamp_s > params_.lost_after_s) continue;
+    if (track_taken[t] || !tracks_[t].moving) continue;
+    const double unseen_s = stamp_s - tracks_[t].stamp_s;
+    const double lost_after_s =
+        out_of_view(tracks_[t].predicted_W(unseen_s)) ? params_.lost_out_of_view_after_s : params_.lost_after_s;
+    if (unseen_s > lost_after_s) continue;
     next.push_back(tracks_[t]);
     next_states.push_back(states_[t]);
   }

@@ -32,8 +32,19 @@ struct ClusterTrackerParams {
   int moving_after_scans = 3;      // ... for this many scans in a row
   double attached_gap_m = 0.4;     // a cluster this close to another is part of a wall or shelf: never moving
   double range_margin_m = 0.5;     // a cluster this close to the laser's range limit is never moving (see .cc)
-  double lost_after_s = 0.5;       // a track unseen this long is dropped
-  double max_speed_mps = 1.5;      // an association implying more than this starts a new track instead
+  double lost_after_s = 0.5;       // a track unseen this long is dropped ...
+  // ... unless it is moving and predicted outside the laser's arc (behind a robot whose laser looks ahead): the laser
+  // cannot see such a walker go on, so its prediction is kept this long, and a robot turning on the spot does not
+  // swing into the person who just passed out of its view.
+  double lost_out_of_view_after_s = 1.5;
+  double max_speed_mps = 1.5;  // an association implying more than this starts a new track instead
+};
+
+// The bearings a laser sees, world frame: from heading_rad + angle_min_rad to heading_rad + angle_max_rad.
+struct LaserArc {
+  double heading_rad = 0.0;
+  double angle_min_rad = 0.0;
+  double angle_max_rad = 0.0;
 };
 
 class ClusterTracker {
@@ -42,12 +53,15 @@ class ClusterTracker {
 
   // Takes a snapshot seen by a laser at p_WS (world frame) reaching max_range_m. A snapshot of a scan already taken
   // (same scan count) changes nothing. Only the clusters the latest scan made are observations; clusters the PTEM
-  // kept from earlier scans (out of the laser's view) are not.
-  void update(const mapping::PtemSnapshot& snapshot, const Eigen::Vector2d& p_WS, double max_range_m);
+  // kept from earlier scans (out of the laser's view) are not. With the laser's arc, moving tracks predicted outside it
+  // coast for lost_out_of_view_after_s rather than lost_after_s.
+  void update(const mapping::PtemSnapshot& snapshot, const Eigen::Vector2d& p_WS, double max_range_m,
+              const std::optional<LaserArc>& arc = std::nullopt);
 
-  // The tracks, as of the latest snapshot's stamp.
+  // The tracks, each as last seen (centre_W at its stamp_s).
   [[nodiscard]] const std::vector<TrackedObstacle>& tracks() const { return tracks_; }
-  // Only the moving ones.
+  // Only the moving ones, each predicted to the latest snapshot's stamp (those not seen in it coast on their
+  // velocity), so that predicted_W(t) is t seconds after that stamp for every one of them.
   [[nodiscard]] std::vector<TrackedObstacle> moving() const;
 
  private:
