@@ -100,7 +100,7 @@ void World::publish_staged_on_strand() {
       const std::lock_guard lock(self->pending_publication_mutex_);
       pending.swap(self->pending_publication_);
     }
-    self->publish_here(*pending);
+    if (pending) self->publish_here(*pending);  // always set: each job is posted with the one it takes
     self->publish_backlog_.fetch_sub(1, std::memory_order_acq_rel);
   });
 }
