@@ -219,7 +219,8 @@ add(f"| load average at start | {machine.get('loadavg', '?')} |")
 add(f"| run | {machine.get('date', '?')}, {duration} s per occgeo-load run |")
 add("")
 
-# ---- in-process
+# ---- in-process (rendered here for the goals below, placed after the mix users run, which leads the page)
+inprocess_start = len(lines)
 add("## In-process (Google Benchmark, one thread)")
 add("")
 add("| benchmark | time per iteration | per second |")
@@ -247,6 +248,8 @@ for path in sorted(glob.glob(os.path.join(work, "inprocess", "*.json"))):
 if not inprocess:
     add("| (no benchmark binaries found) | | |")
 add("")
+inprocess_section = lines[inprocess_start:]
+del lines[inprocess_start:]
 
 # ---- the mix users run
 add("## The mix users run: robots attached")
@@ -279,11 +282,13 @@ if idle and loaded and idle.get("command_p99_us") and loaded.get("command_p99_us
 try:
     large_status = json.loads(open(os.path.join(work, "large_map.status.json")).read())
     add("The Intel map's world at the start of its run: " + ", ".join(
-        f"{w.get('name', '?')}: {w.get('octomap_leaves', 0):,} octree leaves, grid {w.get('grid_bytes', 0):,} B"
+        f"{w.get('name', '?')}: {int(w.get('octomap_leaves', 0)):,} octree leaves, grid {int(w.get('grid_bytes', 0)):,} B"
         for w in large_status.get("worlds", [])) + ".")
 except (OSError, ValueError):
     pass
 add("")
+
+lines.extend(inprocess_section)
 
 # ---- loopback
 add("## Over loopback: occgeo next to redis")
@@ -446,7 +451,7 @@ add("|---|---|---|---|---|---|---|---|")
 for name, label in (("intel", "Intel"), ("intel_80m", "Intel, `--max-range 80`"), ("exp1", "exp1")):
     values, cells, world = model_bytes(name), known_cells(name), status_world(name)
     if "grid" in values and "octomap" in values and cells and world and world.get("octomap_leaves"):
-        leaves = world["octomap_leaves"]
+        leaves = int(world["octomap_leaves"])  # a uint64: a string in protobuf's JSON
         add(f"| {label} | {cells:,} | {values['grid']:,.0f} | {values['grid'] / cells:.2f} | {leaves:,} | "
             f"{values['octomap']:,.0f} | {values['octomap'] / leaves:.0f} | "
             f"{values.get('resident', 0) / 2**20:.0f} MiB |")
