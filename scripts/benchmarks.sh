@@ -88,10 +88,11 @@ occgeo_load() {  # NAME ARGS...
 }
 
 # The mix users run, first: two simulated Bearcats streaming scans at their real rates (every model on) while 64 query
-# clients ask the default mix (collision, clearance, ptem, status), then only clearance; the robots alone for the
-# command latency without clients. Next to redis GET with 64 clients from the same run (below).
+# clients ask the default mix (collision, clearance, ptem, status), then only clearance, then only status; the robots
+# alone for the command latency without clients. Next to redis GET with 64 clients from the same run (below).
 occgeo_load mix --robots 2 --clients 64 --depth 1
 occgeo_load mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
+occgeo_load mix_status --robots 2 --clients 64 --depth 1 --mix status
 occgeo_load command_idle --robots 2 --clients 0
 # The same mix on a larger map: a server that replayed the Intel log first (its map several times the seeded open
 # field's), with the robots and clients added to that world.
@@ -263,6 +264,7 @@ add("| run | queries/s | p50 / p99 µs | command p50 / p99 ms | errors | redis G
 add("|---|---|---|---|---|---|---|")
 get64 = redis_rps(redis("c64"), "GET")
 mix_rows = [("mix", "2 robots, 64 clients, default mix"), ("mix_clearance", "2 robots, 64 clients, clearance only"),
+            ("mix_status", "2 robots, 64 clients, status only"),
             ("mix_large", "2 robots, 64 clients, default mix, Intel map"), ("command_idle", "2 robots, no clients")]
 for name, label in mix_rows:
     run = occgeo(name)
@@ -482,6 +484,13 @@ if clearance_run and get64:
          f"{clearance_run['queries_per_s']:,.0f} vs {get64:,.0f} = {clearance_run['queries_per_s'] / get64:.2f}×")
 else:
     goal("2 robots + 64 clients, clearance only: queries/s at least redis GET's, 0 errors", None, "a run failed")
+status_run = occgeo("mix_status")
+if status_run:
+    goal("2 robots + 64 clients, status only: at least 50,000 status/s, 0 errors",
+         status_run["queries_per_s"] >= 50000 and status_run["errors"] == 0,
+         f"{status_run['queries_per_s']:,.0f}/s, {status_run['errors']} errors")
+else:
+    goal("2 robots + 64 clients, status only: at least 50,000 status/s, 0 errors", None, "a run failed")
 if mix_run and idle_run and mix_run.get("command_p99_us") and idle_run.get("command_p99_us"):
     p99, idle_p99 = mix_run["command_p99_us"] / 1000, idle_run["command_p99_us"] / 1000
     goal("command p99 with 64 clients ≤ 5 ms and within 1.5× of no clients", p99 <= 5.0 and p99 <= 1.5 * idle_p99,
