@@ -260,6 +260,22 @@ void World::insert_ptem_on_strand(mapping::PtemScan scan) {
   ptem_latest_stamp_s_ = scan.stamp_s;
 }
 
+std::vector<control::TrackedObstacle> World::moving_clusters_on_strand(const std::string& sensor,
+                                                                       const Eigen::Vector2d& p_WS, double max_range_m,
+                                                                       const control::LaserArc& arc) {
+  auto tracker = ptem_trackers_.find(sensor);
+  if (tracker == ptem_trackers_.end()) tracker = ptem_trackers_.emplace(sensor, control::ClusterTracker()).first;
+  const std::shared_ptr<const mapping::PtemSnapshot> snapshot = ptem_.snapshot();
+  tracker->second.update(*snapshot, p_WS, max_range_m, arc);
+  // The tracks seen in this scan come first, stamped with it; those coasting unseen are not this scan's returns.
+  const double stamp_s = snapshot->latest_stamp_s().value_or(0.0);
+  std::vector<control::TrackedObstacle> moving;
+  for (const control::TrackedObstacle& track : tracker->second.tracks()) {
+    if (track.moving && track.stamp_s == stamp_s) moving.push_back(track);
+  }
+  return moving;
+}
+
 bool World::restore_ptem_on_strand(std::string_view state) {
   if (!ptem_.restore(state)) return false;
   ptem_latest_stamp_s_ = ptem_.snapshot()->latest_stamp_s();

@@ -139,6 +139,41 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
   EXPECT_EQ(tracker.tracks().size(), before.size());
 }
 
+// Driving past a square pillar, the robot sees one face, then two, then the next: the mean of the pillar's returns
+// slides along at up to a few tenths of a metre per second, as a walker's would. Its returns stay on the same surface,
+// so it is never moving (surface_moved_m); without that test (surface_moved_m = 0) the same drive makes it moving.
+std::pair<int, int> scans_a_passed_pillar_is_moving(const ClusterTrackerParams& params) {
+  World world;
+  const double lo_x = 2.2, hi_x = 2.8, lo_y = 0.7, hi_y = 1.3;
+  world.walls = {{{lo_x, lo_y}, {hi_x, lo_y}},
+                 {{hi_x, lo_y}, {hi_x, hi_y}},
+                 {{hi_x, hi_y}, {lo_x, hi_y}},
+                 {{lo_x, hi_y}, {lo_x, lo_y}}};
+  mapping::PtemModel model(mapping::PtemParams{});
+  ClusterTracker tracker(params);
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  int moving_scans = 0;
+  int scans = 0;
+  for (int k = 0; k <= 50; ++k) {
+    const double t = k * kScanPeriod_s;
+    const Eigen::Vector2d p_WS(0.5 * t, 0.0);  // 0.5 m/s along x, the pillar 0.7 m to the left of the path
+    insert(model, world, p_WS, 0.0, t, points, ranges);
+    tracker.update(*model.snapshot(), p_WS, kMaxRange_m, LaserArc{0.0, -kPi / 2, kPi / 2});
+    ++scans;
+    moving_scans += tracker.moving().empty() ? 0 : 1;
+  }
+  return {moving_scans, scans};
+}
+
+TEST(ClusterTracker, APillarSeenFromADrivingRobotIsNotMoving) {
+  const auto [moving, scans] = scans_a_passed_pillar_is_moving(ClusterTrackerParams{});
+  EXPECT_EQ(moving, 0) << "of " << scans << " scans";
+  ClusterTrackerParams without;
+  without.surface_moved_m = 0.0;
+  EXPECT_GT(scans_a_passed_pillar_is_moving(without).first, 0);
+}
+
 // A walker who passes out of the laser's arc (behind the robot) is kept, coasting on its velocity, for
 // lost_out_of_view_after_s: the robot cannot see them go on, and a turn on the spot would swing its back into them. One
 // who vanishes in plain view is dropped after lost_after_s.

@@ -45,6 +45,12 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
     if (hit) return "grid";
   }
   if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
+  if (params.check_scan_returns && models.scan_returns != nullptr &&
+      collide_ptem_extent(*models.scan_returns, footprint, X_WB, geometry::bounding_radius(footprint),
+                          params.scan_returns_max_age_s)
+          .hit) {
+    return "scan_returns";
+  }
   if (params.check_octomap && models.octomap != nullptr) {
     // With a terrain the band follows the surface, which FCL's straight prism cannot: the same voxels as columns.
     const bool hit =
@@ -88,6 +94,14 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;
       model = "ptem";
+    }
+  }
+  if (params.check_scan_returns && models.scan_returns != nullptr) {
+    const auto clearance =
+        ptem_extent_clearance(*models.scan_returns, footprint, X_WB, max_distance_m, params.scan_returns_max_age_s);
+    if (clearance.found && clearance.clearance_m < best) {
+      best = clearance.clearance_m;
+      model = "scan_returns";
     }
   }
   return {best, model};
@@ -223,6 +237,9 @@ void GuardParams::validate() const {
                     "predict_horizon_s", "must be in [0, 10] seconds", predict_horizon_s);
   geometry::require(std::isfinite(predict_margin_m) && predict_margin_m >= 0.0 && predict_margin_m <= 2.0,
                     "predict_margin_m", "must be in [0, 2] metres", predict_margin_m);
+  geometry::require(
+      std::isfinite(scan_returns_max_age_s) && scan_returns_max_age_s >= 0.0 && scan_returns_max_age_s <= 10.0,
+      "scan_returns_max_age_s", "must be in [0, 10] seconds", scan_returns_max_age_s);
   geometry::require(std::isfinite(limit_linear_mps) && limit_linear_mps > 0.0, "limit_linear_mps", "must be positive",
                     limit_linear_mps);
   geometry::require(std::isfinite(limit_angular_radps) && limit_angular_radps > 0.0, "limit_angular_radps",

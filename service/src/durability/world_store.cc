@@ -123,7 +123,7 @@ SensorOrder replay_sensor(World& world, IngestTarget& target, const RobotModel& 
     if (!message.ParseFromString(record.body)) throw damaged("undecodable laser_scan");
     const LaserModel* laser = model.find_laser(message.sensor());
     if (!laser) throw damaged("robot '" + model.id + "' has no laser '" + message.sensor() + "'");
-    insert_laser_scan(world, target, record.X_WB, *laser, message);
+    insert_laser_scan(world, target, model.id, record.X_WB, *laser, message);
     return {message.seq()};
   }
   if (record.kind == "range_array") {

@@ -278,9 +278,11 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
 }
 
 PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                const geometry::Pose2& X_WB, double bounding_radius_m) {
+                                const geometry::Pose2& X_WB, double bounding_radius_m,
+                                std::optional<double> max_age_s) {
   std::optional<PlanarFrame> frame;
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    if (max_age_s && cluster.age_s > *max_age_s) continue;
     // The circle holds every return of the cluster: most clusters are far and need no body-frame arithmetic.
     if ((cluster.centre_W - X_WB.position()).norm() > bounding_radius_m + cluster.radius_m) continue;
     if (!frame) frame.emplace(X_WB);
@@ -296,11 +298,13 @@ PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometr
 }
 
 PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                    const geometry::Pose2& X_WB, double max_distance_m) {
+                                    const geometry::Pose2& X_WB, double max_distance_m,
+                                    std::optional<double> max_age_s) {
   PtemClearance out;
   out.clearance_m = max_distance_m;
   const PlanarFrame frame(X_WB);
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
+    if (max_age_s && cluster.age_s > *max_age_s) continue;
     // The distance to the circle bounds the distance to any return inside it: skip clusters that cannot be nearer.
     const double circle_gap_m =
         (nearest_footprint_point(footprint, frame, cluster.centre_W) - cluster.centre_W).norm() - cluster.radius_m;

@@ -118,11 +118,14 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
 // Matter, not threat: does the footprint at X_WB (closed) hold one of the returns a cluster gathered
 // (PtemCluster::extent_W)? A cluster's circle reaches into free floor beside and behind its returns, and the summed
 // PDFs' region beyond the circles even more: both are collide_ptem's keep-out, not a contact.
+// With max_age_s, only the clusters made that recently (PtemCluster::age_s) count: what the laser sees now.
 PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                const geometry::Pose2& X_WB, double bounding_radius_m);
-// Distance from the footprint at X_WB to the nearest return of any cluster's extent, no farther than max_distance_m;
-// 0 when the footprint holds one.
+                                const geometry::Pose2& X_WB, double bounding_radius_m,
+                                std::optional<double> max_age_s = std::nullopt);
+// Distance from the footprint at X_WB to the nearest return of any cluster's extent (max_age_s as above), no farther
+// than max_distance_m; 0 when the footprint holds one.
 PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                    const geometry::Pose2& X_WB, double max_distance_m);
+                                    const geometry::Pose2& X_WB, double max_distance_m,
+                                    std::optional<double> max_age_s = std::nullopt);
 
 }  // namespace occgeo::service
