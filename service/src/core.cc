@@ -276,6 +276,39 @@ std::vector<control::TrackedObstacle> World::moving_clusters_on_strand(const std
   return moving;
 }
 
+// Per tracker: its key's length and bytes, its state's length and bytes.
+std::string World::serialize_trackers_on_strand() const {
+  std::string out;
+  for (const auto& [sensor, tracker] : ptem_trackers_) {
+    const std::string state = tracker.serialize();
+    for (const std::string_view part : {std::string_view(sensor), std::string_view(state)}) {
+      const std::uint64_t size = part.size();
+      out.append(reinterpret_cast<const char*>(&size), sizeof(size));
+      out.append(part);
+    }
+  }
+  return out;
+}
+
+void World::restore_trackers_on_strand(std::string_view state) {
+  std::map<std::string, control::ClusterTracker, std::less<>> trackers;
+  const auto take = [&state]() {
+    std::uint64_t size = 0;
+    if (state.size() < sizeof(size)) throw std::invalid_argument("tracker state: truncated");
+    std::memcpy(&size, state.data(), sizeof(size));
+    state.remove_prefix(sizeof(size));
+    if (size > state.size()) throw std::invalid_argument("tracker state: truncated");
+    const std::string_view part = state.substr(0, size);
+    state.remove_prefix(size);
+    return part;
+  };
+  while (!state.empty()) {
+    const std::string sensor(take());
+    trackers[sensor].restore(take());
+  }
+  ptem_trackers_ = std::move(trackers);
+}
+
 bool World::restore_ptem_on_strand(std::string_view state) {
   if (!ptem_.restore(state)) return false;
   ptem_latest_stamp_s_ = ptem_.snapshot()->latest_stamp_s();

@@ -123,8 +123,12 @@ class World : public std::enable_shared_from_this<World> {
   // took it: `sensor` names the laser (robot and laser), which saw `arc` from p_WS out to max_range_m. Those are people
   // and carts going by, whose returns insert_laser_scan does not map as matter, so that they leave no trail in the
   // grid or the octree. Call from the strand right after insert_ptem_on_strand of that laser's scan. Each laser has
-  // its own tracker, kept for the world's life and not in its snapshots: after a restart, a walker is known as moving
-  // again after moving_after_scans scans.
+  // its own tracker, kept for the world's life and in its snapshots (serialize_trackers_on_strand), so that a world
+  // restored from a snapshot and its journal flags the same returns as ingest did.
+  // The trackers' state for a snapshot (control::ClusterTracker::serialize, per laser), and back; on the strand
+  // (restore: before any work reaches it). restore throws std::invalid_argument, changing nothing, for damaged bytes.
+  [[nodiscard]] std::string serialize_trackers_on_strand() const;
+  void restore_trackers_on_strand(std::string_view state);
   std::vector<control::TrackedObstacle> moving_clusters_on_strand(const std::string& sensor,
                                                                   const Eigen::Vector2d& p_WS, double max_range_m,
                                                                   const control::LaserArc& arc);

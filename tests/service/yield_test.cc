@@ -8,7 +8,9 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -137,6 +139,42 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
   const std::vector<TrackedObstacle> before = tracker.tracks();
   tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
   EXPECT_EQ(tracker.tracks().size(), before.size());
+}
+
+// A server's snapshot holds the tracker: one restored from it goes on exactly as the one that kept running (so that
+// a world restored from its snapshot and journal maps the walker's returns as ingest did). Damaged bytes are refused.
+TEST(ClusterTracker, ARestoredTrackerGoesOnAsTheOneThatKeptRunning) {
+  World world;
+  world.walls = {{{-1.0, 2.5}, {7.0, 2.5}}};
+  world.discs = {{{3.0, -1.8}, {0.15, 0.6}, 0.25}};
+  mapping::PtemModel model(mapping::PtemParams{});
+  ClusterTracker running;
+  std::optional<ClusterTracker> restored;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = k * kScanPeriod_s;
+    insert(model, world, {0.0, 0.0}, 0.0, t, points, ranges);
+    running.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+    if (restored) restored->update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+    if (k == 8) {
+      restored.emplace();
+      restored->restore(running.serialize());
+    }
+  }
+  ASSERT_TRUE(restored);
+  ASSERT_EQ(restored->tracks().size(), running.tracks().size());
+  ASSERT_FALSE(running.moving().empty());
+  for (std::size_t i = 0; i < running.tracks().size(); ++i) {
+    EXPECT_EQ(restored->tracks()[i].centre_W, running.tracks()[i].centre_W);
+    EXPECT_EQ(restored->tracks()[i].velocity_W, running.tracks()[i].velocity_W);
+    EXPECT_EQ(restored->tracks()[i].moving, running.tracks()[i].moving);
+  }
+  std::string damaged = running.serialize();
+  damaged.resize(damaged.size() - 3);
+  EXPECT_THROW(restored->restore(damaged), std::invalid_argument);
+  EXPECT_THROW(restored->restore("not a tracker"), std::invalid_argument);
+  EXPECT_EQ(restored->tracks().size(), running.tracks().size());  // unchanged by the refused bytes
 }
 
 // Driving past a square pillar, the robot sees one face, then two, then the next: the mean of the pillar's returns

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 #include <tuple>
+#include <type_traits>
 
 namespace occgeo::service::control {
 
@@ -47,6 +50,120 @@ double median_nearest_m(const std::vector<Eigen::Vector2d>& now, const std::vect
 }  // namespace
 
 ClusterTracker::ClusterTracker(const ClusterTrackerParams& params) : params_(params) {}
+
+namespace {
+
+constexpr std::string_view kStateMagic = "occgeo-cluster-tracker-1";
+
+template <typename T>
+void put(std::string& out, const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  out.append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+// Reads trivially copyable values off the front of a byte string, throwing when it runs out.
+struct Reader {
+  std::string_view bytes;
+  template <typename T>
+  T get() {
+    static_assert(std::is_trivially_copyable_v<T>);
+    if (bytes.size() < sizeof(T)) throw std::invalid_argument("cluster tracker state: truncated");
+    T value;
+    std::memcpy(&value, bytes.data(), sizeof(T));
+    bytes.remove_prefix(sizeof(T));
+    return value;
+  }
+  // A count of items of item_bytes each that the remaining bytes can hold.
+  std::uint64_t count(std::size_t item_bytes) {
+    const auto n = get<std::uint64_t>();
+    if (n > bytes.size() / item_bytes) throw std::invalid_argument("cluster tracker state: count beyond its bytes");
+    return n;
+  }
+};
+
+void put_point(std::string& out, const Eigen::Vector2d& p) {
+  put(out, p.x());
+  put(out, p.y());
+}
+
+Eigen::Vector2d get_point(Reader& in) {
+  const auto x = in.get<double>();
+  return {x, in.get<double>()};
+}
+
+}  // namespace
+
+std::string ClusterTracker::serialize() const {
+  std::string out(kStateMagic);
+  put<std::uint8_t>(out, scan_count_ ? 1 : 0);
+  put<std::uint64_t>(out, scan_count_.value_or(0));
+  put<std::uint8_t>(out, stamp_s_ ? 1 : 0);
+  put<double>(out, stamp_s_.value_or(0.0));
+  put<std::uint64_t>(out, tracks_.size());
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    const TrackedObstacle& track = tracks_[t];
+    const State& state = states_[t];
+    put_point(out, track.centre_W);
+    put_point(out, track.velocity_W);
+    put(out, track.radius_m);
+    put(out, track.stamp_s);
+    put<std::uint8_t>(out, track.moving ? 1 : 0);
+    put_point(out, state.mean_W);
+    put<std::int32_t>(out, state.fast_scans);
+    put<std::int32_t>(out, state.updates);
+    put<std::uint64_t>(out, state.returns_W.size());
+    for (const auto& [stamp_s, returns_W] : state.returns_W) {
+      put(out, stamp_s);
+      put<std::uint64_t>(out, returns_W.size());
+      for (const Eigen::Vector2d& p : returns_W) put_point(out, p);
+    }
+  }
+  return out;
+}
+
+void ClusterTracker::restore(std::string_view state) {
+  if (!state.starts_with(kStateMagic)) throw std::invalid_argument("cluster tracker state: not written by serialize");
+  Reader in{state.substr(kStateMagic.size())};
+  std::optional<std::uint64_t> scan_count;
+  if (in.get<std::uint8_t>() != 0)
+    scan_count = in.get<std::uint64_t>();
+  else
+    in.get<std::uint64_t>();
+  std::optional<double> stamp_s;
+  if (in.get<std::uint8_t>() != 0)
+    stamp_s = in.get<double>();
+  else
+    in.get<double>();
+  std::vector<TrackedObstacle> tracks;
+  std::vector<State> states;
+  const std::uint64_t n = in.count(1);
+  for (std::uint64_t t = 0; t < n; ++t) {
+    TrackedObstacle track;
+    track.centre_W = get_point(in);
+    track.velocity_W = get_point(in);
+    track.radius_m = in.get<double>();
+    track.stamp_s = in.get<double>();
+    track.moving = in.get<std::uint8_t>() != 0;
+    State s;
+    s.mean_W = get_point(in);
+    s.fast_scans = in.get<std::int32_t>();
+    s.updates = in.get<std::int32_t>();
+    const std::uint64_t entries = in.count(1);
+    for (std::uint64_t e = 0; e < entries; ++e) {
+      const auto then_s = in.get<double>();
+      std::vector<Eigen::Vector2d> returns_W(in.count(2 * sizeof(double)));
+      for (Eigen::Vector2d& p : returns_W) p = get_point(in);
+      s.returns_W.emplace_back(then_s, std::move(returns_W));
+    }
+    tracks.push_back(track);
+    states.push_back(std::move(s));
+  }
+  if (!in.bytes.empty()) throw std::invalid_argument("cluster tracker state: bytes after the last track");
+  tracks_ = std::move(tracks);
+  states_ = std::move(states);
+  scan_count_ = scan_count;
+  stamp_s_ = stamp_s;
+}
 
 std::vector<TrackedObstacle> ClusterTracker::moving() const {
   std::vector<TrackedObstacle> out;

@@ -32,6 +32,24 @@ void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::Ce
       min, max, [&](const geometry::CellIndex& cell) { return terrain_.explains_returns(cell) || visit(cell); });
 }
 
+void RecentReturnCells::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                                          const std::function<bool(const geometry::CellIndex&)>& visit) const {
+  const double cell_m = cells_.cell_size();
+  const Eigen::Vector2d lo(min.ix * cell_m, min.iy * cell_m);
+  const Eigen::Vector2d hi((max.ix + 1) * cell_m, (max.iy + 1) * cell_m);
+  for (const mapping::PtemCluster& cluster : ptem_.clusters()) {
+    if (cluster.age_s > max_age_s_) continue;
+    // The circle holds every return: a cluster whose circle misses the box has none in it.
+    const Eigen::Vector2d nearest = cluster.centre_W.cwiseMax(lo).cwiseMin(hi);
+    if ((nearest - cluster.centre_W).norm() > cluster.radius_m) continue;
+    for (const Eigen::Vector2d& p_W : cluster.extent_W) {
+      const geometry::CellIndex c = cells_.cell_of(p_W);
+      if (c.ix < min.ix || c.ix > max.ix || c.iy < min.iy || c.iy > max.iy) continue;
+      if (!visit(c)) return;
+    }
+  }
+}
+
 OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m,
                                const mapping::TerrainMap* terrain, bool plausible_surfaces)
     : octomap_(octomap),
@@ -278,11 +296,9 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
 }
 
 PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                const geometry::Pose2& X_WB, double bounding_radius_m,
-                                std::optional<double> max_age_s) {
+                                const geometry::Pose2& X_WB, double bounding_radius_m) {
   std::optional<PlanarFrame> frame;
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-    if (max_age_s && cluster.age_s > *max_age_s) continue;
     // The circle holds every return of the cluster: most clusters are far and need no body-frame arithmetic.
     if ((cluster.centre_W - X_WB.position()).norm() > bounding_radius_m + cluster.radius_m) continue;
     if (!frame) frame.emplace(X_WB);
@@ -298,13 +314,11 @@ PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometr
 }
 
 PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                    const geometry::Pose2& X_WB, double max_distance_m,
-                                    std::optional<double> max_age_s) {
+                                    const geometry::Pose2& X_WB, double max_distance_m) {
   PtemClearance out;
   out.clearance_m = max_distance_m;
   const PlanarFrame frame(X_WB);
   for (const mapping::PtemCluster& cluster : ptem.clusters()) {
-    if (max_age_s && cluster.age_s > *max_age_s) continue;
     // The distance to the circle bounds the distance to any return inside it: skip clusters that cannot be nearer.
     const double circle_gap_m =
         (nearest_footprint_point(footprint, frame, cluster.centre_W) - cluster.centre_W).norm() - cluster.radius_m;

@@ -44,6 +44,24 @@ class TerrainMaskedCells final : public geometry::OccupiedCellSource {
   const mapping::TerrainMap& terrain_;
 };
 
+// The cells (of cell_size_m) holding a return of the PTEM clusters made within max_age_s of the snapshot's latest scan
+// (PtemCluster::age_s): what the laser sees now, people and carts included, whose returns the grid does not keep once
+// they are tracked as moving. A cell is visited once per return in it.
+class RecentReturnCells final : public geometry::OccupiedCellSource {
+ public:
+  // ptem must outlive this.
+  RecentReturnCells(const mapping::PtemSnapshot& ptem, double max_age_s, double cell_size_m)
+      : ptem_(ptem), max_age_s_(max_age_s), cells_(cell_size_m) {}
+  [[nodiscard]] double cell_size() const override { return cells_.cell_size(); }
+  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                         const std::function<bool(const geometry::CellIndex&)>& visit) const override;
+
+ private:
+  const mapping::PtemSnapshot& ptem_;
+  double max_age_s_;
+  geometry::GridGeometry cells_;
+};
+
 // The OctoMap's occupied voxels whose z range overlaps [ground_band, top_m], projected on the
 // ground as grid cells of the octree's resolution (cell (ix, iy) covers [ix r, (ix+1) r) x
 // [iy r, (iy+1) r), the same squares as the voxels' columns), so that geometry::compute_clearance
@@ -118,14 +136,11 @@ PtemClearance ptem_clearance(const mapping::PtemSnapshot& ptem, const geometry::
 // Matter, not threat: does the footprint at X_WB (closed) hold one of the returns a cluster gathered
 // (PtemCluster::extent_W)? A cluster's circle reaches into free floor beside and behind its returns, and the summed
 // PDFs' region beyond the circles even more: both are collide_ptem's keep-out, not a contact.
-// With max_age_s, only the clusters made that recently (PtemCluster::age_s) count: what the laser sees now.
 PtemContact collide_ptem_extent(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                const geometry::Pose2& X_WB, double bounding_radius_m,
-                                std::optional<double> max_age_s = std::nullopt);
-// Distance from the footprint at X_WB to the nearest return of any cluster's extent (max_age_s as above), no farther
-// than max_distance_m; 0 when the footprint holds one.
+                                const geometry::Pose2& X_WB, double bounding_radius_m);
+// Distance from the footprint at X_WB to the nearest return of any cluster's extent, no farther than max_distance_m;
+// 0 when the footprint holds one.
 PtemClearance ptem_extent_clearance(const mapping::PtemSnapshot& ptem, const geometry::Footprint& footprint,
-                                    const geometry::Pose2& X_WB, double max_distance_m,
-                                    std::optional<double> max_age_s = std::nullopt);
+                                    const geometry::Pose2& X_WB, double max_distance_m);
 
 }  // namespace occgeo::service

@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -68,6 +70,11 @@ class ClusterTracker {
 
   // The tracks, each as last seen (centre_W at its stamp_s).
   [[nodiscard]] const std::vector<TrackedObstacle>& tracks() const { return tracks_; }
+  // The tracker's whole state (tracks, their histories, the latest scan taken) as bytes, doubles bit for bit, for a
+  // server's snapshot: restore() of them followed by the same snapshots gives the same tracks. Parameters are not in
+  // it. restore() throws std::invalid_argument, changing nothing, for bytes serialize() did not write.
+  [[nodiscard]] std::string serialize() const;
+  void restore(std::string_view state);
   // Only the moving ones, each predicted to the latest snapshot's stamp (those not seen in it coast on their
   // velocity), so that predicted_W(t) is t seconds after that stamp for every one of them.
   [[nodiscard]] std::vector<TrackedObstacle> moving() const;
