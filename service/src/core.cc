@@ -260,55 +260,6 @@ void World::insert_ptem_on_strand(mapping::PtemScan scan) {
   ptem_latest_stamp_s_ = scan.stamp_s;
 }
 
-std::vector<control::TrackedObstacle> World::moving_clusters_on_strand(const std::string& sensor,
-                                                                       const Eigen::Vector2d& p_WS, double max_range_m,
-                                                                       const control::LaserArc& arc) {
-  auto tracker = ptem_trackers_.find(sensor);
-  if (tracker == ptem_trackers_.end()) tracker = ptem_trackers_.emplace(sensor, control::ClusterTracker()).first;
-  const std::shared_ptr<const mapping::PtemSnapshot> snapshot = ptem_.snapshot();
-  tracker->second.update(*snapshot, p_WS, max_range_m, arc);
-  // The tracks seen in this scan come first, stamped with it; those coasting unseen are not this scan's returns.
-  const double stamp_s = snapshot->latest_stamp_s().value_or(0.0);
-  std::vector<control::TrackedObstacle> moving;
-  for (const control::TrackedObstacle& track : tracker->second.tracks()) {
-    if (track.moving && track.stamp_s == stamp_s) moving.push_back(track);
-  }
-  return moving;
-}
-
-// Per tracker: its key's length and bytes, its state's length and bytes.
-std::string World::serialize_trackers_on_strand() const {
-  std::string out;
-  for (const auto& [sensor, tracker] : ptem_trackers_) {
-    const std::string state = tracker.serialize();
-    for (const std::string_view part : {std::string_view(sensor), std::string_view(state)}) {
-      const std::uint64_t size = part.size();
-      out.append(reinterpret_cast<const char*>(&size), sizeof(size));
-      out.append(part);
-    }
-  }
-  return out;
-}
-
-void World::restore_trackers_on_strand(std::string_view state) {
-  std::map<std::string, control::ClusterTracker, std::less<>> trackers;
-  const auto take = [&state]() {
-    std::uint64_t size = 0;
-    if (state.size() < sizeof(size)) throw std::invalid_argument("tracker state: truncated");
-    std::memcpy(&size, state.data(), sizeof(size));
-    state.remove_prefix(sizeof(size));
-    if (size > state.size()) throw std::invalid_argument("tracker state: truncated");
-    const std::string_view part = state.substr(0, size);
-    state.remove_prefix(size);
-    return part;
-  };
-  while (!state.empty()) {
-    const std::string sensor(take());
-    trackers[sensor].restore(take());
-  }
-  ptem_trackers_ = std::move(trackers);
-}
-
 bool World::restore_ptem_on_strand(std::string_view state) {
   if (!ptem_.restore(state)) return false;
   ptem_latest_stamp_s_ = ptem_.snapshot()->latest_stamp_s();

@@ -296,8 +296,7 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         control.behaviour == v1::BEHAVIOUR_TELEOP || !robot.active_behaviour_on_strand()
             ? std::vector<control::TrackedObstacle>{}
             : robot.active_behaviour_on_strand()->moving_obstacles();
-    const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get(),
-                                      snapshot.ptem.get()};
+    const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
     const control::GuardDecision decision = control::guard_command(
         models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard, moving);
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);

@@ -44,24 +44,6 @@ class TerrainMaskedCells final : public geometry::OccupiedCellSource {
   const mapping::TerrainMap& terrain_;
 };
 
-// The cells (of cell_size_m) holding a return of the PTEM clusters made within max_age_s of the snapshot's latest scan
-// (PtemCluster::age_s): what the laser sees now, people and carts included, whose returns the grid does not keep once
-// they are tracked as moving. A cell is visited once per return in it.
-class RecentReturnCells final : public geometry::OccupiedCellSource {
- public:
-  // ptem must outlive this.
-  RecentReturnCells(const mapping::PtemSnapshot& ptem, double max_age_s, double cell_size_m)
-      : ptem_(ptem), max_age_s_(max_age_s), cells_(cell_size_m) {}
-  [[nodiscard]] double cell_size() const override { return cells_.cell_size(); }
-  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
-                         const std::function<bool(const geometry::CellIndex&)>& visit) const override;
-
- private:
-  const mapping::PtemSnapshot& ptem_;
-  double max_age_s_;
-  geometry::GridGeometry cells_;
-};
-
 // The OctoMap's occupied voxels whose z range overlaps [ground_band, top_m], projected on the
 // ground as grid cells of the octree's resolution (cell (ix, iy) covers [ix r, (ix+1) r) x
 // [iy r, (iy+1) r), the same squares as the voxels' columns), so that geometry::compute_clearance
