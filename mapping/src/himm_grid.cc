@@ -44,7 +44,8 @@ void HimmGrid::insert_ray(const Eigen::Vector2d& sensor_origin_W, const Eigen::V
 }
 
 void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float angle_increment,
-                           std::span<const float> ranges, float range_max, const BeamLimits& limits) {
+                           std::span<const float> ranges, float range_max, const BeamLimits& limits,
+                           std::span<const std::uint8_t> ended_on_moving) {
   if (!is_finite(X_WS)) throw std::invalid_argument("insert_scan: X_WS is not finite");
   if (!std::isfinite(angle_min)) throw std::invalid_argument("insert_scan: angle_min is not finite");
   if (!std::isfinite(angle_increment)) throw std::invalid_argument("insert_scan: angle_increment is not finite");
@@ -56,6 +57,10 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   // Every beam end lies within max_range of the sensor on both axes.
   if (!geometry::is_traversable_point(geometry_, {std::abs(X_WS.x) + max_range, std::abs(X_WS.y) + max_range})) {
     throw std::invalid_argument("insert_scan: X_WS is too far from the origin");
+  }
+  if (!ended_on_moving.empty() && ended_on_moving.size() != ranges.size()) {
+    throw std::invalid_argument("insert_scan: ended_on_moving has " + std::to_string(ended_on_moving.size()) +
+                                " flags for " + std::to_string(ranges.size()) + " readings");
   }
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (std::isnan(ranges[i]) || ranges[i] < 0.0F) {
@@ -78,12 +83,16 @@ void HimmGrid::insert_scan(const geometry::Pose2& X_WS, float angle_min, float a
   std::unordered_set<geometry::CellIndex, geometry::CellIndexHash>& hit_cells = see_through_hits_;
   lowered_cells.clear();
   hit_cells.clear();
-  for (const float reading : ranges) {
-    const double range = static_cast<double>(reading);
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    const double range = static_cast<double>(ranges[i]);
     const BeamUse use = beam_use(range, max_range, limits);
     // Only a return beyond a cell shows the sensor saw through it (a beam with none may have passed glass or a gap).
     std::vector<geometry::CellIndex>* lowered = see_through && range < max_range ? &lowered_cells : nullptr;
-    if (use.hit && use.free_m >= range) {
+    if (!ended_on_moving.empty() && ended_on_moving[i] != 0) {
+      // Not the return's own cell: what a mistaken track covers (a pillar seen from a moving robot) is left as it was.
+      const double free_m = std::min(range - params_.cell_size_m, use.free_m);
+      if (free_m > 0.0) writer.trace_beam(p_WS, p_WS + free_m * direction, false, lowered);
+    } else if (use.hit && use.free_m >= range) {
       const Eigen::Vector2d end_W = p_WS + range * direction;
       writer.trace_beam(p_WS, end_W, true, lowered);
       if (see_through) hit_cells.insert(geometry_.cell_of(end_W));

@@ -469,6 +469,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("check_grid", g.check_grid)
                        .field("check_octomap", g.check_octomap)
                        .field("check_ptem", g.check_ptem)
+                       .field("check_scan_returns", g.check_scan_returns)
+                       .field("scan_returns_max_age_s", g.scan_returns_max_age_s)
                        .field("predict_horizon_s", g.predict_horizon_s)
                        .field("predict_margin_m", g.predict_margin_m);
                  })

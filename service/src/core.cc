@@ -49,12 +49,10 @@ World::World(std::string name, mapping::HimmGrid grid, const WorldParams& params
   auto grid_snapshot = grid_.snapshot();
   static_cast<void>(grid_.take_occupancy_changes());  // the field starts from the whole grid
   distance_field_.update(grid_snapshot);
-  snapshot_ = {std::move(grid_snapshot),
-               ptem_.snapshot(),
-               distance_field_.snapshot(),
-               octomap_.publish(),
-               std::make_shared<const std::vector<OctreeBandSnapshot>>(),
-               octree_band_requests_};
+  snapshot_ = {
+      std::move(grid_snapshot),   ptem_.snapshot(),   moving_now_,
+      distance_field_.snapshot(), octomap_.publish(), std::make_shared<const std::vector<OctreeBandSnapshot>>(),
+      octree_band_requests_};
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
 
@@ -65,9 +63,10 @@ void World::publish_on_strand(std::optional<mapping::CellBox> touched) {
 
 void World::stage_on_strand(std::optional<mapping::CellBox> touched) {
   publish_staged_on_strand();  // a publication staged before is never dropped
-  staged_ = StagedPublication{grid_.snapshot(), ptem_.snapshot(), grid_.take_occupancy_changes(), touched};
+  staged_ = StagedPublication{grid_.snapshot(), ptem_.snapshot(), moving_now_, grid_.take_occupancy_changes(), touched};
   latest_grid_on_strand_ = staged_->grid;
   latest_ptem_on_strand_ = staged_->ptem;
+  latest_moving_on_strand_ = staged_->moving;
 }
 
 void World::publish_staged_on_strand() {
@@ -108,6 +107,7 @@ void World::publish_staged_on_strand() {
 void World::merge_publications(StagedPublication& into, StagedPublication&& later) {
   into.grid = std::move(later.grid);
   into.ptem = std::move(later.ptem);
+  into.moving = std::move(later.moving);
   // The field re-reads each logged cell from the latest grid, so the logs add up (a cell flipped twice is looked at
   // twice and ends as the grid has it); past the grid's own log limit, the areas the messages touched answer.
   if (into.changed && later.changed &&
@@ -139,6 +139,7 @@ void World::publish_here(StagedPublication& staged) {
   const std::lock_guard lock(snapshot_mutex_);
   snapshot_.grid = std::move(staged.grid);
   snapshot_.ptem = std::move(staged.ptem);
+  snapshot_.moving = std::move(staged.moving);
   snapshot_.distance = std::move(distance);
   snapshot_generation_.store(next_snapshot_generation(), std::memory_order_release);
 }
@@ -162,6 +163,7 @@ WorldSnapshot World::snapshots_on_strand() const {
   WorldSnapshot models = snapshots();
   if (latest_grid_on_strand_) models.grid = latest_grid_on_strand_;
   if (latest_ptem_on_strand_) models.ptem = latest_ptem_on_strand_;
+  if (latest_moving_on_strand_) models.moving = latest_moving_on_strand_;
   return models;
 }
 
@@ -258,6 +260,72 @@ void World::insert_ptem_on_strand(mapping::PtemScan scan) {
   if (ptem_latest_stamp_s_) scan.stamp_s = std::max(scan.stamp_s, *ptem_latest_stamp_s_);
   ptem_.insert_scan(scan);
   ptem_latest_stamp_s_ = scan.stamp_s;
+}
+
+std::vector<control::TrackedObstacle> World::moving_clusters_on_strand(const std::string& sensor,
+                                                                       const Eigen::Vector2d& p_WS, double max_range_m,
+                                                                       const control::LaserArc& arc) {
+  auto tracker = ptem_trackers_.find(sensor);
+  if (tracker == ptem_trackers_.end()) tracker = ptem_trackers_.emplace(sensor, control::ClusterTracker()).first;
+  const std::shared_ptr<const mapping::PtemSnapshot> snapshot = ptem_.snapshot();
+  tracker->second.update(*snapshot, p_WS, max_range_m, arc);
+  // The tracks seen in this scan come first, stamped with it; those coasting unseen are not this scan's returns.
+  const double stamp_s = snapshot->latest_stamp_s().value_or(0.0);
+  std::vector<control::TrackedObstacle> moving;
+  for (const control::TrackedObstacle& track : tracker->second.tracks()) {
+    if (track.moving && track.stamp_s == stamp_s) moving.push_back(track);
+  }
+  // Another laser's list is left out once it is older than this (a robot gone, a laser that stopped): its people
+  // have walked on.
+  constexpr double kMovingKept_s = 0.5;
+  auto& mine = moving_by_sensor_[sensor];
+  if (!(mine.empty() && moving.empty())) {
+    mine = moving;
+    auto all = std::make_shared<std::vector<control::TrackedObstacle>>();
+    for (auto entry = moving_by_sensor_.begin(); entry != moving_by_sensor_.end();) {
+      if (!entry->second.empty() && entry->second.front().stamp_s < stamp_s - kMovingKept_s) {
+        entry = moving_by_sensor_.erase(entry);
+        continue;
+      }
+      all->insert(all->end(), entry->second.begin(), entry->second.end());
+      ++entry;
+    }
+    moving_now_ = std::move(all);
+  }
+  return moving;
+}
+
+// Per tracker: its key's length and bytes, its state's length and bytes.
+std::string World::serialize_trackers_on_strand() const {
+  std::string out;
+  for (const auto& [sensor, tracker] : ptem_trackers_) {
+    const std::string state = tracker.serialize();
+    for (const std::string_view part : {std::string_view(sensor), std::string_view(state)}) {
+      const std::uint64_t size = part.size();
+      out.append(reinterpret_cast<const char*>(&size), sizeof(size));
+      out.append(part);
+    }
+  }
+  return out;
+}
+
+void World::restore_trackers_on_strand(std::string_view state) {
+  std::map<std::string, control::ClusterTracker, std::less<>> trackers;
+  const auto take = [&state]() {
+    std::uint64_t size = 0;
+    if (state.size() < sizeof(size)) throw std::invalid_argument("tracker state: truncated");
+    std::memcpy(&size, state.data(), sizeof(size));
+    state.remove_prefix(sizeof(size));
+    if (size > state.size()) throw std::invalid_argument("tracker state: truncated");
+    const std::string_view part = state.substr(0, size);
+    state.remove_prefix(size);
+    return part;
+  };
+  while (!state.empty()) {
+    const std::string sensor(take());
+    trackers[sensor].restore(take());
+  }
+  ptem_trackers_ = std::move(trackers);
 }
 
 bool World::restore_ptem_on_strand(std::string_view state) {

@@ -28,6 +28,7 @@
 #include "occgeo/service/config.h"
 #include "occgeo/service/control/bearcat.h"
 #include "occgeo/service/control/behaviour.h"
+#include "occgeo/service/control/cluster_tracker.h"
 #include "occgeo/v1/control.pb.h"
 #include "occgeo/v1/robot.pb.h"
 #include "octree_band_field.h"
@@ -50,6 +51,9 @@ using OctreeWork = std::function<void(mapping::OctoMapModel& octomap)>;
 struct WorldSnapshot {
   std::shared_ptr<const mapping::GridSnapshot> grid;
   std::shared_ptr<const mapping::PtemSnapshot> ptem;
+  // The clusters of ptem's latest scans that the lasers' trackers follow as moving (World::moving_clusters_on_strand):
+  // the people and carts whose returns the grid and the octree do not keep, and the guard checks instead.
+  std::shared_ptr<const std::vector<control::TrackedObstacle>> moving;
   std::shared_ptr<const mapping::DistanceFieldSnapshot> distance;  // matches grid (same version)
   std::shared_ptr<const mapping::OctoMapSnapshot> octomap;
   // The octree's clearance fields (one per footprint height asked for), of octomap's version; where a query's height
@@ -118,6 +122,19 @@ class World : public std::enable_shared_from_this<World> {
   // parameters, throws when damaged); call only before any work reaches the strand.
   bool restore_ptem_on_strand(std::string_view state);
   [[nodiscard]] std::uint64_t ptem_scan_count_on_strand() const { return ptem_.scan_count(); }
+  // The clusters of the PTEM's latest scan that continue a moving track (control::ClusterTracker) of the laser that
+  // took it: `sensor` names the laser (robot and laser), which saw `arc` from p_WS out to max_range_m. Those are people
+  // and carts going by, whose returns insert_laser_scan does not map as matter, so that they leave no trail in the
+  // grid or the octree. Call from the strand right after insert_ptem_on_strand of that laser's scan. Each laser has
+  // its own tracker, kept for the world's life and in its snapshots (serialize_trackers_on_strand), so that a world
+  // restored from a snapshot and its journal flags the same returns as ingest did.
+  // The trackers' state for a snapshot (control::ClusterTracker::serialize, per laser), and back; on the strand
+  // (restore: before any work reaches it). restore throws std::invalid_argument, changing nothing, for damaged bytes.
+  [[nodiscard]] std::string serialize_trackers_on_strand() const;
+  void restore_trackers_on_strand(std::string_view state);
+  std::vector<control::TrackedObstacle> moving_clusters_on_strand(const std::string& sensor,
+                                                                  const Eigen::Vector2d& p_WS, double max_range_m,
+                                                                  const control::LaserArc& arc);
   // The octree's parameters (fixed when the world is made); safe from any thread.
   [[nodiscard]] const mapping::OctoMapParams& octomap_params() const { return octomap_params_; }
   // Applies one sensor message's octree work (possibly none) in order after every earlier message's, and publishes the
@@ -199,6 +216,12 @@ class World : public std::enable_shared_from_this<World> {
   mapping::PtemParams ptem_params_;
   mapping::PtemModel ptem_;
   std::optional<double> ptem_latest_stamp_s_;
+  std::map<std::string, control::ClusterTracker, std::less<>> ptem_trackers_;  // by laser; only on the strand
+  // Each laser's moving clusters of its latest scan, and all of them fresh enough as one list for the next
+  // publication (WorldSnapshot::moving); only on the strand.
+  std::map<std::string, std::vector<control::TrackedObstacle>, std::less<>> moving_by_sensor_;
+  std::shared_ptr<const std::vector<control::TrackedObstacle>> moving_now_ =
+      std::make_shared<const std::vector<control::TrackedObstacle>>();
   mapping::OctoMapParams octomap_params_;
   mapping::OctoMapModel octomap_;
   mapping::DistanceField distance_field_;
@@ -225,6 +248,7 @@ class World : public std::enable_shared_from_this<World> {
   struct StagedPublication {
     std::shared_ptr<const mapping::GridSnapshot> grid;
     std::shared_ptr<const mapping::PtemSnapshot> ptem;
+    std::shared_ptr<const std::vector<control::TrackedObstacle>> moving;
     std::optional<std::vector<geometry::CellIndex>> changed;  // the grid's flipped cells; nullopt: the log overflowed
     std::optional<mapping::CellBox> touched;
   };
@@ -239,6 +263,7 @@ class World : public std::enable_shared_from_this<World> {
   // The grid and PTEM of the latest message staged, for snapshots_on_strand; only on the strand.
   std::shared_ptr<const mapping::GridSnapshot> latest_grid_on_strand_;
   std::shared_ptr<const mapping::PtemSnapshot> latest_ptem_on_strand_;
+  std::shared_ptr<const std::vector<control::TrackedObstacle>> latest_moving_on_strand_;
   // Brings the distance field in step with `staged` and publishes it; on the publish lane, or the strand without one.
   void publish_here(StagedPublication& staged);
   mutable std::mutex snapshot_mutex_;  // held only to copy or swap the two pointers

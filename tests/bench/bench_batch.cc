@@ -88,7 +88,7 @@ const WorldSnapshot& bench_world() {
       }
     }
     filled_octomap() = filled.publish();
-    return WorldSnapshot{grid, ptem.snapshot(), field.snapshot(), octomap.publish(), nullptr, nullptr};
+    return WorldSnapshot{grid, ptem.snapshot(), nullptr, field.snapshot(), octomap.publish(), nullptr, nullptr};
   }();
   return world;
 }

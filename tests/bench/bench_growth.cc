@@ -199,7 +199,7 @@ void ingest_one(World& world, const LaserModel& laser, const geometry::Pose2& po
                 bool publish_octree) {
   IngestTarget target{world.grid_on_strand(), world.octomap_params(), std::nullopt, {}};
   target.touch({pose.x, pose.y}, laser.range_max_m);
-  insert_laser_scan(world, target, pose, laser, scan);
+  insert_laser_scan(world, target, "bench", pose, laser, scan);
   world.apply_octree_work_on_strand(std::move(target.octree_work));
   world.publish_on_strand(target.touched);
   if (publish_octree) world.publish_octomap_on_strand();

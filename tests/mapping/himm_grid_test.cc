@@ -203,6 +203,37 @@ TEST(HimmGridTest, TwoScansThatSeeThroughACellClearIt) {
   EXPECT_GT(scans_to_clear(0), 2);
 }
 
+// Beams flagged as ending on something moving clear the cells before the return and mark nothing: a person who walks
+// into a cell leaves it as it was, and one who stood there (a full cell) is cleared by the beams that now pass it.
+TEST(HimmGridTest, BeamsEndingOnSomethingMovingMarkNothing) {
+  HimmGrid grid{HimmParams{}};
+  const geometry::Pose2 X_WS{0.05, 0.05, 0.0};
+  const float step = 0.5F * std::numbers::pi_v<float> / 180.0F;
+  const std::vector<float> at_1m = {1.0F, 1.0F, 1.0F};
+  const std::vector<std::uint8_t> moving = {1, 1, 1};
+  for (int k = 0; k < 5; ++k) grid.insert_scan(X_WS, -step, step, at_1m, 4.0F, {}, moving);
+  EXPECT_FALSE(grid.occupied({10, 0}));
+  EXPECT_FALSE(grid.observed({10, 0}));  // the return's own cell is left as it was
+  EXPECT_TRUE(grid.observed({5, 0}));
+  EXPECT_EQ(grid.certainty({5, 0}), 0);
+  // Unflagged, the same beams mark the cell; flagged beams ending behind it (the walker moved on) clear it.
+  for (int k = 0; k < 5; ++k) grid.insert_scan(X_WS, -step, step, at_1m, 4.0F);
+  EXPECT_TRUE(grid.occupied({10, 0}));
+  const std::vector<float> at_2m = {2.0F, 2.0F, 2.0F};
+  for (int k = 0; k < 2; ++k) grid.insert_scan(X_WS, -step, step, at_2m, 4.0F, {}, moving);
+  EXPECT_FALSE(grid.occupied({10, 0}));
+  EXPECT_FALSE(grid.occupied({20, 0}));
+  // One flag per reading, or the scan is refused whole, naming the mismatch.
+  const std::uint64_t version = grid.version();
+  try {
+    grid.insert_scan(X_WS, -step, step, at_1m, 4.0F, {}, std::vector<std::uint8_t>{1});
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("ended_on_moving has 1 flags for 3 readings"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(grid.version(), version);
+}
+
 TEST(HimmGridTest, TilesGrowInAllFourQuadrants) {
   HimmGrid grid{HimmParams{}};
   EXPECT_EQ(grid.tile_count(), 0U);

@@ -1,10 +1,12 @@
 // The safety guard on its own: a footprint swept along the commanded motion against occupied cells.
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <cmath>
 #include <set>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "occgeo/service/control/safety_guard.h"
 
@@ -109,6 +111,71 @@ TEST(SafetyGuard, DisabledOrStandingStillChangesNothing) {
   const CellSet wall = CellSet::wall_at(0.6);
   EXPECT_EQ(guard_command({&wall, nullptr, nullptr}, kBearcat, {}, 1.2, 0.0, off).action, GuardAction::kPass);
   EXPECT_EQ(guard_command({&wall, nullptr, nullptr}, kBearcat, {}, 0.0, 0.0, GuardParams{}).action, GuardAction::kPass);
+}
+
+// A laser scan from the origin looking along yaw_rad (180 degrees, 4 m) whose returns are the near half of a person's
+// disc at person_W (radius 0.25 m) as seen from the origin; points_W holds them.
+mapping::PtemScan scan_of_person(double stamp_s, const Eigen::Vector2d& person_W, double yaw_rad,
+                                 std::vector<Eigen::Vector2d>& points_W) {
+  mapping::PtemScan scan;
+  scan.stamp_s = stamp_s;
+  scan.yaw_WS = yaw_rad;
+  scan.field_of_view_rad = M_PI;
+  scan.max_range_m = 4.0;
+  points_W.clear();
+  const double towards_origin = std::atan2(-person_W.y(), -person_W.x());
+  for (double a = towards_origin - M_PI / 2.0; a <= towards_origin + M_PI / 2.0 + 1e-9; a += 0.1) {
+    points_W.push_back(person_W + 0.25 * Eigen::Vector2d(std::cos(a), std::sin(a)));
+  }
+  scan.points_W = points_W;
+  return scan;
+}
+
+// A walker's returns are not in the grid once they are tracked as moving (World::moving_clusters_on_strand): the
+// guard keeps the robot from driving into what the laser sees now of the tracked walker, and forgets it once it is
+// older than scan_returns_max_age_s (a cluster the laser no longer looks at). Returns of anything not tracked as moving
+// are the grid's to judge: a robot wedged beside a box whose every face returns would otherwise never turn out.
+TEST(SafetyGuard, StopsADriveIntoTheLatestReturnsOfATrackedWalkerThatTheGridDoesNotHold) {
+  mapping::PtemModel ptem(mapping::PtemParams{});
+  std::vector<Eigen::Vector2d> points_W;
+  ptem.insert_scan(scan_of_person(1.0, {1.0, 0.0}, 0.0, points_W));
+  const CellSet nothing;
+  TrackedObstacle walker;
+  walker.centre_W = {1.0, 0.0};
+  walker.radius_m = 0.25;
+  walker.stamp_s = 1.0;
+  walker.moving = true;
+  const std::vector<TrackedObstacle> tracked{walker};
+  const GuardModels models{&nothing, nullptr, nullptr, ptem.snapshot().get(), tracked};
+  const GuardDecision into = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, 0.5, 0.0, GuardParams{});
+  EXPECT_NE(into.action, GuardAction::kPass);
+  EXPECT_EQ(into.model, "scan_returns");
+  EXPECT_LT(into.distance_to_contact_m, 0.4);
+  // Backing away is not stopped (only limited: the person is within limit_distance_m of the front).
+  const GuardDecision away = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, -0.5, 0.0, GuardParams{});
+  EXPECT_NE(away.action, GuardAction::kStop);
+  EXPECT_LT(away.linear_mps, 0.0);
+  // Off: nothing to stop for.
+  GuardParams off;
+  off.check_scan_returns = false;
+  EXPECT_EQ(guard_command(models, kBearcat, {0.0, 0.0, 0.0}, 0.5, 0.0, off).action, GuardAction::kPass);
+  // The same returns with nothing tracked there (a still thing the grid has not taken yet): the grid's to judge.
+  const TrackedObstacle elsewhere{{-3.0, 2.0}, {0.5, 0.0}, 0.25, 1.0, true};
+  const std::vector<TrackedObstacle> other{elsewhere};
+  EXPECT_EQ(guard_command({&nothing, nullptr, nullptr, ptem.snapshot().get(), other}, kBearcat, {0.0, 0.0, 0.0}, 0.5,
+                          0.0, GuardParams{})
+                .action,
+            GuardAction::kPass);
+  EXPECT_EQ(guard_command({&nothing, nullptr, nullptr, ptem.snapshot().get()}, kBearcat, {0.0, 0.0, 0.0}, 0.5, 0.0,
+                          GuardParams{})
+                .action,
+            GuardAction::kPass);
+  // A second later the laser looks the other way: the person's cluster is kept by the PTEM but no longer counts.
+  ptem.insert_scan(scan_of_person(2.0, {-3.0, 0.0}, M_PI, points_W));
+  EXPECT_EQ(guard_command({&nothing, nullptr, nullptr, ptem.snapshot().get(), tracked}, kBearcat, {0.0, 0.0, 0.0}, 0.5,
+                          0.0, GuardParams{})
+                .action,
+            GuardAction::kPass);
 }
 
 TEST(SafetyGuard, ParamsOutOfRangeAreNamed) {

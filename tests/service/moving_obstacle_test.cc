@@ -178,5 +178,72 @@ TEST(MovingObstacle, PlainOctoMapKeepsTheTrackLonger) {
   EXPECT_GT(left.terrain, 0U);
 }
 
+// What the models hold at some moment of the walk below.
+struct ModelsNow {
+  std::size_t person_cells_grid = 0;    // grid cells under the person's disc, occupied
+  std::size_t person_cells_octree = 0;  // the same in the octree, at the laser's height
+  std::size_t wall_cells_grid = 0;      // cells of the corridor's walls beside the UGV, occupied
+  bool ptem_has_the_person = false;     // a PTEM cluster's returns lie on the person's disc
+};
+
+ModelsNow models_now(ServerCore& core, const std::optional<Eigen::Vector2d>& person_W) {
+  const WorldSnapshot snapshot = core.world("default")->snapshots();
+  const geometry::GridGeometry cells(snapshot.grid->cell_size());
+  ModelsNow out;
+  if (person_W) {
+    for (double y = person_W->y() - kPersonRadius; y <= person_W->y() + kPersonRadius + 1e-9; y += 0.05) {
+      for (double x = person_W->x() - kPersonRadius; x <= person_W->x() + kPersonRadius + 1e-9; x += 0.05) {
+        if ((Eigen::Vector2d(x, y) - *person_W).norm() > kPersonRadius) continue;
+        out.person_cells_grid += snapshot.grid->occupied(cells.cell_of({x, y})) ? 1 : 0;
+        out.person_cells_octree += snapshot.octomap->occupied({x, y, ugv().laser()->mount_height_m}) ? 1 : 0;
+      }
+    }
+    for (const mapping::PtemCluster& cluster : snapshot.ptem->clusters()) {
+      for (const Eigen::Vector2d& p : cluster.extent_W) {
+        out.ptem_has_the_person = out.ptem_has_the_person || (p - *person_W).norm() < kPersonRadius + 0.02;
+      }
+    }
+  }
+  // The walls' cells beside the corridor, away from the door.
+  snapshot.grid->for_each_occupied(cells.cell_of({0.5, -1.7}), cells.cell_of({2.2, 1.7}),
+                                   [&](const geometry::CellIndex& c) {
+                                     const double y = (c.iy + 0.5) * snapshot.grid->cell_size();
+                                     out.wall_cells_grid += std::abs(y) > 1.2 ? 1 : 0;
+                                     return true;
+                                   });
+  return out;
+}
+
+// The standing UGV sees the empty corridor for 3 s; then a person walks across it at 0.5 m/s (10 Hz), still walking
+// at the last scan. Once the laser's tracker follows them as moving (a few scans after they appear), their returns
+// clear the floor before them and mark nothing: no grid cell or voxel where they walk (they leave no trail even where
+// the laser does not look again), while the PTEM keeps them for collision queries and the walls stay mapped as they
+// were.
+TEST(MovingObstacle, APersonTrackedAsMovingIsNotMappedAsMatter) {
+  ServerCore core(test_config(true));
+  auto driver = testing::driver_session(core, "ugv-1", sim::make_robot_spec(ugv()));
+  const geometry::Pose2 X_WB{0.0, 0.0, 0.0};
+  std::vector<std::optional<Eigen::Vector2d>> person(30, std::nullopt);
+  for (double y = -0.9; y <= 0.6 + 1e-9; y += 0.05) person.emplace_back(Eigen::Vector2d(kTrackX, y));
+  std::optional<ModelsNow> corridor;
+  for (std::size_t k = 0; k < person.size(); ++k) {
+    const double stamp = 0.1 * static_cast<double>(k + 1);
+    handle_odometry(driver, testing::odometry(X_WB.x, X_WB.y, X_WB.theta, stamp));
+    handle_laser_scan(
+        driver, sim::make_laser_scan_message(ugv().laser()->name, k + 1, stamp, ranges(X_WB, person[k])).laser_scan());
+    ASSERT_TRUE(driver->next_of(v1::ServerMessage::kScanAck)) << "no ack of scan " << k + 1;
+    if (!person[k] && person[k + 1]) corridor = models_now(core, std::nullopt);
+  }
+  ASSERT_TRUE(corridor);
+  const ModelsNow walked = models_now(core, person.back());
+  std::printf("person's disc occupied: grid %zu, octree %zu; wall cells occupied %zu (before the walk %zu)\n",
+              walked.person_cells_grid, walked.person_cells_octree, walked.wall_cells_grid, corridor->wall_cells_grid);
+  EXPECT_TRUE(walked.ptem_has_the_person);
+  EXPECT_EQ(walked.person_cells_grid, 0U);
+  EXPECT_EQ(walked.person_cells_octree, 0U);
+  EXPECT_GT(corridor->wall_cells_grid, 20U);
+  EXPECT_EQ(walked.wall_cells_grid, corridor->wall_cells_grid);
+}
+
 }  // namespace
 }  // namespace occgeo::service

@@ -90,7 +90,7 @@ RandomWorld make_world(std::mt19937& rng, int width, int height, int boxes, int 
   scan.max_range_m = 100.0;
   scan.points_W = points;
   ptem.insert_scan(scan);
-  world.snapshot = {grid, ptem.snapshot(), field.snapshot(), octomap.publish(), nullptr, nullptr};
+  world.snapshot = {grid, ptem.snapshot(), nullptr, field.snapshot(), octomap.publish(), nullptr, nullptr};
   return world;
 }
 
@@ -772,8 +772,8 @@ TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpd
   int cases = 0, found = 0;
   // Answers the poses on snapshot against its occupied columns; returns what it answered.
   const auto check = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap, int poses) {
-    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, nullptr,
-                        nullptr};
+    WorldSnapshot world{
+        nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, nullptr, octomap, nullptr, nullptr};
     std::vector<Case> answered;
     for (int i = 0; i < poses; ++i, ++cases) {
       Case c{random_tall_footprint(rng), {}, false, 0.0};
@@ -804,8 +804,8 @@ TEST(QueriesBruteForce, OctomapClearanceIsWithinAVoxelOfTheBandsColumnsAcrossUpd
   };
   const auto answer_again = [&](const std::shared_ptr<const mapping::OctoMapSnapshot>& octomap,
                                 const std::vector<Case>& before) {
-    WorldSnapshot world{nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, nullptr,
-                        nullptr};
+    WorldSnapshot world{
+        nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, nullptr, octomap, nullptr, nullptr};
     for (const Case& c : before) {
       v1::ClearanceReply reply;
       answer_clearance(world, c.footprint, c.pose, kMaxDistance, octomap_only, reply);
@@ -874,7 +874,8 @@ TEST(QueriesBruteForce, OctomapClearanceFromTheBandFieldsIsWithinAVoxelAcrossTil
       snapshots->push_back(band.snapshot());
     }
     return WorldSnapshot{
-        nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, octomap, std::move(snapshots), nullptr};
+        nullptr, mapping::PtemModel(mapping::PtemParams{}).snapshot(), nullptr, nullptr, octomap, std::move(snapshots),
+        nullptr};
   };
   struct Case {
     geometry::Footprint footprint;

@@ -8,7 +8,9 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -137,6 +139,77 @@ TEST(ClusterTracker, EstimatesAWalkersVelocityAndLeavesTheWallsStill) {
   const std::vector<TrackedObstacle> before = tracker.tracks();
   tracker.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
   EXPECT_EQ(tracker.tracks().size(), before.size());
+}
+
+// A server's snapshot holds the tracker: one restored from it goes on exactly as the one that kept running (so that
+// a world restored from its snapshot and journal maps the walker's returns as ingest did). Damaged bytes are refused.
+TEST(ClusterTracker, ARestoredTrackerGoesOnAsTheOneThatKeptRunning) {
+  World world;
+  world.walls = {{{-1.0, 2.5}, {7.0, 2.5}}};
+  world.discs = {{{3.0, -1.8}, {0.15, 0.6}, 0.25}};
+  mapping::PtemModel model(mapping::PtemParams{});
+  ClusterTracker running;
+  std::optional<ClusterTracker> restored;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = k * kScanPeriod_s;
+    insert(model, world, {0.0, 0.0}, 0.0, t, points, ranges);
+    running.update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+    if (restored) restored->update(*model.snapshot(), {0.0, 0.0}, kMaxRange_m);
+    if (k == 8) {
+      restored.emplace();
+      restored->restore(running.serialize());
+    }
+  }
+  ASSERT_TRUE(restored);
+  ASSERT_EQ(restored->tracks().size(), running.tracks().size());
+  ASSERT_FALSE(running.moving().empty());
+  for (std::size_t i = 0; i < running.tracks().size(); ++i) {
+    EXPECT_EQ(restored->tracks()[i].centre_W, running.tracks()[i].centre_W);
+    EXPECT_EQ(restored->tracks()[i].velocity_W, running.tracks()[i].velocity_W);
+    EXPECT_EQ(restored->tracks()[i].moving, running.tracks()[i].moving);
+  }
+  std::string damaged = running.serialize();
+  damaged.resize(damaged.size() - 3);
+  EXPECT_THROW(restored->restore(damaged), std::invalid_argument);
+  EXPECT_THROW(restored->restore("not a tracker"), std::invalid_argument);
+  EXPECT_EQ(restored->tracks().size(), running.tracks().size());  // unchanged by the refused bytes
+}
+
+// Driving past a square pillar, the robot sees one face, then two, then the next: the mean of the pillar's returns
+// slides along at up to a few tenths of a metre per second, as a walker's would. Its returns stay on the same surface,
+// so it is never moving (surface_moved_m); without that test (surface_moved_m = 0) the same drive makes it moving.
+std::pair<int, int> scans_a_passed_pillar_is_moving(const ClusterTrackerParams& params) {
+  World world;
+  const double lo_x = 2.2, hi_x = 2.8, lo_y = 0.7, hi_y = 1.3;
+  world.walls = {{{lo_x, lo_y}, {hi_x, lo_y}},
+                 {{hi_x, lo_y}, {hi_x, hi_y}},
+                 {{hi_x, hi_y}, {lo_x, hi_y}},
+                 {{lo_x, hi_y}, {lo_x, lo_y}}};
+  mapping::PtemModel model(mapping::PtemParams{});
+  ClusterTracker tracker(params);
+  std::vector<Eigen::Vector2d> points;
+  std::vector<float> ranges;
+  int moving_scans = 0;
+  int scans = 0;
+  for (int k = 0; k <= 50; ++k) {
+    const double t = k * kScanPeriod_s;
+    const Eigen::Vector2d p_WS(0.5 * t, 0.0);  // 0.5 m/s along x, the pillar 0.7 m to the left of the path
+    insert(model, world, p_WS, 0.0, t, points, ranges);
+    tracker.update(*model.snapshot(), p_WS, kMaxRange_m, LaserArc{0.0, -kPi / 2, kPi / 2});
+    ++scans;
+    moving_scans += tracker.moving().empty() ? 0 : 1;
+  }
+  return {moving_scans, scans};
+}
+
+TEST(ClusterTracker, APillarSeenFromADrivingRobotIsNotMoving) {
+  const auto [moving, scans] = scans_a_passed_pillar_is_moving(ClusterTrackerParams{});
+  EXPECT_EQ(moving, 0) << "of " << scans << " scans";
+  ClusterTrackerParams without;
+  without.surface_moved_m = 0.0;
+  EXPECT_GT(scans_a_passed_pillar_is_moving(without).first, 0);
 }
 
 // A walker who passes out of the laser's arc (behind the robot) is kept, coasting on its velocity, for

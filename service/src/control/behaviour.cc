@@ -631,7 +631,8 @@ class MapEscapeWrapper final : public Behaviour {
   // command as soon as it passes again swings the robot to and fro at the edge of what the guard allows.
   [[nodiscard]] BehaviourCommand unwedged(const BehaviourInput& input, const Pose2& pose, BehaviourCommand command) {
     if (!guard_.enabled || input.grid == nullptr) return command;
-    const GuardModels models{input.grid, input.octomap, guard_.check_ptem ? input.ptem : nullptr};
+    const GuardModels models{input.grid, input.octomap, guard_.check_ptem ? input.ptem : nullptr, input.ptem,
+                             input.moving_tracks};
     const auto passes = [&](double linear_mps, double angular_radps) {
       return guard_command(models, footprint_, pose, linear_mps, angular_radps, guard_).action != GuardAction::kStop;
     };
@@ -878,7 +879,7 @@ class YieldWrapper final : public Behaviour {
   BehaviourCommand step_aside(const BehaviourInput& input, const std::vector<TrackedObstacle>& moving,
                               BehaviourCommand command) {
     const geometry::Pose2& X_WB = *input.X_WB;
-    const GuardModels models{input.grid, input.octomap, nullptr};
+    const GuardModels models{input.grid, input.octomap, nullptr, input.ptem, input.moving_tracks};
     struct Arc {
       double linear_mps;
       double angular_radps;

@@ -2,29 +2,168 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 #include <tuple>
+#include <type_traits>
 
 namespace occgeo::service::control {
 
 namespace {
 
-// Smallest distance between two clusters' returns (their circles when they carry none), metres.
-double gap_between(const mapping::PtemCluster& a, const mapping::PtemCluster& b) {
+// Whether two clusters' returns (their circles when they carry none) come within gap_m of each other. Returns are in
+// scan order, so two neighbours on a wall meet at the end of one and the start of the other: looked at first.
+bool within_gap(const mapping::PtemCluster& a, const mapping::PtemCluster& b, double gap_m) {
   if (a.extent_W.empty() || b.extent_W.empty()) {
-    return std::max(0.0, (a.centre_W - b.centre_W).norm() - a.radius_m - b.radius_m);
+    return (a.centre_W - b.centre_W).norm() - a.radius_m - b.radius_m <= gap_m;
   }
-  double best_sq = std::numeric_limits<double>::infinity();
+  const double gap_sq = gap_m * gap_m;
+  for (const Eigen::Vector2d& p : {a.extent_W.front(), a.extent_W.back()}) {
+    for (const Eigen::Vector2d& q : {b.extent_W.front(), b.extent_W.back()}) {
+      if ((p - q).squaredNorm() <= gap_sq) return true;
+    }
+  }
   for (const Eigen::Vector2d& p : a.extent_W) {
-    for (const Eigen::Vector2d& q : b.extent_W) best_sq = std::min(best_sq, (p - q).squaredNorm());
+    for (const Eigen::Vector2d& q : b.extent_W) {
+      if ((p - q).squaredNorm() <= gap_sq) return true;
+    }
   }
-  return std::sqrt(best_sq);
+  return false;
+}
+
+// Median over `now` of the distance to the nearest of `before`, metres (both non-empty).
+double median_nearest_m(const std::vector<Eigen::Vector2d>& now, const std::vector<Eigen::Vector2d>& before) {
+  std::vector<double> nearest_sq;
+  nearest_sq.reserve(now.size());
+  for (const Eigen::Vector2d& p : now) {
+    double best_sq = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector2d& q : before) best_sq = std::min(best_sq, (p - q).squaredNorm());
+    nearest_sq.push_back(best_sq);
+  }
+  const auto middle = nearest_sq.begin() + static_cast<std::ptrdiff_t>(nearest_sq.size() / 2);
+  std::nth_element(nearest_sq.begin(), middle, nearest_sq.end());
+  return std::sqrt(*middle);
 }
 
 }  // namespace
 
 ClusterTracker::ClusterTracker(const ClusterTrackerParams& params) : params_(params) {}
+
+namespace {
+
+constexpr std::string_view kStateMagic = "occgeo-cluster-tracker-1";
+
+template <typename T>
+void put(std::string& out, const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  out.append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+// Reads trivially copyable values off the front of a byte string, throwing when it runs out.
+struct Reader {
+  std::string_view bytes;
+  template <typename T>
+  T get() {
+    static_assert(std::is_trivially_copyable_v<T>);
+    if (bytes.size() < sizeof(T)) throw std::invalid_argument("cluster tracker state: truncated");
+    T value;
+    std::memcpy(&value, bytes.data(), sizeof(T));
+    bytes.remove_prefix(sizeof(T));
+    return value;
+  }
+  // A count of items of item_bytes each that the remaining bytes can hold.
+  std::uint64_t count(std::size_t item_bytes) {
+    const auto n = get<std::uint64_t>();
+    if (n > bytes.size() / item_bytes) throw std::invalid_argument("cluster tracker state: count beyond its bytes");
+    return n;
+  }
+};
+
+void put_point(std::string& out, const Eigen::Vector2d& p) {
+  put(out, p.x());
+  put(out, p.y());
+}
+
+Eigen::Vector2d get_point(Reader& in) {
+  const auto x = in.get<double>();
+  return {x, in.get<double>()};
+}
+
+}  // namespace
+
+std::string ClusterTracker::serialize() const {
+  std::string out(kStateMagic);
+  put<std::uint8_t>(out, scan_count_ ? 1 : 0);
+  put<std::uint64_t>(out, scan_count_.value_or(0));
+  put<std::uint8_t>(out, stamp_s_ ? 1 : 0);
+  put<double>(out, stamp_s_.value_or(0.0));
+  put<std::uint64_t>(out, tracks_.size());
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    const TrackedObstacle& track = tracks_[t];
+    const State& state = states_[t];
+    put_point(out, track.centre_W);
+    put_point(out, track.velocity_W);
+    put(out, track.radius_m);
+    put(out, track.stamp_s);
+    put<std::uint8_t>(out, track.moving ? 1 : 0);
+    put_point(out, state.mean_W);
+    put<std::int32_t>(out, state.fast_scans);
+    put<std::int32_t>(out, state.updates);
+    put<std::uint64_t>(out, state.returns_W.size());
+    for (const auto& [stamp_s, returns_W] : state.returns_W) {
+      put(out, stamp_s);
+      put<std::uint64_t>(out, returns_W.size());
+      for (const Eigen::Vector2d& p : returns_W) put_point(out, p);
+    }
+  }
+  return out;
+}
+
+void ClusterTracker::restore(std::string_view state) {
+  if (!state.starts_with(kStateMagic)) throw std::invalid_argument("cluster tracker state: not written by serialize");
+  Reader in{state.substr(kStateMagic.size())};
+  std::optional<std::uint64_t> scan_count;
+  if (in.get<std::uint8_t>() != 0)
+    scan_count = in.get<std::uint64_t>();
+  else
+    in.get<std::uint64_t>();
+  std::optional<double> stamp_s;
+  if (in.get<std::uint8_t>() != 0)
+    stamp_s = in.get<double>();
+  else
+    in.get<double>();
+  std::vector<TrackedObstacle> tracks;
+  std::vector<State> states;
+  const std::uint64_t n = in.count(1);
+  for (std::uint64_t t = 0; t < n; ++t) {
+    TrackedObstacle track;
+    track.centre_W = get_point(in);
+    track.velocity_W = get_point(in);
+    track.radius_m = in.get<double>();
+    track.stamp_s = in.get<double>();
+    track.moving = in.get<std::uint8_t>() != 0;
+    State s;
+    s.mean_W = get_point(in);
+    s.fast_scans = in.get<std::int32_t>();
+    s.updates = in.get<std::int32_t>();
+    const std::uint64_t entries = in.count(1);
+    for (std::uint64_t e = 0; e < entries; ++e) {
+      const auto then_s = in.get<double>();
+      std::vector<Eigen::Vector2d> returns_W(in.count(2 * sizeof(double)));
+      for (Eigen::Vector2d& p : returns_W) p = get_point(in);
+      s.returns_W.emplace_back(then_s, std::move(returns_W));
+    }
+    tracks.push_back(track);
+    states.push_back(std::move(s));
+  }
+  if (!in.bytes.empty()) throw std::invalid_argument("cluster tracker state: bytes after the last track");
+  tracks_ = std::move(tracks);
+  states_ = std::move(states);
+  scan_count_ = scan_count;
+  stamp_s_ = stamp_s;
+}
 
 std::vector<TrackedObstacle> ClusterTracker::moving() const {
   std::vector<TrackedObstacle> out;
@@ -62,7 +201,7 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
       const double centre_gap_m =
           (seen[i]->centre_W - seen[j]->centre_W).norm() - seen[i]->radius_m - seen[j]->radius_m;
       if (centre_gap_m > params_.attached_gap_m) continue;
-      if (gap_between(*seen[i], *seen[j]) <= params_.attached_gap_m) may_move[i] = may_move[j] = false;
+      if (within_gap(*seen[i], *seen[j], params_.attached_gap_m)) may_move[i] = may_move[j] = false;
     }
   }
 
@@ -100,12 +239,13 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
     }
     if (track_of[c] >= 0) {
       const TrackedObstacle& previous = tracks_[static_cast<std::size_t>(track_of[c])];
-      const State& previous_state = states_[static_cast<std::size_t>(track_of[c])];
+      // Each track continues in at most one cluster: its state moves on.
+      State& previous_state = states_[static_cast<std::size_t>(track_of[c])];
       const double dt_s = stamp_s - previous.stamp_s;
       track.velocity_W = previous.velocity_W;
-      state = previous_state;
+      state = std::move(previous_state);
       if (dt_s > 1e-6) {
-        const Eigen::Vector2d raw = (mean_W - previous_state.mean_W) / dt_s;
+        const Eigen::Vector2d raw = (mean_W - state.mean_W) / dt_s;
         if (raw.norm() <= params_.max_speed_mps) {
           // The first velocity is taken whole: smoothing it from zero would hide a walker for several scans.
           track.velocity_W =
@@ -115,10 +255,28 @@ void ClusterTracker::update(const mapping::PtemSnapshot& snapshot, const Eigen::
       }
     }
     state.mean_W = mean_W;
+    // A fast track must also show its returns moved on from where they lay surface_lag_s or more ago (the latest such
+    // returns); only fast ones are tested, as the test costs a nearest-neighbour search per return.
+    const bool fast = may_move[c] && state.updates > 0 && track.velocity_W.norm() > params_.moving_speed_mps;
+    bool surface_moved = true;
+    if (!seen[c]->extent_W.empty()) {
+      if (fast) {
+        const std::vector<Eigen::Vector2d>* before = nullptr;
+        for (const auto& [then_s, returns_W] : state.returns_W) {
+          if (stamp_s - then_s >= params_.surface_lag_s) before = &returns_W;
+        }
+        surface_moved = before != nullptr && median_nearest_m(seen[c]->extent_W, *before) > params_.surface_moved_m;
+      }
+      // Keep what the next scans look back to: the latest entry at least the lag old, and the newer ones.
+      while (state.returns_W.size() > 1 && stamp_s - state.returns_W[1].first >= params_.surface_lag_s) {
+        state.returns_W.pop_front();
+      }
+      state.returns_W.emplace_back(stamp_s, seen[c]->extent_W);
+    }
     if (!may_move[c]) {
       track.velocity_W.setZero();
       state.fast_scans = 0;
-    } else if (state.updates > 0 && track.velocity_W.norm() > params_.moving_speed_mps) {
+    } else if (fast && surface_moved) {
       ++state.fast_scans;
     } else {
       state.fast_scans = 0;

@@ -18,16 +18,31 @@ namespace {
 // The terrain around the swept footprint reaches this much farther, so the cells it reads have their neighbours.
 constexpr double kTerrainMargin_m = 0.3;
 
+// The cell size of the guard's 2D obstacles: the grid's, or without one the terrain's (twice the octree's resolution).
+double cell_size(const GuardModels& models) {
+  if (models.grid != nullptr) return models.grid->cell_size();
+  return models.octomap != nullptr ? 2.0 * models.octomap->resolution() : 0.1;
+}
+
+// Where the tracked moving clusters' returns lie: the only recent returns the guard checks besides the models.
+std::vector<GroundDisc> moving_discs(const GuardModels& models) {
+  std::vector<GroundDisc> discs;
+  discs.reserve(models.moving_tracks.size());
+  for (const TrackedObstacle& track : models.moving_tracks) discs.push_back({track.centre_W, track.radius_m});
+  return discs;
+}
+
 // The terrain the guard reads within reach_m of base_link (world frame), when there is an octree to estimate it
 // from: the surfaces the robot can drive on, where neither the grid's returns nor the octree's voxels of the surface
 // are obstacles (the robot climbing a ramp its laser reads as a wall).
 std::optional<mapping::TerrainMap> terrain_near(const GuardModels& models, const geometry::Footprint& footprint,
                                                 const geometry::Pose2& X_WB, const GuardParams& params,
                                                 double reach_m) {
-  if (models.octomap == nullptr || !(params.check_grid || params.check_octomap) || !models.octomap->terrain().enabled) {
+  if (models.octomap == nullptr || !(params.check_grid || params.check_octomap || params.check_scan_returns) ||
+      !models.octomap->terrain().enabled) {
     return std::nullopt;
   }
-  const double cell_m = models.grid != nullptr ? models.grid->cell_size() : 2.0 * models.octomap->resolution();
+  const double cell_m = cell_size(models);
   const Eigen::Vector2d position_W = X_WB.position();
   const Eigen::Vector2d reach(reach_m, reach_m);
   return terrain_around(*models.octomap, cell_m, position_W - reach, position_W + reach,
@@ -45,6 +60,15 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
     if (hit) return "grid";
   }
   if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
+  if (params.check_scan_returns && models.scan_returns != nullptr && !models.moving_tracks.empty()) {
+    // Returns on a drivable surface (the laser plane meeting a ramp) are the terrain's, as for the grid.
+    const std::vector<GroundDisc> moving = moving_discs(models);
+    const RecentReturnCells returns(*models.scan_returns, params.scan_returns_max_age_s, cell_size(models), moving);
+    const bool hit = terrain != nullptr
+                         ? geometry::check_collision({footprint, X_WB}, TerrainMaskedCells(returns, *terrain)).hit
+                         : geometry::check_collision({footprint, X_WB}, returns).hit;
+    if (hit) return "scan_returns";
+  }
   if (params.check_octomap && models.octomap != nullptr) {
     // With a terrain the band follows the surface, which FCL's straight prism cannot: the same voxels as columns.
     const bool hit =
@@ -88,6 +112,17 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;
       model = "ptem";
+    }
+  }
+  if (params.check_scan_returns && models.scan_returns != nullptr && !models.moving_tracks.empty()) {
+    const std::vector<GroundDisc> moving = moving_discs(models);
+    const RecentReturnCells returns(*models.scan_returns, params.scan_returns_max_age_s, cell_size(models), moving);
+    const auto clearance = terrain != nullptr ? geometry::compute_clearance({footprint, X_WB, max_distance_m},
+                                                                            TerrainMaskedCells(returns, *terrain))
+                                              : geometry::compute_clearance({footprint, X_WB, max_distance_m}, returns);
+    if (clearance.found && clearance.clearance_m < best) {
+      best = clearance.clearance_m;
+      model = "scan_returns";
     }
   }
   return {best, model};
@@ -223,6 +258,9 @@ void GuardParams::validate() const {
                     "predict_horizon_s", "must be in [0, 10] seconds", predict_horizon_s);
   geometry::require(std::isfinite(predict_margin_m) && predict_margin_m >= 0.0 && predict_margin_m <= 2.0,
                     "predict_margin_m", "must be in [0, 2] metres", predict_margin_m);
+  geometry::require(
+      std::isfinite(scan_returns_max_age_s) && scan_returns_max_age_s >= 0.0 && scan_returns_max_age_s <= 10.0,
+      "scan_returns_max_age_s", "must be in [0, 10] seconds", scan_returns_max_age_s);
   geometry::require(std::isfinite(limit_linear_mps) && limit_linear_mps > 0.0, "limit_linear_mps", "must be positive",
                     limit_linear_mps);
   geometry::require(std::isfinite(limit_angular_radps) && limit_angular_radps > 0.0, "limit_angular_radps",

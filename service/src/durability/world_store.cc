@@ -26,6 +26,7 @@ namespace {
 
 constexpr const char* kSnapshotInfo = "snapshot.yaml";
 constexpr const char* kPtemState = "ptem.bin";
+constexpr const char* kTrackerState = "trackers.bin";  // which laser returns ingest takes for walkers (see core.h)
 
 std::string read_whole_file(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
@@ -123,7 +124,7 @@ SensorOrder replay_sensor(World& world, IngestTarget& target, const RobotModel& 
     if (!message.ParseFromString(record.body)) throw damaged("undecodable laser_scan");
     const LaserModel* laser = model.find_laser(message.sensor());
     if (!laser) throw damaged("robot '" + model.id + "' has no laser '" + message.sensor() + "'");
-    insert_laser_scan(world, target, record.X_WB, *laser, message);
+    insert_laser_scan(world, target, model.id, record.X_WB, *laser, message);
     return {message.seq()};
   }
   if (record.kind == "range_array") {
@@ -263,6 +264,13 @@ void restore_worlds(ServerCore& core) {
       world->with_octree_on_strand([&](mapping::OctoMapModel& octomap) { octomap.load_bt(bt); });
     }
     if (const auto ptem = dir / kPtemState; std::filesystem::exists(ptem)) restore_ptem(*world, ptem);
+    if (const auto trackers = dir / kTrackerState; std::filesystem::exists(trackers)) {
+      try {
+        world->restore_trackers_on_strand(read_whole_file(trackers));
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error("snapshot " + trackers.string() + " is damaged: " + e.what());
+      }
+    }
     ReplayResult replay{base_lsn, 0};
     WorldJournal::Delivered delivered = snapshot_delivered(dir);
     if (const auto journal = world_journal_file(config.data_dir, name); std::filesystem::exists(journal)) {
@@ -309,13 +317,16 @@ bool snapshot_world(ServerCore& core, World& world) {
       world.with_octree_on_strand([&](mapping::OctoMapModel& octomap) { octomap.save_bt(temp_dir / "octomap.bt"); });
       sync_path(temp_dir / "octomap.bt", false);
     }
-    if (has_ptem) {
-      const std::string state = world.serialize_ptem_on_strand();
-      std::ofstream out(temp_dir / kPtemState, std::ios::binary);
+    const auto write_bytes = [&](const char* file, const std::string& state) {
+      std::ofstream out(temp_dir / file, std::ios::binary);
       out.write(state.data(), static_cast<std::streamsize>(state.size()));
-      if (!out.flush()) throw std::runtime_error("cannot write " + (temp_dir / kPtemState).string());
+      if (!out.flush()) throw std::runtime_error("cannot write " + (temp_dir / file).string());
       out.close();
-      sync_path(temp_dir / kPtemState, false);
+      sync_path(temp_dir / file, false);
+    };
+    if (has_ptem) {
+      write_bytes(kPtemState, world.serialize_ptem_on_strand());
+      write_bytes(kTrackerState, world.serialize_trackers_on_strand());
     }
     {
       std::ofstream info(temp_dir / kSnapshotInfo);

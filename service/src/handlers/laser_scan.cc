@@ -49,7 +49,7 @@ void ingest_on_strand(const SessionPtr& session, const std::shared_ptr<Robot>& r
       session, *robot, {"laser_scan", scan.seq(), scan.stamp_s(), &scan},
       [&](const geometry::Pose2& X_WB, IngestTarget& target) {
         placed_at_W = X_WB;
-        insert_laser_scan(robot->world(), target, X_WB, laser, scan);
+        insert_laser_scan(robot->world(), target, model.id, X_WB, laser, scan);
       },
       &after_command);
   if (!accepted) return;

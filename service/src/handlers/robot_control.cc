@@ -249,6 +249,9 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
   }
   const std::optional<geometry::Pose2> X_WB = robot.state().X_WB;
   const WorldSnapshot snapshot = robot.world().snapshots_on_strand();
+  const std::span<const control::TrackedObstacle> moving_tracks =
+      snapshot.moving ? std::span<const control::TrackedObstacle>(*snapshot.moving)
+                      : std::span<const control::TrackedObstacle>();
   control::BehaviourCommand wanted;
   std::vector<Eigen::Vector2d> path_W;  // what the behaviour plans from here, for the status and the web view
   v1::BehaviourState state = v1::BEHAVIOUR_STATE_TELEOP;
@@ -268,8 +271,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         throw std::invalid_argument("drive.behaviour '" + proto::behaviour_label(control.behaviour) +
                                     "' has no decision");
       }
-      wanted = active->decide(
-          {view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(), ring, servo});
+      wanted = active->decide({view, X_WB, stamp_s, snapshot.grid.get(), snapshot.ptem.get(), snapshot.octomap.get(),
+                               ring, servo, moving_tracks});
       path_W = active->planned_path();
       state = to_wire(wanted.state);
     } catch (const std::invalid_argument& e) {
@@ -296,7 +299,8 @@ v1::MotionCommand command_for_scan_on_strand(Robot& robot, const control::ScanVi
         control.behaviour == v1::BEHAVIOUR_TELEOP || !robot.active_behaviour_on_strand()
             ? std::vector<control::TrackedObstacle>{}
             : robot.active_behaviour_on_strand()->moving_obstacles();
-    const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get()};
+    const control::GuardModels models{snapshot.grid.get(), snapshot.octomap.get(), snapshot.ptem.get(),
+                                      snapshot.ptem.get(), moving_tracks};
     const control::GuardDecision decision = control::guard_command(
         models, model.footprint, *X_WB, velocity.body.linear_mps, velocity.body.angular_radps, config.guard, moving);
     fill_guard(decision, velocity.body.linear_mps, velocity.body.angular_radps, guard);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <span>
+#include <string>
 #include <variant>
 #include <vector>
 
@@ -15,7 +16,7 @@ namespace {
 // Inserts the scan's readings into the grid; readings below the sensor's minimum range carry no
 // information and are skipped.
 void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const LaserModel& laser,
-                 const v1::LaserScan& scan) {
+                 const v1::LaserScan& scan, std::span<const std::uint8_t> ended_on_moving) {
   const double sign = sensor.mirrored ? -1.0 : 1.0;
   const auto angle_min = static_cast<float>(sign * laser.angle_min_rad);
   const auto angle_increment = static_cast<float>(sign * laser.angle_increment_rad);
@@ -24,12 +25,24 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   const bool all_valid = std::all_of(ranges.begin(), ranges.end(), [&](float r) { return r >= range_min; });
   if (all_valid) {
     grid.insert_scan(sensor.X_WS, angle_min, angle_increment, ranges, static_cast<float>(laser.range_max_m),
-                     laser.beam_limits);
+                     laser.beam_limits, ended_on_moving);
     return;
   }
   const Eigen::Vector2d origin = sensor.X_WS.position();
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (ranges[i] < range_min) continue;
+    if (!ended_on_moving.empty() && ended_on_moving[i] != 0) {
+      // Cleared up to something moving, which is not marked (see HimmGrid::insert_scan).
+      const double bearing =
+          sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+      const mapping::BeamUse use =
+          mapping::beam_use(static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
+      const double free_m = std::min(static_cast<double>(ranges[i]) - grid.params().cell_size_m, use.free_m);
+      if (free_m > 0.0) {
+        grid.insert_ray(origin, origin + free_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)), false);
+      }
+      continue;
+    }
     const double bearing =
         sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
     insert_limited_ray(grid, origin, Eigen::Vector2d(std::cos(bearing), std::sin(bearing)),
@@ -41,13 +54,14 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
 // ∘ mount, so a pitched or rolled laser maps what it sees in 3D (an upside-down mount needs no
 // mirroring here: the rotation does it). Readings below range_min_m become 0, which the model skips.
 void insert_scan_3d(IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
-                    const v1::LaserScan& scan) {
+                    const v1::LaserScan& scan, std::span<const std::uint8_t> ended_on_moving) {
   const geometry::Pose3 X_WS = geometry::Pose3::from_pose2(X_WB).compose(laser.X_BS);
   target.touch(X_WS.translation().head<2>(), laser.beam_limits.reach_m(laser.range_max_m));
   std::vector<float> ranges(scan.ranges().begin(), scan.ranges().end());
   const auto range_min = static_cast<float>(laser.range_min_m);
-  for (float& r : ranges) {
-    if (r < range_min) r = 0.0F;
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    // A return from something moving is left out whole: the octree keeps no trail of a walker either.
+    if (ranges[i] < range_min || (!ended_on_moving.empty() && ended_on_moving[i] != 0)) ranges[i] = 0.0F;
   }
   target.octree_work.emplace_back([X_WS, angle_min = static_cast<float>(laser.angle_min_rad),
                                    angle_increment = static_cast<float>(laser.angle_increment_rad),
@@ -87,6 +101,39 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   world.insert_ptem_on_strand(ptem_scan);
 }
 
+// Flags the scan's beams whose return lies in a cluster the laser's tracker follows as moving (a person, a cart):
+// empty when there is none.
+std::vector<std::uint8_t> beams_ended_on_moving(World& world, const std::string& sensor_key,
+                                                const PlanarSensorPose& sensor, const LaserModel& laser,
+                                                const v1::LaserScan& scan) {
+  const double sign = sensor.mirrored ? -1.0 : 1.0;
+  const double last_beam_rad =
+      laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(std::max(scan.ranges_size(), 1) - 1);
+  const control::LaserArc arc{sensor.X_WS.theta, std::min(sign * laser.angle_min_rad, sign * last_beam_rad),
+                              std::max(sign * laser.angle_min_rad, sign * last_beam_rad)};
+  const Eigen::Vector2d origin = sensor.X_WS.position();
+  const std::vector<control::TrackedObstacle> moving = world.moving_clusters_on_strand(
+      sensor_key, origin, std::min(laser.range_max_m, laser.beam_limits.max_insert_range_m), arc);
+  if (moving.empty()) return {};
+  // A cluster's returns all lie inside its circle; the margin covers float rounding of the readings.
+  constexpr double kMargin_m = 0.02;
+  std::vector<std::uint8_t> flags(static_cast<std::size_t>(scan.ranges_size()), 0);
+  for (int i = 0; i < scan.ranges_size(); ++i) {
+    const double reading = static_cast<double>(scan.ranges(i));
+    if (reading < laser.range_min_m || reading >= laser.range_max_m) continue;
+    const double bearing =
+        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+    const Eigen::Vector2d end_W = origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+    for (const control::TrackedObstacle& track : moving) {
+      if ((end_W - track.centre_W).norm() <= track.radius_m + kMargin_m) {
+        flags[static_cast<std::size_t>(i)] = 1;
+        break;
+      }
+    }
+  }
+  return flags;
+}
+
 }  // namespace
 
 PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserModel& laser) {
@@ -94,12 +141,14 @@ PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserMode
   return {X_WS.to_pose2(), X_WS.transform.linear()(2, 2) < 0.0};
 }
 
-void insert_laser_scan(World& world, IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
-                       const v1::LaserScan& scan) {
+void insert_laser_scan(World& world, IngestTarget& target, const std::string& robot_id, const geometry::Pose2& X_WB,
+                       const LaserModel& laser, const v1::LaserScan& scan) {
   const PlanarSensorPose sensor = planar_sensor_pose(X_WB, laser);
   insert_ptem(world, sensor, laser, scan);
-  insert_scan(target.grid, sensor, laser, scan);
-  insert_scan_3d(target, X_WB, laser, scan);
+  const std::vector<std::uint8_t> ended_on_moving =
+      beams_ended_on_moving(world, robot_id + "/" + laser.name, sensor, laser, scan);
+  insert_scan(target.grid, sensor, laser, scan, ended_on_moving);
+  insert_scan_3d(target, X_WB, laser, scan, ended_on_moving);
 }
 
 // HIMM updates only the cells on each element's acoustic axis, traced from the element itself:

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "../core.h"
@@ -42,9 +43,11 @@ struct PlanarSensorPose {
 PlanarSensorPose planar_sensor_pose(const geometry::Pose2& X_WB, const LaserModel& laser);
 
 // What each sensor kind's ingest does to the maps once the message is placed at X_WB; replaying a
-// journal calls the same functions, so a restored map equals the one ingest built.
-void insert_laser_scan(World& world, IngestTarget& target, const geometry::Pose2& X_WB, const LaserModel& laser,
-                       const v1::LaserScan& scan);
+// journal calls the same functions, so a restored map equals the one ingest built. A laser scan's returns from
+// clusters its laser's tracker follows as moving (World::moving_clusters_on_strand; robot_id and the laser's name
+// name that tracker) clear the cells before them and mark nothing, in the grid and the octree.
+void insert_laser_scan(World& world, IngestTarget& target, const std::string& robot_id, const geometry::Pose2& X_WB,
+                       const LaserModel& laser, const v1::LaserScan& scan);
 void insert_range_array(IngestTarget& target, const geometry::Pose2& X_WB, const RangeArrayModel& array,
                         const v1::RangeArray& message);
 void insert_servo_range(IngestTarget& target, const geometry::Pose2& X_WB, const ServoRangeModel& servo,

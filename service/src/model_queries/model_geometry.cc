@@ -32,6 +32,33 @@ void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::Ce
       min, max, [&](const geometry::CellIndex& cell) { return terrain_.explains_returns(cell) || visit(cell); });
 }
 
+void RecentReturnCells::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                                          const std::function<bool(const geometry::CellIndex&)>& visit) const {
+  const double cell_m = cells_.cell_size();
+  const Eigen::Vector2d lo(min.ix * cell_m, min.iy * cell_m);
+  const Eigen::Vector2d hi((max.ix + 1) * cell_m, (max.iy + 1) * cell_m);
+  if (within_.empty()) return;
+  // A tracked disc holds its cluster's returns up to float rounding.
+  constexpr double kWithinMargin_m = 0.02;
+  const auto within = [this](const Eigen::Vector2d& p_W) {
+    return std::any_of(within_.begin(), within_.end(), [&p_W](const GroundDisc& disc) {
+      return (p_W - disc.centre_W).norm() <= disc.radius_m + kWithinMargin_m;
+    });
+  };
+  for (const mapping::PtemCluster& cluster : ptem_.clusters()) {
+    if (cluster.age_s > max_age_s_) continue;
+    // The circle holds every return: a cluster whose circle misses the box has none in it.
+    const Eigen::Vector2d nearest = cluster.centre_W.cwiseMax(lo).cwiseMin(hi);
+    if ((nearest - cluster.centre_W).norm() > cluster.radius_m) continue;
+    for (const Eigen::Vector2d& p_W : cluster.extent_W) {
+      if (!within(p_W)) continue;
+      const geometry::CellIndex c = cells_.cell_of(p_W);
+      if (c.ix < min.ix || c.ix > max.ix || c.iy < min.iy || c.iy > max.iy) continue;
+      if (!visit(c)) return;
+    }
+  }
+}
+
 OctoMapColumns::OctoMapColumns(const mapping::OctoMapSnapshot& octomap, double top_m,
                                const mapping::TerrainMap* terrain, bool plausible_surfaces)
     : octomap_(octomap),

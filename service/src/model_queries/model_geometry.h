@@ -1,7 +1,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <optional>
+#include <span>
 
 #include "occgeo/geometry/collision.h"
 #include "occgeo/geometry/footprint.h"
@@ -42,6 +44,32 @@ class TerrainMaskedCells final : public geometry::OccupiedCellSource {
  private:
   const geometry::OccupiedCellSource& cells_;
   const mapping::TerrainMap& terrain_;
+};
+
+// A disc on the ground, world frame, metres.
+struct GroundDisc {
+  Eigen::Vector2d centre_W = Eigen::Vector2d::Zero();
+  double radius_m = 0.0;
+};
+
+// The cells (of cell_size_m) holding a return of the PTEM clusters made within max_age_s of the snapshot's latest scan
+// (PtemCluster::age_s) that lies within one of `within` (2 cm of margin): what the laser sees now of the people and
+// carts tracked as moving, whose returns the grid does not keep. A cell is visited once per return in it.
+class RecentReturnCells final : public geometry::OccupiedCellSource {
+ public:
+  // ptem and within must outlive this.
+  RecentReturnCells(const mapping::PtemSnapshot& ptem, double max_age_s, double cell_size_m,
+                    std::span<const GroundDisc> within)
+      : ptem_(ptem), max_age_s_(max_age_s), cells_(cell_size_m), within_(within) {}
+  [[nodiscard]] double cell_size() const override { return cells_.cell_size(); }
+  void for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
+                         const std::function<bool(const geometry::CellIndex&)>& visit) const override;
+
+ private:
+  const mapping::PtemSnapshot& ptem_;
+  double max_age_s_;
+  geometry::GridGeometry cells_;
+  std::span<const GroundDisc> within_;
 };
 
 // The OctoMap's occupied voxels whose z range overlaps [ground_band, top_m], projected on the

@@ -40,9 +40,12 @@ class HimmGrid {
   // nothing, for a NaN or negative reading (naming its index), a non-finite pose or angle, a range_max that is not
   // finite and positive, or a pose more than 2^30 cells from the origin. limits cut what each reading changes
   // (beam_use): a return beyond limits.max_insert_range_m is not marked, no beam clears beyond max_free_range_m, a
-  // no-return beam clears only up to no_return_clear_m.
+  // no-return beam clears only up to no_return_clear_m. A beam whose flag in ended_on_moving is non-zero (empty: none)
+  // returned from something moving (a person walking): it clears its beam up to one cell short of the return, as a
+  // returning beam, and leaves the return's own cell as it was, so that what walks by leaves no trail and a still thing
+  // taken for moving is not erased; otherwise it must have as many flags as readings.
   void insert_scan(const geometry::Pose2& X_WS, float angle_min, float angle_increment, std::span<const float> ranges,
-                   float range_max, const BeamLimits& limits = {});
+                   float range_max, const BeamLimits& limits = {}, std::span<const std::uint8_t> ended_on_moving = {});
 
   // Certainty of cell c; 0 when c was never observed.
   [[nodiscard]] std::uint8_t certainty(const geometry::CellIndex& c) const;

@@ -5,6 +5,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -49,6 +50,9 @@ struct BehaviourInput {
   std::optional<RangeSet> ring = std::nullopt;
   // A robot whose only range sensor is a servo-swept beam steers by it, one reading per cycle; scan is then empty.
   std::optional<ServoSample> servo = std::nullopt;
+  // The clusters the world's trackers follow as moving (WorldSnapshot::moving), whose returns ptem's latest scans hold
+  // but the grid does not: the guard's checks of a motion look at those returns too (GuardModels::moving_tracks).
+  std::span<const TrackedObstacle> moving_tracks{};
 };
 
 // What a behaviour commands.

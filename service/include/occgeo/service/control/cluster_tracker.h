@@ -2,7 +2,11 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <deque>
 #include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "occgeo/mapping/ptem.h"
@@ -38,6 +42,12 @@ struct ClusterTrackerParams {
   // swing into the person who just passed out of its view.
   double lost_out_of_view_after_s = 1.5;
   double max_speed_mps = 1.5;  // an association implying more than this starts a new track instead
+  // A still thing seen from a moving robot (a pillar whose visible side turns as the robot drives by) seems to move:
+  // its returns' mean shifts. A track is moving only while its returns also lie, at the median, farther than
+  // surface_moved_m from its own returns of at least surface_lag_s earlier: a pillar's lie on the same surface, a
+  // walker's 0.15 m/s x 0.4 s = 6 cm on. Clusters without returns skip the test.
+  double surface_lag_s = 0.4;
+  double surface_moved_m = 0.03;
 };
 
 // The bearings a laser sees, world frame: from heading_rad + angle_min_rad to heading_rad + angle_max_rad.
@@ -60,6 +70,11 @@ class ClusterTracker {
 
   // The tracks, each as last seen (centre_W at its stamp_s).
   [[nodiscard]] const std::vector<TrackedObstacle>& tracks() const { return tracks_; }
+  // The tracker's whole state (tracks, their histories, the latest scan taken) as bytes, doubles bit for bit, for a
+  // server's snapshot: restore() of them followed by the same snapshots gives the same tracks. Parameters are not in
+  // it. restore() throws std::invalid_argument, changing nothing, for bytes serialize() did not write.
+  [[nodiscard]] std::string serialize() const;
+  void restore(std::string_view state);
   // Only the moving ones, each predicted to the latest snapshot's stamp (those not seen in it coast on their
   // velocity), so that predicted_W(t) is t seconds after that stamp for every one of them.
   [[nodiscard]] std::vector<TrackedObstacle> moving() const;
@@ -70,6 +85,8 @@ class ClusterTracker {
         Eigen::Vector2d::Zero();  // mean of the cluster's returns: steadier than its circle's centre
     int fast_scans = 0;           // consecutive scans with the smoothed speed above moving_speed_mps
     int updates = 0;              // how many velocity updates the track has had
+    // The track's returns of recent scans, oldest first, with their stamps: what surface_lag_s looks back to.
+    std::deque<std::pair<double, std::vector<Eigen::Vector2d>>> returns_W;
   };
   ClusterTrackerParams params_;
   std::vector<TrackedObstacle> tracks_;

@@ -37,6 +37,11 @@ struct GuardParams {
   bool check_grid = true;            // which models the guard consults
   bool check_octomap = true;
   bool check_ptem = false;  // off by default: a long wall's enclosing circle covers free ground
+  // The returns the laser saw in the last scan_returns_max_age_s (the PTEM clusters made that recently, their returns
+  // only) of the people and carts tracked as moving (GuardModels::moving_tracks), whose returns the grid and the octree
+  // do not keep. Still things stay the grid's: their raw returns beside a robot wedged at a box would stop every turn.
+  bool check_scan_returns = true;
+  double scan_returns_max_age_s = 0.3;
   // Moving obstacles are predicted this far ahead, seconds, by the guard and by goto and waypoints, which yield to
   // them (wait short of a crossing, step aside from one on course to hit the robot); 0 turns prediction off.
   double predict_horizon_s = 3.0;
@@ -49,15 +54,17 @@ struct GuardParams {
 struct GuardModels {
   const geometry::OccupiedCellSource* grid = nullptr;
   const mapping::OctoMapSnapshot* octomap = nullptr;
-  const mapping::PtemSnapshot* ptem = nullptr;
+  const mapping::PtemSnapshot* ptem = nullptr;          // its restricted region, with check_ptem
+  const mapping::PtemSnapshot* scan_returns = nullptr;  // its recent clusters' returns, with check_scan_returns ...
+  std::span<const TrackedObstacle> moving_tracks{};     // ... those within these tracks' circles (the world's trackers)
 };
 
 enum class GuardAction { kPass, kSlow, kLimit, kStop };
 
 struct GuardDecision {
   GuardAction action = GuardAction::kPass;
-  std::string_view zone;               // "", "stop", "slowdown", "limit", "contact", "predict_stop" or "predict_slow"
-  std::string_view model;              // "grid", "octomap", "ptem", "moving" or "" (what triggered the zone)
+  std::string_view zone;   // "", "stop", "slowdown", "limit", "contact", "predict_stop" or "predict_slow"
+  std::string_view model;  // "grid", "octomap", "ptem", "scan_returns", "moving" or "" (what triggered the zone)
   double time_to_contact_s = 0.0;      // horizon_s when no contact within the horizon
   double distance_to_contact_m = 0.0;  // base_link's path length until contact (the horizon's when none)
   double linear_mps = 0.0;             // the command after the guard
