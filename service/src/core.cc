@@ -507,7 +507,12 @@ ServerCore::ServerCore(ServerConfig config)
   lower_pool_priority(octree_pool_, 1, config_.octomap_lane_nice, "octree_lane_nice_not_applied");
 }
 
-ServerCore::~ServerCore() { drain(); }
+ServerCore::~ServerCore() {
+  drain();
+  for (const auto& world : worlds()) {
+    if (durability::WorldJournal* journal = world->journal()) journal->shut_down();
+  }
+}
 
 void ServerCore::drain() {
   for (const auto& robot : robots()) {

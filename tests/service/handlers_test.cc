@@ -388,5 +388,32 @@ TEST(BehaviourVocabulary, WireStatesAreTheBehavioursStatesByNumberAndName) {
   EXPECT_EQ(proto::behaviour_labels(), "bearcat, bearcat_seed, stop, teleop, wander, goto, waypoints");
 }
 
+// A driver's acks are answered by the journal's sync thread, which keeps the callbacks it ran until the next append;
+// they hold the session, its robot and their world. A core shutting down lets go of them: otherwise the world outlives
+// its core, with its journal's thread and its strands on thread pools that are gone (the heap corruption this once
+// caused showed up when the next core started its pools). Which thread answers the last ack varies from run to run,
+// hence twenty cores.
+TEST(ServerCoreLifetime, AWorldDoesNotOutliveItsCore) {
+  for (int run = 0; run < 20; ++run) {
+    std::weak_ptr<World> world;
+    {
+      ServerCore core{ServerConfig{}};
+      world = core.world("default");
+      auto session = testing::driver_session(core, "r1", bearcat_spec());
+      handle_odometry(session, odometry(0.0, 0.0, 0.0, 0.0));
+      for (std::uint64_t seq = 1; seq <= 5; ++seq) {
+        v1::LaserScan scan;
+        scan.set_sensor("front_laser");
+        scan.set_seq(seq);
+        scan.set_stamp_s(0.1 * static_cast<double>(seq));
+        for (int i = 0; i < 181; ++i) scan.add_ranges(2.0F + 0.01F * static_cast<float>(seq));
+        handle_laser_scan(session, scan);
+        ASSERT_TRUE(session->take_first_of(v1::ServerMessage::kScanAck)) << "run " << run << ", scan " << seq;
+      }
+    }
+    EXPECT_TRUE(world.expired()) << "run " << run;
+  }
+}
+
 }  // namespace
 }  // namespace occgeo::service

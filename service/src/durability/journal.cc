@@ -190,13 +190,25 @@ WorldJournal::WorldJournal(std::filesystem::path file, SyncPolicy policy, std::c
   if (policy_ != SyncPolicy::kNone) sync_thread_ = std::thread([this] { sync_loop(); });
 }
 
-WorldJournal::~WorldJournal() {
+void WorldJournal::shut_down() {
   {
     const std::lock_guard lock(mutex_);
     stopping_ = true;
   }
   wake_.notify_all();
   if (sync_thread_.joinable()) sync_thread_.join();
+  // Destroyed outside the lock: a callback's captures may own objects whose destructors come back here.
+  std::vector<std::function<void(const std::string*)>> finished;
+  std::vector<std::pair<std::uint64_t, std::function<void(const std::string*)>>> waiting;
+  {
+    const std::lock_guard lock(mutex_);
+    finished.swap(finished_callbacks_);
+    waiting.swap(waiting_);
+  }
+}
+
+WorldJournal::~WorldJournal() {
+  shut_down();
   if (fd_ >= 0) ::close(fd_);
 }
 

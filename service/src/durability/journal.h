@@ -98,6 +98,11 @@ class WorldJournal {
   WorldJournal(std::filesystem::path file, SyncPolicy policy, std::chrono::microseconds batch_interval,
                std::uint64_t next_lsn, std::uint64_t snapshot_lsn, metrics::Registry& metrics);
   ~WorldJournal();
+  // Stops the sync thread (after it has synced what was written and answered those waiting) and drops every callback
+  // it still holds, uncalled: one may hold the last reference to what owns this journal (a driver's session, its
+  // robot, their world), and kept here it would keep all of them, and this journal, alive for good (their strands
+  // and timers then outlive the server's thread pools). For a server shutting down, after its last snapshot.
+  void shut_down();
   WorldJournal(const WorldJournal&) = delete;
   WorldJournal& operator=(const WorldJournal&) = delete;
 
