@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs the benchmarks side by side in one go and writes docs/BENCHMARKS.md:
+# Runs the benchmarks side by side in one go and writes its run at the top of docs/BENCHMARKS.md (between the page's
+# two markers; what follows them, earlier runs and comparisons written by hand, stays as it is):
 #  - in-process: every Google Benchmark binary in BUILD_DIR/tests/bench;
 #  - the mix users run: 2 simulated robots at real rates with 64 query clients (default mix, then clearance only), on
 #    the seeded map and on the Intel log's map, command latency with and without the clients, next to redis GET;
@@ -203,10 +204,11 @@ lines = []
 add = lines.append
 add("# Benchmarks")
 add("")
-add("Written by `scripts/benchmarks.sh`, which runs everything below in one go on one machine: the in-process Google")
-add("Benchmarks, `occgeo-load` against an `occgeod` it starts on 127.0.0.1, and `redis-benchmark` against a")
-add("`redis-server` the script starts on 127.0.0.1 (no persistence) as the yardstick. Re-run it for your own machine;")
-add("figures on shared machines swing by several times between runs.")
+add("This page down to \"Where a single query's time goes\" is written by `scripts/benchmarks.sh`, run in one go:")
+add("the in-process Google Benchmarks, `occgeo-load` against an `occgeod` it starts on 127.0.0.1, and `redis-benchmark`")
+add("against a `redis-server` the script starts on 127.0.0.1 (no persistence) as the yardstick. Re-run it for your own")
+add("machine; figures on shared machines swing by several times between runs. The sections after it, kept as they are")
+add("by the script, are earlier runs and side-by-side comparisons, each with its date.")
 add("")
 add("| machine | |")
 add("|---|---|")
@@ -575,7 +577,24 @@ add("footprint's bounding circle. The rest is the loopback system calls and the 
 add("and occgeo-load's threads, which share the 2 cores: with the load tool's threads at the normal scheduling policy")
 add("each reply wakes a client thread that preempts the server mid-burst (`p16` at the normal policy above).")
 
+# The page keeps what people wrote below this run (earlier runs, side-by-side comparisons): only the text between the
+# two markers is replaced. A page without them keeps its whole text below this run's.
+BEGIN = "<!-- scripts/benchmarks.sh writes from here -->"
+END = "<!-- scripts/benchmarks.sh writes up to here -->"
+
+def with_run(page, run):
+    first = page.find(BEGIN)
+    last = page.find(END)
+    if first >= 0 and last > first:
+        return page[:first] + BEGIN + "\n" + run + END + page[last + len(END):]
+    return BEGIN + "\n" + run + END + "\n" + ("\n" + page if page else "")
+
+try:
+    with open(out) as f:
+        page = f.read()
+except FileNotFoundError:
+    page = ""
 with open(out, "w") as f:
-    f.write("\n".join(lines) + "\n")
+    f.write(with_run(page, "\n".join(lines) + "\n"))
 print("wrote " + out)
 PY
