@@ -14,6 +14,7 @@
 
 #include "durability/world_store.h"
 #include "model_geometry.h"
+#include "occgeo/geometry/fnv1a.h"
 #include "occgeo/proto/labels.h"
 #include "occgeo/service/log.h"
 
@@ -295,7 +296,8 @@ std::vector<control::TrackedObstacle> World::moving_clusters_on_strand(const std
   return moving;
 }
 
-// Per tracker: its key's length and bytes, its state's length and bytes.
+// Per tracker: its key's length and bytes, its state's length and bytes; then the FNV-1a of all that, so that a damaged
+// file is refused rather than read as other tracks.
 std::string World::serialize_trackers_on_strand() const {
   std::string out;
   for (const auto& [sensor, tracker] : ptem_trackers_) {
@@ -306,10 +308,19 @@ std::string World::serialize_trackers_on_strand() const {
       out.append(part);
     }
   }
+  const std::uint64_t checksum = geometry::fnv1a(std::string_view(out));
+  out.append(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
   return out;
 }
 
 void World::restore_trackers_on_strand(std::string_view state) {
+  std::uint64_t checksum = 0;
+  if (state.size() < sizeof(checksum)) throw std::invalid_argument("tracker state: truncated");
+  std::memcpy(&checksum, state.data() + state.size() - sizeof(checksum), sizeof(checksum));
+  state.remove_suffix(sizeof(checksum));
+  if (checksum != geometry::fnv1a(state)) {
+    throw std::invalid_argument("tracker state is damaged: its checksum does not match");
+  }
   std::map<std::string, control::ClusterTracker, std::less<>> trackers;
   const auto take = [&state]() {
     std::uint64_t size = 0;

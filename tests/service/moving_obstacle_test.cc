@@ -7,10 +7,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <limits>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <boost/asio/post.hpp>
 
 #include "fake_session.h"
 #include "model_geometry.h"
@@ -219,6 +222,15 @@ ModelsNow models_now(ServerCore& core, const std::optional<Eigen::Vector2d>& per
 // clear the floor before them and mark nothing: no grid cell or voxel where they walk (they leave no trail even where
 // the laser does not look again), while the PTEM keeps them for collision queries and the walls stay mapped as they
 // were.
+// Runs fn on the world's strand and returns what it returns (rethrowing what it throws).
+template <typename Fn>
+auto on_strand(World& world, Fn fn) {
+  std::packaged_task<decltype(fn())()> task(std::move(fn));
+  auto result = task.get_future();
+  boost::asio::post(world.strand(), [&task] { task(); });
+  return result.get();
+}
+
 TEST(MovingObstacle, APersonTrackedAsMovingIsNotMappedAsMatter) {
   ServerCore core(test_config(true));
   auto driver = testing::driver_session(core, "ugv-1", sim::make_robot_spec(ugv()));
@@ -243,6 +255,30 @@ TEST(MovingObstacle, APersonTrackedAsMovingIsNotMappedAsMatter) {
   EXPECT_EQ(walked.person_cells_octree, 0U);
   EXPECT_GT(corridor->wall_cells_grid, 20U);
   EXPECT_EQ(walked.wall_cells_grid, corridor->wall_cells_grid);
+
+  // The walker is published as moving with the models, where the guard reads it (its returns are not in the grid).
+  const std::shared_ptr<World> world = core.world("default");
+  const WorldSnapshot published = world->snapshots();
+  ASSERT_TRUE(published.moving);
+  EXPECT_TRUE(
+      std::any_of(published.moving->begin(), published.moving->end(),
+                  [&](const auto& track) { return (track.centre_W - *person.back()).norm() < kPersonRadius + 0.1; }))
+      << published.moving->size() << " moving tracks published";
+  // The lasers' trackers in a snapshot: read back the same, and damaged or cut bytes are refused, changing nothing.
+  const std::string state = on_strand(*world, [&] { return world->serialize_trackers_on_strand(); });
+  on_strand(*world, [&] { world->restore_trackers_on_strand(state); });
+  EXPECT_EQ(on_strand(*world, [&] { return world->serialize_trackers_on_strand(); }), state);
+  std::string damaged = state;
+  damaged[damaged.size() / 2] = static_cast<char>(damaged[damaged.size() / 2] ^ 0x10);
+  try {
+    on_strand(*world, [&] { world->restore_trackers_on_strand(damaged); });
+    ADD_FAILURE() << "damaged tracker state accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(on_strand(*world, [&] { world->restore_trackers_on_strand(state.substr(0, 5)); }),
+               std::invalid_argument);
+  EXPECT_EQ(on_strand(*world, [&] { return world->serialize_trackers_on_strand(); }), state);
 }
 
 }  // namespace
