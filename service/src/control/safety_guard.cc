@@ -24,13 +24,24 @@ double cell_size(const GuardModels& models) {
   return models.octomap != nullptr ? 2.0 * models.octomap->resolution() : 0.1;
 }
 
-// Where the tracked moving clusters' returns lie: the only recent returns the guard checks besides the models.
-std::vector<GroundDisc> moving_discs(const GuardModels& models) {
-  std::vector<GroundDisc> discs;
-  discs.reserve(models.moving_tracks.size());
-  for (const TrackedObstacle& track : models.moving_tracks) discs.push_back({track.centre_W, track.radius_m});
-  return discs;
-}
+// The recent returns of the tracked moving clusters, the only returns the guard checks besides the models (none when
+// the check is off or nothing moves). Made once per guard call: a swept motion checks them at up to 400 poses.
+class MovingReturns {
+ public:
+  MovingReturns(const GuardModels& models, const GuardParams& params) {
+    if (!params.check_scan_returns || models.scan_returns == nullptr || models.moving_tracks.empty()) return;
+    discs_.reserve(models.moving_tracks.size());
+    for (const TrackedObstacle& track : models.moving_tracks) discs_.push_back({track.centre_W, track.radius_m});
+    cells_.emplace(*models.scan_returns, params.scan_returns_max_age_s, cell_size(models), discs_);
+  }
+  MovingReturns(const MovingReturns&) = delete;  // the cells read discs_ in place
+  MovingReturns& operator=(const MovingReturns&) = delete;
+  [[nodiscard]] const RecentReturnCells* cells() const { return cells_ ? &*cells_ : nullptr; }
+
+ private:
+  std::vector<GroundDisc> discs_;
+  std::optional<RecentReturnCells> cells_;
+};
 
 // The terrain the guard reads within reach_m of base_link (world frame), when there is an octree to estimate it
 // from: the surfaces the robot can drive on, where neither the grid's returns nor the octree's voxels of the surface
@@ -51,8 +62,8 @@ std::optional<mapping::TerrainMap> terrain_near(const GuardModels& models, const
 
 // model_in_contact with the terrain's exceptions (none when terrain is null).
 std::string_view contact_on_terrain(const GuardModels& models, const mapping::TerrainMap* terrain,
-                                    const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
-                                    const GuardParams& params) {
+                                    const RecentReturnCells* moving_returns, const geometry::Footprint& footprint,
+                                    const geometry::Pose2& X_WB, const GuardParams& params) {
   if (params.check_grid && models.grid != nullptr) {
     const bool hit = terrain != nullptr
                          ? geometry::check_collision({footprint, X_WB}, TerrainMaskedCells(*models.grid, *terrain)).hit
@@ -60,13 +71,12 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
     if (hit) return "grid";
   }
   if (params.check_ptem && models.ptem != nullptr && collide_ptem(*models.ptem, footprint, X_WB).hit) return "ptem";
-  if (params.check_scan_returns && models.scan_returns != nullptr && !models.moving_tracks.empty()) {
+  if (moving_returns != nullptr) {
     // Returns on a drivable surface (the laser plane meeting a ramp) are the terrain's, as for the grid.
-    const std::vector<GroundDisc> moving = moving_discs(models);
-    const RecentReturnCells returns(*models.scan_returns, params.scan_returns_max_age_s, cell_size(models), moving);
-    const bool hit = terrain != nullptr
-                         ? geometry::check_collision({footprint, X_WB}, TerrainMaskedCells(returns, *terrain)).hit
-                         : geometry::check_collision({footprint, X_WB}, returns).hit;
+    const bool hit =
+        terrain != nullptr
+            ? geometry::check_collision({footprint, X_WB}, TerrainMaskedCells(*moving_returns, *terrain)).hit
+            : geometry::check_collision({footprint, X_WB}, *moving_returns).hit;
     if (hit) return "scan_returns";
   }
   if (params.check_octomap && models.octomap != nullptr) {
@@ -85,6 +95,7 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
 // Smallest distance from the footprint at X_WB to any consulted model's obstacle, looking no farther than
 // max_distance_m; returns max_distance_m and model "" when nothing is that close.
 std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, const mapping::TerrainMap* terrain,
+                                                     const RecentReturnCells* moving_returns,
                                                      const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
                                                      const GuardParams& params, double max_distance_m) {
   double best = max_distance_m;
@@ -114,12 +125,11 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
       model = "ptem";
     }
   }
-  if (params.check_scan_returns && models.scan_returns != nullptr && !models.moving_tracks.empty()) {
-    const std::vector<GroundDisc> moving = moving_discs(models);
-    const RecentReturnCells returns(*models.scan_returns, params.scan_returns_max_age_s, cell_size(models), moving);
-    const auto clearance = terrain != nullptr ? geometry::compute_clearance({footprint, X_WB, max_distance_m},
-                                                                            TerrainMaskedCells(returns, *terrain))
-                                              : geometry::compute_clearance({footprint, X_WB, max_distance_m}, returns);
+  if (moving_returns != nullptr) {
+    const auto clearance = terrain != nullptr
+                               ? geometry::compute_clearance({footprint, X_WB, max_distance_m},
+                                                             TerrainMaskedCells(*moving_returns, *terrain))
+                               : geometry::compute_clearance({footprint, X_WB, max_distance_m}, *moving_returns);
     if (clearance.found && clearance.clearance_m < best) {
       best = clearance.clearance_m;
       model = "scan_returns";
@@ -285,7 +295,8 @@ std::string_view model_in_contact(const GuardModels& models, const geometry::Foo
                                   const geometry::Pose2& X_WB, const GuardParams& params) {
   const auto terrain =
       terrain_near(models, footprint, X_WB, params, geometry::bounding_radius(footprint) + kTerrainMargin_m);
-  return contact_on_terrain(models, terrain ? &*terrain : nullptr, footprint, X_WB, params);
+  const MovingReturns moving_returns(models, params);
+  return contact_on_terrain(models, terrain ? &*terrain : nullptr, moving_returns.cells(), footprint, X_WB, params);
 }
 
 GuardDecision guard_command(const GuardModels& models, const geometry::Footprint& footprint,
@@ -307,7 +318,9 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
       terrain_near(models, footprint, X_WB, params,
                    reach_m + std::max(decision.distance_to_contact_m, params.limit_distance_m) + kTerrainMargin_m);
   const mapping::TerrainMap* on_terrain = terrain ? &*terrain : nullptr;
-  if (const std::string_view touching = contact_on_terrain(models, on_terrain, footprint, X_WB, params);
+  const MovingReturns moving_returns(models, params);
+  if (const std::string_view touching =
+          contact_on_terrain(models, on_terrain, moving_returns.cells(), footprint, X_WB, params);
       !touching.empty()) {
     decision.zone = "contact";
     decision.model = touching;
@@ -330,8 +343,8 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
       std::clamp(static_cast<int>(std::ceil(std::max(path_m / params.step_m, turn_rad / params.step_rad))), 1, 400);
   for (int k = 1; k <= steps; ++k) {
     const double t = params.horizon_s * k / steps;
-    const std::string_view hit =
-        contact_on_terrain(models, on_terrain, footprint, advance_pose(X_WB, linear_mps, angular_radps, t), params);
+    const std::string_view hit = contact_on_terrain(models, on_terrain, moving_returns.cells(), footprint,
+                                                    advance_pose(X_WB, linear_mps, angular_radps, t), params);
     if (hit.empty()) continue;
     decision.model = hit;
     decision.time_to_contact_s = t;
@@ -393,7 +406,8 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
   }
   if (params.limit_distance_m > 0.0) {
     const std::string_view model =
-        nearest_obstacle(models, on_terrain, footprint, X_WB, params, params.limit_distance_m).second;
+        nearest_obstacle(models, on_terrain, moving_returns.cells(), footprint, X_WB, params, params.limit_distance_m)
+            .second;
     if (!model.empty()) {
       const GuardDecision capped = limited(decision, params);
       if (capped.action == GuardAction::kLimit && decision.action == GuardAction::kPass) {

@@ -13,6 +13,14 @@ namespace occgeo::service {
 
 namespace {
 
+// The world-frame direction of the scan's beam i from the (possibly upside-down) laser.
+Eigen::Vector2d beam_direction_W(const PlanarSensorPose& sensor, const LaserModel& laser, std::size_t i) {
+  const double sign = sensor.mirrored ? -1.0 : 1.0;
+  const double bearing =
+      sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
+  return {std::cos(bearing), std::sin(bearing)};
+}
+
 // Inserts the scan's readings into the grid; readings below the sensor's minimum range carry no
 // information and are skipped.
 void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const LaserModel& laser,
@@ -31,22 +39,16 @@ void insert_scan(mapping::HimmGrid& grid, const PlanarSensorPose& sensor, const 
   const Eigen::Vector2d origin = sensor.X_WS.position();
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (ranges[i] < range_min) continue;
+    const Eigen::Vector2d direction_W = beam_direction_W(sensor, laser, i);
     if (!ended_on_moving.empty() && ended_on_moving[i] != 0) {
       // Cleared up to something moving, which is not marked (see HimmGrid::insert_scan).
-      const double bearing =
-          sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
       const mapping::BeamUse use =
           mapping::beam_use(static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
       const double free_m = std::min(static_cast<double>(ranges[i]) - grid.params().cell_size_m, use.free_m);
-      if (free_m > 0.0) {
-        grid.insert_ray(origin, origin + free_m * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)), false);
-      }
+      if (free_m > 0.0) grid.insert_ray(origin, origin + free_m * direction_W, false);
       continue;
     }
-    const double bearing =
-        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    insert_limited_ray(grid, origin, Eigen::Vector2d(std::cos(bearing), std::sin(bearing)),
-                       static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
+    insert_limited_ray(grid, origin, direction_W, static_cast<double>(ranges[i]), laser.range_max_m, laser.beam_limits);
   }
 }
 
@@ -86,9 +88,7 @@ void insert_ptem(World& world, const PlanarSensorPose& sensor, const LaserModel&
   for (int i = 0; i < scan.ranges_size(); ++i) {
     const double reading = static_cast<double>(scan.ranges(i));
     if (reading < laser.range_min_m || reading >= laser.range_max_m || reading > insert_range_m) continue;
-    const double bearing =
-        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    points_W.push_back(origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing)));
+    points_W.push_back(origin + reading * beam_direction_W(sensor, laser, static_cast<std::size_t>(i)));
   }
   const double beams = static_cast<double>(laser.beam_count);
   mapping::PtemScan ptem_scan;
@@ -121,9 +121,7 @@ std::vector<std::uint8_t> beams_ended_on_moving(World& world, const std::string&
   for (int i = 0; i < scan.ranges_size(); ++i) {
     const double reading = static_cast<double>(scan.ranges(i));
     if (reading < laser.range_min_m || reading >= laser.range_max_m) continue;
-    const double bearing =
-        sensor.X_WS.theta + sign * (laser.angle_min_rad + laser.angle_increment_rad * static_cast<double>(i));
-    const Eigen::Vector2d end_W = origin + reading * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+    const Eigen::Vector2d end_W = origin + reading * beam_direction_W(sensor, laser, static_cast<std::size_t>(i));
     for (const control::TrackedObstacle& track : moving) {
       if ((end_W - track.centre_W).norm() <= track.radius_m + kMargin_m) {
         flags[static_cast<std::size_t>(i)] = 1;

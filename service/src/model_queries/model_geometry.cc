@@ -34,10 +34,10 @@ void TerrainMaskedCells::for_each_occupied(geometry::CellIndex min, geometry::Ce
 
 void RecentReturnCells::for_each_occupied(geometry::CellIndex min, geometry::CellIndex max,
                                           const std::function<bool(const geometry::CellIndex&)>& visit) const {
+  if (within_.empty()) return;
   const double cell_m = cells_.cell_size();
   const Eigen::Vector2d lo(min.ix * cell_m, min.iy * cell_m);
   const Eigen::Vector2d hi((max.ix + 1) * cell_m, (max.iy + 1) * cell_m);
-  if (within_.empty()) return;
   // A tracked disc holds its cluster's returns up to float rounding.
   constexpr double kWithinMargin_m = 0.02;
   const auto within = [this](const Eigen::Vector2d& p_W) {
