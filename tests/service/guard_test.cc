@@ -105,6 +105,29 @@ TEST(SafetyGuard, ARobotAlreadyTouchingMayOnlyBackAwayOrTurn) {
   EXPECT_NEAR(reverse.linear_mps, -GuardParams{}.limit_linear_mps, 1e-12);
 }
 
+TEST(SafetyGuard, ARobotTouchingAWallAlongsideMayDriveAlongItButNotSwingACornerIntoIt) {
+  // Wall cells y in [0.4, 0.5): the left face (y = 0.4) touches them, their centres 5 cm beyond it; the wall's own face
+  // may lie anywhere in them. A turn in place either way swings a left corner towards them.
+  CellSet side;
+  for (int ix = -20; ix < 40; ++ix) side.add(ix, 4);
+  const GuardModels models{&side, nullptr, nullptr};
+  for (const double yaw_rate : {0.6, -0.6}) {
+    const GuardDecision turn = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, 0.0, yaw_rate, GuardParams{});
+    EXPECT_EQ(turn.action, GuardAction::kStop) << yaw_rate;
+    EXPECT_EQ(turn.zone, "contact");
+    const GuardDecision backing_turn = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, -0.3, yaw_rate, GuardParams{});
+    EXPECT_EQ(backing_turn.action, GuardAction::kStop) << yaw_rate;
+  }
+  // Backing straight keeps the gap: it goes on, limited as the wall is close.
+  const GuardDecision backing = guard_command(models, kBearcat, {0.0, 0.0, 0.0}, -0.5, 0.0, GuardParams{});
+  EXPECT_EQ(backing.action, GuardAction::kLimit);
+  EXPECT_NEAR(backing.linear_mps, -GuardParams{}.limit_linear_mps, 1e-12);
+  // Turned 0.1 rad towards the wall, its front corner in a wall cell: backing carries it away, and goes on.
+  const GuardDecision leaving = guard_command(models, kBearcat, {0.0, -0.02, 0.1}, -0.3, 0.0, GuardParams{});
+  EXPECT_EQ(leaving.zone, "contact");
+  EXPECT_NE(leaving.action, GuardAction::kStop);
+}
+
 TEST(SafetyGuard, DisabledOrStandingStillChangesNothing) {
   GuardParams off;
   off.enabled = false;
