@@ -105,7 +105,7 @@ TEST(SafetyGuard, ARobotAlreadyTouchingMayOnlyBackAwayOrTurn) {
   EXPECT_NEAR(reverse.linear_mps, -GuardParams{}.limit_linear_mps, 1e-12);
 }
 
-TEST(SafetyGuard, ARobotTouchingAWallAlongsideMayDriveAlongItButNotSwingACornerIntoIt) {
+TEST(SafetyGuard, ARobotTouchingAWallAlongsideMayBackAlongItButNotSwingACornerIntoIt) {
   // Wall cells y in [0.4, 0.5): the left face (y = 0.4) touches them, their centres 5 cm beyond it; the wall's own face
   // may lie anywhere in them. A turn in place either way swings a left corner towards them.
   CellSet side;

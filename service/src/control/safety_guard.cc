@@ -139,70 +139,77 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
   return {best, model};
 }
 
-// The centres of the obstacle cells (of the consulted cell models: grid, tracked walkers' returns, octree columns)
-// within reach_m of base_link at X_WB, world frame.
-std::vector<Eigen::Vector2d> cell_centres_near(const GuardModels& models, const mapping::TerrainMap* terrain,
-                                               const RecentReturnCells* moving_returns,
-                                               const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
-                                               const GuardParams& params, double reach_m) {
-  const geometry::GridGeometry cells(cell_size(models));
-  const geometry::CellIndex min = cells.cell_of({X_WB.x - reach_m, X_WB.y - reach_m});
-  const geometry::CellIndex max = cells.cell_of({X_WB.x + reach_m, X_WB.y + reach_m});
-  std::vector<Eigen::Vector2d> centres;
-  const auto visit = [&](const geometry::CellIndex& c) {
-    centres.push_back(cells.center_of(c));
-    return true;
-  };
+// An obstacle cell near the footprint: its centre (world frame) and side, metres.
+struct ObstacleCell {
+  Eigen::Vector2d centre_W;
+  double side_m;
+};
+
+// The obstacle cells of the consulted cell models (grid, tracked walkers' returns, octree columns, each of its own
+// cell size) within reach_m of base_link at X_WB on both axes.
+std::vector<ObstacleCell> obstacle_cells_near(const GuardModels& models, const mapping::TerrainMap* terrain,
+                                              const RecentReturnCells* moving_returns,
+                                              const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
+                                              const GuardParams& params, double reach_m) {
+  std::vector<ObstacleCell> near;
   const auto collect = [&](const geometry::OccupiedCellSource& source) {
+    const geometry::GridGeometry cells(source.cell_size());
+    const geometry::CellIndex min = cells.cell_of({X_WB.x - reach_m, X_WB.y - reach_m});
+    const geometry::CellIndex max = cells.cell_of({X_WB.x + reach_m, X_WB.y + reach_m});
+    source.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+      near.push_back({cells.center_of(c), cells.cell_size()});
+      return true;
+    });
+  };
+  const auto collect_on_terrain = [&](const geometry::OccupiedCellSource& source) {
     if (terrain != nullptr) {
-      TerrainMaskedCells(source, *terrain).for_each_occupied(min, max, visit);
+      collect(TerrainMaskedCells(source, *terrain));
     } else {
-      source.for_each_occupied(min, max, visit);
+      collect(source);
     }
   };
-  if (params.check_grid && models.grid != nullptr) collect(*models.grid);
-  if (moving_returns != nullptr) collect(*moving_returns);
+  if (params.check_grid && models.grid != nullptr) collect_on_terrain(*models.grid);
+  if (moving_returns != nullptr) collect_on_terrain(*moving_returns);
   if (params.check_octomap && models.octomap != nullptr) {
     // OctoMapColumns applies the terrain itself.
-    OctoMapColumns(*models.octomap, geometry::footprint_height(footprint), terrain).for_each_occupied(min, max, visit);
+    collect(OctoMapColumns(*models.octomap, geometry::footprint_height(footprint), terrain));
   }
-  return centres;
+  return near;
 }
 
-// Whether a motion of a footprint that already touches an obstacle cell carries it, within the first stop_distance_m
-// of its sweep (1 cm steps), nearer to the centre of a cell than half a cell and nearer than it is now. Cells are
-// 10 cm and a wall's face may lie anywhere in its cells, so touching a cell is not yet touching the wall, and the robot
-// gets out of such contact by moving; but a corner swinging towards the centre of a wall cell runs into the wall.
-// Such a motion stops. Sliding along a wall keeps the gap to the centres of the cells it touches (half a cell); a cell
-// whose centre is already inside the footprint tells nothing about deeper or shallower and is left out.
+// Whether a motion of a footprint that touches an obstacle cell brings it, within the first stop_distance_m of its
+// sweep (1 cm steps), nearer than half a cell to the centre of an obstacle cell and nearer than it is now. Cells are
+// 10 cm (the octree's columns 5 cm) and a wall's face may lie anywhere in its cells, so touching a cell is not yet
+// touching the wall, and the robot gets out of such contact by moving; but a corner swinging towards the centre of a
+// wall cell runs into the wall. Backing along a wall keeps the gap to the centres of the cells it touches (half a
+// cell); a cell whose centre is inside the footprint tells nothing about deeper or shallower and is left out.
 bool deepens_contact(const GuardModels& models, const mapping::TerrainMap* terrain,
                      const RecentReturnCells* moving_returns, const geometry::Footprint& footprint,
                      const geometry::Pose2& X_WB, double linear_mps, double angular_radps, const GuardParams& params) {
   constexpr double kTolerance_m = 0.002;
   constexpr double kStep_m = 0.01;
   const double sweep_rate_mps = std::abs(linear_mps) + geometry::bounding_radius(footprint) * std::abs(angular_radps);
-  if (sweep_rate_mps <= 0.0) return false;
-  const double cell_m = cell_size(models);
-  const double near_m = 0.5 * cell_m - kTolerance_m;
-  const double look_m = std::max(params.stop_distance_m, cell_m / 2.0);
+  const double look_m = std::max(params.stop_distance_m, cell_size(models) / 2.0);
   // The cells whose centres lie outside the footprint but within reach of the motion, with their gaps now.
   struct NearCell {
     Eigen::Vector2d centre_W;
+    double near_m;  // nearer than this is too near
     double gap_now_m;
   };
   std::vector<NearCell> near_cells;
-  for (const Eigen::Vector2d& centre_W : cell_centres_near(models, terrain, moving_returns, footprint, X_WB, params,
-                                                           geometry::bounding_radius(footprint) + look_m + near_m)) {
-    const double gap_m = distance_to_footprint(footprint, X_WB, centre_W);
-    if (gap_m > 0.0 && gap_m <= look_m + near_m) near_cells.push_back({centre_W, gap_m});
+  for (const ObstacleCell& cell : obstacle_cells_near(models, terrain, moving_returns, footprint, X_WB, params,
+                                                      geometry::bounding_radius(footprint) + look_m + 0.1)) {
+    const double gap_m = distance_to_footprint(footprint, X_WB, cell.centre_W);
+    const double near_m = 0.5 * cell.side_m - kTolerance_m;
+    if (gap_m > 0.0 && gap_m <= look_m + near_m) near_cells.push_back({cell.centre_W, near_m, gap_m});
   }
-  if (near_cells.empty()) return false;
+  if (near_cells.empty() || sweep_rate_mps <= 0.0) return false;
   const int steps = std::clamp(static_cast<int>(std::ceil(look_m / kStep_m)), 1, 50);
   for (int k = 1; k <= steps; ++k) {
     const geometry::Pose2 X_WB_t = advance_pose(X_WB, linear_mps, angular_radps, look_m / sweep_rate_mps * k / steps);
     for (const NearCell& cell : near_cells) {
       const double gap_m = distance_to_footprint(footprint, X_WB_t, cell.centre_W);
-      if (gap_m < near_m && gap_m < cell.gap_now_m - kTolerance_m) return true;
+      if (gap_m < cell.near_m && gap_m < cell.gap_now_m - kTolerance_m) return true;
     }
   }
   return false;
@@ -396,6 +403,8 @@ GuardDecision guard_command(const GuardModels& models, const geometry::Footprint
     decision.model = touching;
     decision.time_to_contact_s = 0.0;
     decision.distance_to_contact_m = 0.0;
+    // The robot gets out of contact by turning or backing, but not deeper into it. Forward stays refused: allowed
+    // along what it touches, it crept into places the escape could not get it out of (the ActivityBot in the cup).
     if (linear_mps > 0.0 || deepens_contact(models, on_terrain, moving_returns.cells(), footprint, X_WB, linear_mps,
                                             angular_radps, params)) {
       decision.action = GuardAction::kStop;
