@@ -93,6 +93,27 @@ std::string_view contact_on_terrain(const GuardModels& models, const mapping::Te
   return "";
 }
 
+// Calls visit(source, model) for each consulted model that the guard reads as cells on the ground: the grid and the
+// tracked walkers' recent returns, less what the terrain explains when there is one, and the octree's voxels in the
+// footprint's height band as columns (OctoMapColumns applies the terrain itself).
+template <typename Visit>
+void for_each_cell_model(const GuardModels& models, const mapping::TerrainMap* terrain,
+                         const RecentReturnCells* moving_returns, const geometry::Footprint& footprint,
+                         const GuardParams& params, Visit&& visit) {
+  const auto on_terrain = [&](const geometry::OccupiedCellSource& cells, std::string_view model) {
+    if (terrain != nullptr) {
+      visit(TerrainMaskedCells(cells, *terrain), model);
+    } else {
+      visit(cells, model);
+    }
+  };
+  if (params.check_grid && models.grid != nullptr) on_terrain(*models.grid, "grid");
+  if (params.check_octomap && models.octomap != nullptr) {
+    visit(OctoMapColumns(*models.octomap, geometry::footprint_height(footprint), terrain), "octomap");
+  }
+  if (moving_returns != nullptr) on_terrain(*moving_returns, "scan_returns");
+}
+
 // Smallest distance from the footprint at X_WB to any consulted model's obstacle, looking no farther than
 // max_distance_m; returns max_distance_m and model "" when nothing is that close.
 std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, const mapping::TerrainMap* terrain,
@@ -101,40 +122,20 @@ std::pair<double, std::string_view> nearest_obstacle(const GuardModels& models, 
                                                      const GuardParams& params, double max_distance_m) {
   double best = max_distance_m;
   std::string_view model;
-  if (params.check_grid && models.grid != nullptr) {
-    const auto clearance =
-        terrain != nullptr
-            ? geometry::compute_clearance({footprint, X_WB, max_distance_m}, TerrainMaskedCells(*models.grid, *terrain))
-            : geometry::compute_clearance({footprint, X_WB, max_distance_m}, *models.grid);
-    if (clearance.found && clearance.clearance_m < best) {
-      best = clearance.clearance_m;
-      model = "grid";
+  const auto keep_nearer = [&](double clearance_m, bool found, std::string_view from) {
+    if (found && clearance_m < best) {
+      best = clearance_m;
+      model = from;
     }
-  }
-  if (params.check_octomap && models.octomap != nullptr) {
-    const OctoMapColumns columns(*models.octomap, geometry::footprint_height(footprint), terrain);
-    const auto clearance = geometry::compute_clearance({footprint, X_WB, max_distance_m}, columns);
-    if (clearance.found && clearance.clearance_m < best) {
-      best = clearance.clearance_m;
-      model = "octomap";
-    }
-  }
+  };
+  for_each_cell_model(models, terrain, moving_returns, footprint, params,
+                      [&](const geometry::OccupiedCellSource& cells, std::string_view from) {
+                        const auto clearance = geometry::compute_clearance({footprint, X_WB, max_distance_m}, cells);
+                        keep_nearer(clearance.clearance_m, clearance.found, from);
+                      });
   if (params.check_ptem && models.ptem != nullptr) {
     const auto clearance = ptem_clearance(*models.ptem, footprint, X_WB, max_distance_m);
-    if (clearance.found && clearance.clearance_m < best) {
-      best = clearance.clearance_m;
-      model = "ptem";
-    }
-  }
-  if (moving_returns != nullptr) {
-    const auto clearance = terrain != nullptr
-                               ? geometry::compute_clearance({footprint, X_WB, max_distance_m},
-                                                             TerrainMaskedCells(*moving_returns, *terrain))
-                               : geometry::compute_clearance({footprint, X_WB, max_distance_m}, *moving_returns);
-    if (clearance.found && clearance.clearance_m < best) {
-      best = clearance.clearance_m;
-      model = "scan_returns";
-    }
+    keep_nearer(clearance.clearance_m, clearance.found, "ptem");
   }
   return {best, model};
 }
@@ -145,35 +146,23 @@ struct ObstacleCell {
   double side_m;
 };
 
-// The obstacle cells of the consulted cell models (grid, tracked walkers' returns, octree columns, each of its own
-// cell size) within reach_m of base_link at X_WB on both axes.
+// The obstacle cells of the consulted cell models (for_each_cell_model, each of its own cell size) within reach_m of
+// base_link at X_WB on both axes.
 std::vector<ObstacleCell> obstacle_cells_near(const GuardModels& models, const mapping::TerrainMap* terrain,
                                               const RecentReturnCells* moving_returns,
                                               const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
                                               const GuardParams& params, double reach_m) {
   std::vector<ObstacleCell> near;
-  const auto collect = [&](const geometry::OccupiedCellSource& source) {
-    const geometry::GridGeometry cells(source.cell_size());
-    const geometry::CellIndex min = cells.cell_of({X_WB.x - reach_m, X_WB.y - reach_m});
-    const geometry::CellIndex max = cells.cell_of({X_WB.x + reach_m, X_WB.y + reach_m});
-    source.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
-      near.push_back({cells.center_of(c), cells.cell_size()});
-      return true;
-    });
-  };
-  const auto collect_on_terrain = [&](const geometry::OccupiedCellSource& source) {
-    if (terrain != nullptr) {
-      collect(TerrainMaskedCells(source, *terrain));
-    } else {
-      collect(source);
-    }
-  };
-  if (params.check_grid && models.grid != nullptr) collect_on_terrain(*models.grid);
-  if (moving_returns != nullptr) collect_on_terrain(*moving_returns);
-  if (params.check_octomap && models.octomap != nullptr) {
-    // OctoMapColumns applies the terrain itself.
-    collect(OctoMapColumns(*models.octomap, geometry::footprint_height(footprint), terrain));
-  }
+  for_each_cell_model(models, terrain, moving_returns, footprint, params,
+                      [&](const geometry::OccupiedCellSource& source, std::string_view /*model*/) {
+                        const geometry::GridGeometry cells(source.cell_size());
+                        const geometry::CellIndex min = cells.cell_of({X_WB.x - reach_m, X_WB.y - reach_m});
+                        const geometry::CellIndex max = cells.cell_of({X_WB.x + reach_m, X_WB.y + reach_m});
+                        source.for_each_occupied(min, max, [&](const geometry::CellIndex& c) {
+                          near.push_back({cells.center_of(c), cells.cell_size()});
+                          return true;
+                        });
+                      });
   return near;
 }
 
@@ -188,7 +177,9 @@ bool deepens_contact(const GuardModels& models, const mapping::TerrainMap* terra
                      const geometry::Pose2& X_WB, double linear_mps, double angular_radps, const GuardParams& params) {
   constexpr double kTolerance_m = 0.002;
   constexpr double kStep_m = 0.01;
-  const double sweep_rate_mps = std::abs(linear_mps) + geometry::bounding_radius(footprint) * std::abs(angular_radps);
+  const double reach_m = geometry::bounding_radius(footprint);
+  const double sweep_rate_mps = std::abs(linear_mps) + reach_m * std::abs(angular_radps);
+  if (sweep_rate_mps <= 0.0) return false;
   const double look_m = std::max(params.stop_distance_m, cell_size(models) / 2.0);
   // The cells whose centres lie outside the footprint but within reach of the motion, with their gaps now.
   struct NearCell {
@@ -197,13 +188,16 @@ bool deepens_contact(const GuardModels& models, const mapping::TerrainMap* terra
     double gap_now_m;
   };
   std::vector<NearCell> near_cells;
-  for (const ObstacleCell& cell : obstacle_cells_near(models, terrain, moving_returns, footprint, X_WB, params,
-                                                      geometry::bounding_radius(footprint) + look_m + 0.1)) {
+  // A centre within look_m + half a cell of the footprint lies within this of base_link (the grid's cells are the
+  // largest).
+  const double cells_reach_m = reach_m + look_m + cell_size(models) / 2.0;
+  for (const ObstacleCell& cell :
+       obstacle_cells_near(models, terrain, moving_returns, footprint, X_WB, params, cells_reach_m)) {
     const double gap_m = distance_to_footprint(footprint, X_WB, cell.centre_W);
     const double near_m = 0.5 * cell.side_m - kTolerance_m;
     if (gap_m > 0.0 && gap_m <= look_m + near_m) near_cells.push_back({cell.centre_W, near_m, gap_m});
   }
-  if (near_cells.empty() || sweep_rate_mps <= 0.0) return false;
+  if (near_cells.empty()) return false;
   const int steps = std::clamp(static_cast<int>(std::ceil(look_m / kStep_m)), 1, 50);
   for (int k = 1; k <= steps; ++k) {
     const geometry::Pose2 X_WB_t = advance_pose(X_WB, linear_mps, angular_radps, look_m / sweep_rate_mps * k / steps);
