@@ -271,6 +271,8 @@ void ServerConfig::validate() const {
           "durability.snapshot_interval_s", "must be in [0, 86400] seconds (0: only on clean shutdown)");
   validate_block(himm, "himm");
   validate_block(bearcat, "bearcat");
+  require(control.realtime_priority >= 0 && control.realtime_priority <= 99, "control.realtime_priority",
+          "must be 0 (off) or a SCHED_FIFO priority in [1, 99]");
   require(control.initial_behaviour == "bearcat" || control.initial_behaviour == "stop", "control.initial_behaviour",
           "must be \"bearcat\" or \"stop\"");
   validate_block(guard, "guard");
@@ -338,7 +340,8 @@ ServerConfig load_config(const std::filesystem::path& file) {
                        .field("lease_timeout_s", config.control.lease_timeout_s)
                        .field("max_lease_timeout_s", config.control.max_lease_timeout_s)
                        .field("sensor_timeout_s", config.control.sensor_timeout_s)
-                       .field("initial_behaviour", config.control.initial_behaviour);
+                       .field("initial_behaviour", config.control.initial_behaviour)
+                       .field("realtime_priority", config.control.realtime_priority);
                  })
         .section("auth",
                  [&](Section& s) {

@@ -1,5 +1,7 @@
 #include "core.h"
 
+#include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -370,6 +372,15 @@ void lower_this_threads_priority(int nice, const char* warning) {
   }
 }
 
+void make_this_thread_realtime(int priority, const char* warning) {
+  if (priority <= 0) return;
+  sched_param param{};
+  param.sched_priority = priority;
+  if (const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param); error != 0) {
+    log::warn(warning, {{"priority", priority}, {"error", std::strerror(error)}});
+  }
+}
+
 std::optional<std::uint64_t> process_resident_bytes() {
   std::ifstream statm("/proc/self/statm");
   std::uint64_t size_pages = 0;
@@ -516,6 +527,16 @@ ServerCore::ServerCore(ServerConfig config)
   // The octree lane's work (milliseconds per scan) waits for nobody: readers see the octree up to an interval stale.
   // Below the ingest strand, so that a scan's command does not share a core with the previous scan's octree work.
   lower_pool_priority(octree_pool_, 1, config_.octomap_lane_nice, "octree_lane_nice_not_applied");
+  // The ingest strands turn a scan into its command: a woken strand takes a core at once rather than after the time
+  // slice of whatever normal thread runs there (milliseconds on a busy 2-core machine).
+  if (config_.control.realtime_priority > 0) {
+    std::promise<void> raised;
+    asio::post(ingest_pool_, [&raised, priority = config_.control.realtime_priority] {
+      make_this_thread_realtime(priority, "ingest_realtime_not_applied");
+      raised.set_value();
+    });
+    raised.get_future().wait();
+  }
 }
 
 ServerCore::~ServerCore() {

@@ -78,6 +78,11 @@ std::optional<std::uint64_t> process_resident_bytes();
 // at most to 19; logs `warning` when it cannot.
 void lower_this_threads_priority(int nice, const char* warning);
 
+// Puts the calling thread under SCHED_FIFO at `priority` (1-99; 0 does nothing), so that no thread of the normal
+// policy (queries, a co-located load generator, the octree's lane) holds it off a core for a time slice; logs
+// `warning` when it cannot (no CAP_SYS_NICE).
+void make_this_thread_realtime(int priority, const char* warning);
+
 // The models a world keeps, and their parameters.
 struct WorldParams {
   mapping::PtemParams ptem;

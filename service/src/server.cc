@@ -295,7 +295,11 @@ void Server::run() {
   // Started before the calling thread lowers its priority, so the driver loop keeps the process's.
   std::thread driver_thread;
   if (impl_->driver_loop) {
-    driver_thread = std::thread([loop = impl_->driver_loop.get(), poll_us] { run_network_loop(*loop, poll_us); });
+    driver_thread = std::thread(
+        [loop = impl_->driver_loop.get(), poll_us, priority = impl_->core.config().control.realtime_priority] {
+          make_this_thread_realtime(priority, "driver_loop_realtime_not_applied");
+          run_network_loop(*loop, poll_us);
+        });
   }
   // The calling thread serves `net` too. Threads it starts later inherit its niceness; every pool exists by now.
   lower_this_threads_priority(nice, "network_nice_not_applied");

@@ -3,6 +3,7 @@
 // run (figures, not assertions); what is asserted is what a user relies on: every scan acknowledged, every event
 // accounted for, memory bounded, the robot stopped.
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -437,6 +438,54 @@ TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriorityAndTheOctreeLane
     } else {
       EXPECT_EQ(lowered, 3 + kQueryPoolThreads) << "one lowered thread per network thread and query pool thread";
       EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 3 - kQueryPoolThreads - 1);
+    }
+  }
+}
+
+// The scheduling policy of each of the process's threads (SCHED_OTHER, SCHED_FIFO, ...), from /proc (field 41 of
+// each task's stat).
+std::vector<int> thread_policies(pid_t pid) {
+  std::vector<int> policies;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
+    std::ifstream stat(task.path() / "stat");
+    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+    std::istringstream after_name(text.substr(text.rfind(')') + 2));
+    std::string field;
+    for (int i = 3; i <= 41 && after_name >> field; ++i) {
+      if (i == 41) policies.push_back(std::stoi(field));
+    }
+  }
+  return policies;
+}
+
+// The two threads that turn a robot's scan into its command (the ingest strands' and the drivers' loop) run under
+// SCHED_FIFO at control.realtime_priority, every other thread under the normal policy; where the process may not
+// (no CAP_SYS_NICE) the server says so in its log and goes on; 0 leaves them all normal.
+TEST(Backpressure, TheCommandPathRunsAtRealtimePriorityWhenThePlatformAllowsIt) {
+  sched_param probe{};
+  probe.sched_priority = 1;
+  const bool allowed = sched_setscheduler(0, SCHED_FIFO, &probe) == 0;
+  if (allowed) {
+    const sched_param normal{};
+    sched_setscheduler(0, SCHED_OTHER, &normal);
+  }
+  for (const int priority : {10, 0}) {
+    TempDir dir;
+    auto server = start_server(dir, "control:\n  realtime_priority: " + std::to_string(priority) + "\n");
+    LockstepDriver driver(server->address(), "bot", "default");
+    ASSERT_TRUE(driver.step());  // the driver's session is on its loop, whose thread set its policy first
+    std::vector<int> policies = thread_policies(server->pid());
+    ASSERT_GT(policies.size(), 4U);
+    const auto realtime = std::count(policies.begin(), policies.end(), SCHED_FIFO);
+    if (priority == 0) {
+      EXPECT_EQ(realtime, 0);
+    } else if (allowed) {
+      EXPECT_EQ(realtime, 2) << "the ingest strands' thread and the drivers' loop";
+      EXPECT_EQ(std::count(policies.begin(), policies.end(), SCHED_OTHER), static_cast<long>(policies.size()) - 2);
+    } else {
+      EXPECT_EQ(realtime, 0);
+      EXPECT_NE(server->log().find("ingest_realtime_not_applied"), std::string::npos) << server->log();
+      EXPECT_NE(server->log().find("driver_loop_realtime_not_applied"), std::string::npos) << server->log();
     }
   }
 }

@@ -59,6 +59,7 @@ TEST(Config, TheDocumentedExampleLoadsAndEqualsTheDefaults) {
   EXPECT_EQ(loaded.control.lease_timeout_s, defaults.control.lease_timeout_s);
   EXPECT_EQ(loaded.control.max_lease_timeout_s, defaults.control.max_lease_timeout_s);
   EXPECT_EQ(loaded.control.sensor_timeout_s, defaults.control.sensor_timeout_s);
+  EXPECT_EQ(loaded.control.realtime_priority, defaults.control.realtime_priority);
   EXPECT_EQ(loaded.auth.operator_token, defaults.auth.operator_token);
   EXPECT_EQ(loaded.himm.increment, defaults.himm.increment);
   EXPECT_EQ(loaded.himm.tile_cells, defaults.himm.tile_cells);
@@ -122,6 +123,16 @@ TEST(Config, NetworkNicenessIsReadAndChecked) {
   EXPECT_EQ(ServerConfig{}.queries.network_nice, 5);
   EXPECT_NE(load_error("queries:\n  network_nice: -1\n").find("queries.network_nice"), std::string::npos);
   EXPECT_NE(load_error("queries:\n  network_nice: 20\n").find("queries.network_nice"), std::string::npos);
+}
+
+TEST(Config, RealtimePriorityIsReadAndChecked) {
+  testing::TempDir dir;
+  const auto file = dir.path() / "occgeod.yaml";
+  std::ofstream(file) << "control:\n  realtime_priority: 0\n";
+  EXPECT_EQ(load_config(file).control.realtime_priority, 0);
+  EXPECT_EQ(ServerConfig{}.control.realtime_priority, 10);
+  EXPECT_NE(load_error("control:\n  realtime_priority: -1\n").find("control.realtime_priority"), std::string::npos);
+  EXPECT_NE(load_error("control:\n  realtime_priority: 100\n").find("control.realtime_priority"), std::string::npos);
 }
 
 TEST(Config, PointCloudLimitIsReadCheckedAndSpelledExactly) {

@@ -62,6 +62,10 @@ struct ControlConfig {
   double max_lease_timeout_s = 30.0;  // the longest LeaseRequest.timeout_s a controller may ask for
   double sensor_timeout_s = 0.5;      // a driven robot with no sensor message for this long is sent a stop
   std::string initial_behaviour = "bearcat";  // a newly registered robot's behaviour: "bearcat" or "stop"
+  // SCHED_FIFO priority (1-99) of the threads that turn a scan into its MotionCommand: the ingest strands' and the
+  // robot drivers' event loop. 0: they keep the process's policy. Without the privilege (CAP_SYS_NICE) the server
+  // warns once per thread and they keep it too.
+  int realtime_priority = 10;
 };
 
 // Who may do what beyond their role.
