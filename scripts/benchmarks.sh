@@ -11,13 +11,15 @@
 #  - real logs: occgeo replay --max of the shared logs (DATASETS, default ../shared/datasets), scans/s per tenth,
 #    and the models' bytes per known grid cell and per octree leaf at the end of each.
 # Environment: BUILD_DIR (default build), OUT (default docs/BENCHMARKS.md), DURATION (seconds per occgeo-load run,
-# default 5), BENCH_MIN_TIME (Google Benchmark --benchmark_min_time, default 0.5), BENCH_DIR (the benchmark binaries,
+# default 5), COMMAND_DURATION (seconds of the runs with robots, whose command p99 wants some hundreds of commands,
+# default 30), BENCH_MIN_TIME (Google Benchmark --benchmark_min_time, default 0.5), BENCH_DIR (the benchmark binaries,
 # default BUILD_DIR/tests/bench), SKIP_BUILD=1 to use the build as is.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
 OUT=${OUT:-docs/BENCHMARKS.md}
 DURATION=${DURATION:-5}
+COMMAND_DURATION=${COMMAND_DURATION:-30}
 BENCH_MIN_TIME=${BENCH_MIN_TIME:-0.5}
 BENCH_DIR=${BENCH_DIR:-$BUILD_DIR/tests/bench}
 [ "${SKIP_BUILD:-0}" = 1 ] || bash scripts/build.sh
@@ -82,19 +84,22 @@ redis_bench() {  # NAME REQUESTS ARGS...
   redis-benchmark -h 127.0.0.1 -p "$redis_port" -n "$requests" --csv "$@" >"$work/redis_$name.csv"
 }
 occgeo_load() {  # NAME ARGS...
-  local name=$1
-  shift
+  occgeo_load_for "$DURATION" "$@"
+}
+occgeo_load_for() {  # SECONDS NAME ARGS...
+  local seconds=$1 name=$2
+  shift 2
   echo "== occgeo-load $name" >&2
-  "$load" --duration "$DURATION" --json --quiet "$@" >"$work/occgeo_$name.json" || true
+  "$load" --duration "$seconds" --json --quiet "$@" >"$work/occgeo_$name.json" || true
 }
 
 # The mix users run, first: two simulated Bearcats streaming scans at their real rates (every model on) while 64 query
 # clients ask the default mix (collision, clearance, ptem, status), then only clearance, then only status; the robots
 # alone for the command latency without clients. Next to redis GET with 64 clients from the same run (below).
-occgeo_load mix --robots 2 --clients 64 --depth 1
-occgeo_load mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
-occgeo_load mix_status --robots 2 --clients 64 --depth 1 --mix status
-occgeo_load command_idle --robots 2 --clients 0
+occgeo_load_for "$COMMAND_DURATION" mix --robots 2 --clients 64 --depth 1
+occgeo_load_for "$COMMAND_DURATION" mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
+occgeo_load_for "$COMMAND_DURATION" mix_status --robots 2 --clients 64 --depth 1 --mix status
+occgeo_load_for "$COMMAND_DURATION" command_idle --robots 2 --clients 0
 # The same mix on a larger map: a server that replayed the Intel log first (its map several times the seeded open
 # field's), with the robots and clients added to that world.
 # Starts occgeod in DIR (data, log, port file) on free loopback ports at LOG_LEVEL; sets server_pid and server.
@@ -112,7 +117,8 @@ large_map_load() {
   "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --format carmen \
     "$DATASETS/carmen-intel/intel-corrected.log.gz" >/dev/null 2>&1 || true
   "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/large_map.status.json" 2>/dev/null || true
-  occgeo_load mix_large --server "$server" --server-pid "$server_pid" --robots 2 --clients 64 --depth 1
+  occgeo_load_for "$COMMAND_DURATION" mix_large --server "$server" --server-pid "$server_pid" --robots 2 --clients 64 \
+    --depth 1
   kill "$server_pid" 2>/dev/null || true
   wait "$server_pid" 2>/dev/null || true
 }
@@ -167,10 +173,10 @@ if [ -d "$DATASETS" ]; then
   replay_log exp1 --format urg "$DATASETS/urg04lx-mines/exp1.dat"
 fi
 
-python3 - "$work" "$OUT" "$DURATION" <<'PY'
+python3 - "$work" "$OUT" "$DURATION" "$COMMAND_DURATION" <<'PY'
 import csv, glob, json, os, sys
 
-work, out, duration = sys.argv[1], sys.argv[2], sys.argv[3]
+work, out, duration, command_duration = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 machine = dict(line.rstrip("\n").split("=", 1) for line in open(os.path.join(work, "machine.txt")))
 
 def occgeo(name):
@@ -219,7 +225,7 @@ add(f"| compiler | {machine.get('compiler', '?')} |")
 add(f"| build type | {machine.get('build_type', '?')} |")
 add(f"| redis | {machine.get('redis', '?')} |")
 add(f"| load average at start | {machine.get('loadavg', '?')} |")
-add(f"| run | {machine.get('date', '?')}, {duration} s per occgeo-load run |")
+add(f"| run | {machine.get('date', '?')}, {duration} s per occgeo-load run, {command_duration} s with robots |")
 add("")
 
 # ---- in-process (rendered here for the goals below, placed after the mix users run, which leads the page)
@@ -282,7 +288,9 @@ for name, label in mix_rows:
 add("")
 idle, loaded = occgeo("command_idle"), occgeo("mix")
 if idle and loaded and idle.get("command_p99_us") and loaded.get("command_p99_us"):
-    add(f"Command p99 with the 64 clients ÷ without: {loaded['command_p99_us'] / idle['command_p99_us']:.2f}×.")
+    add(f"Command p99 with the 64 clients ÷ without: {loaded['command_p99_us'] / idle['command_p99_us']:.2f}×. "
+        f"Commands timed per run: {loaded.get('commands', 0):,} with the clients, {idle.get('commands', 0):,} without "
+        f"(the p99 lies among the {max(1, round(int(loaded.get('commands', 0)) / 100))} slowest).")
 try:
     large_status = json.loads(open(os.path.join(work, "large_map.status.json")).read())
     add("The Intel map's world at the start of its run: " + ", ".join(

@@ -292,7 +292,8 @@ void Server::run() {
       run_network_loop(*loop, poll_us);
     });
   }
-  // Started before the calling thread lowers its priority, so the driver loop keeps the process's.
+  // Started before the calling thread lowers its priority, so the driver loop keeps the process's niceness (under
+  // SCHED_FIFO at control.realtime_priority where the process may).
   std::thread driver_thread;
   if (impl_->driver_loop) {
     driver_thread = std::thread(

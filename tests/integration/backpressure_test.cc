@@ -393,21 +393,23 @@ TEST(Backpressure, ADriversFramesBehindItsHelloInOneWriteAreAnsweredInOrderAfter
   }
 }
 
-// The niceness of each of the process's threads, from /proc (field 19 of each task's stat, counted after the
-// command name, which may hold spaces).
-std::vector<int> thread_niceness(pid_t pid) {
-  std::vector<int> niceness;
+// One numeric field of each of the process's threads' /proc stat (numbered as proc(5) does, counted after the command
+// name, which may hold spaces): 19 is the niceness, 41 the scheduling policy (SCHED_OTHER, SCHED_FIFO, ...).
+std::vector<int> thread_stat_field(pid_t pid, int number) {
+  std::vector<int> values;
   for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
     std::ifstream stat(task.path() / "stat");
     std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
     std::istringstream after_name(text.substr(text.rfind(')') + 2));
     std::string field;
-    for (int i = 3; i <= 19 && after_name >> field; ++i) {
-      if (i == 19) niceness.push_back(std::stoi(field));
+    for (int i = 3; i <= number && after_name >> field; ++i) {
+      if (i == number) values.push_back(std::stoi(field));
     }
   }
-  return niceness;
+  return values;
 }
+std::vector<int> thread_niceness(pid_t pid) { return thread_stat_field(pid, 19); }
+std::vector<int> thread_policies(pid_t pid) { return thread_stat_field(pid, 41); }
 
 // The network threads answer queries inline, and the query pool computes the larger ones, at queries.network_nice
 // below the process's priority; every other thread (ingest and control, journal) keeps the process's own, so a query
@@ -440,22 +442,6 @@ TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriorityAndTheOctreeLane
       EXPECT_EQ(kept, static_cast<long>(niceness.size()) - 3 - kQueryPoolThreads - 1);
     }
   }
-}
-
-// The scheduling policy of each of the process's threads (SCHED_OTHER, SCHED_FIFO, ...), from /proc (field 41 of
-// each task's stat).
-std::vector<int> thread_policies(pid_t pid) {
-  std::vector<int> policies;
-  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
-    std::ifstream stat(task.path() / "stat");
-    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
-    std::istringstream after_name(text.substr(text.rfind(')') + 2));
-    std::string field;
-    for (int i = 3; i <= 41 && after_name >> field; ++i) {
-      if (i == 41) policies.push_back(std::stoi(field));
-    }
-  }
-  return policies;
 }
 
 // The two threads that turn a robot's scan into its command (the ingest strands' and the drivers' loop) run under
