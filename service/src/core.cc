@@ -494,19 +494,25 @@ control::BearcatParams bearcat_params_for(const RobotModel& model, control::Bear
 
 namespace {
 
-// Adds `nice` to the niceness of each of a pool's `threads` threads. Each thread takes one of these tasks (they wait
-// for each other), so every thread is lowered. The latch is shared: a pool thread may still be inside arrive_and_wait
-// after this function's wait has returned.
-void lower_pool_priority(asio::thread_pool& pool, std::size_t threads, int nice, const char* warning) {
-  if (nice <= 0) return;
-  auto lowered = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
+// Runs set_up once on each of a pool's `threads` threads and returns when all have. Each thread takes one of these
+// tasks (they wait for each other), so every thread runs it. The latch is shared: a pool thread may still be inside
+// arrive_and_wait after this function's wait has returned.
+template <typename SetUp>
+void on_each_pool_thread(asio::thread_pool& pool, std::size_t threads, SetUp set_up) {
+  auto done = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
   for (std::size_t i = 0; i < threads; ++i) {
-    asio::post(pool, [lowered, nice, warning] {
-      lower_this_threads_priority(nice, warning);
-      lowered->arrive_and_wait();
+    asio::post(pool, [done, set_up] {
+      set_up();
+      done->arrive_and_wait();
     });
   }
-  lowered->wait();
+  done->wait();
+}
+
+// Adds `nice` to the niceness of each of a pool's `threads` threads.
+void lower_pool_priority(asio::thread_pool& pool, std::size_t threads, int nice, const char* warning) {
+  if (nice <= 0) return;
+  on_each_pool_thread(pool, threads, [nice, warning] { lower_this_threads_priority(nice, warning); });
 }
 
 std::int64_t steady_now_ns() {
@@ -529,13 +535,9 @@ ServerCore::ServerCore(ServerConfig config)
   lower_pool_priority(octree_pool_, 1, config_.octomap_lane_nice, "octree_lane_nice_not_applied");
   // The ingest strands turn a scan into its command: a woken strand takes a core at once rather than after the time
   // slice of whatever normal thread runs there (milliseconds on a busy 2-core machine).
-  if (config_.control.realtime_priority > 0) {
-    std::promise<void> raised;
-    asio::post(ingest_pool_, [&raised, priority = config_.control.realtime_priority] {
-      make_this_thread_realtime(priority, "ingest_realtime_not_applied");
-      raised.set_value();
-    });
-    raised.get_future().wait();
+  if (const int priority = config_.control.realtime_priority; priority > 0) {
+    on_each_pool_thread(ingest_pool_, 1,
+                        [priority] { make_this_thread_realtime(priority, "ingest_realtime_not_applied"); });
   }
 }
 
