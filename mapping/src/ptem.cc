@@ -151,9 +151,21 @@ PtemCircle enclose_circle_and_point(const PtemCircle& circle, const Eigen::Vecto
   return PtemCircle{Eigen::Vector2d(x, y), min_circle.radius()};
 }
 
+namespace {
+
+// exp(-exponent) for exponent >= 0, with 0 for the exponents whose result would be subnormal or underflow: libm takes
+// a slow path for those (raising the underflow flag, setting errno), and a cluster far from the point asked about
+// (every cluster but the few near it, on a large map) contributes nothing a double can add to a threat anyway.
+double falloff(double exponent) {
+  constexpr double kSmallestNormalExponent = 708.0;  // exp(-708) ~ 3.3e-308, just above DBL_MIN
+  return exponent < kSmallestNormalExponent ? std::exp(-exponent) : 0.0;
+}
+
+}  // namespace
+
 double ptem_term_density(double distance_sq, double sigma_m) {
   const double sigma_sq = sigma_m * sigma_m;
-  return std::exp(-distance_sq / (2.0 * sigma_sq)) / (kTwoPi * sigma_sq);
+  return falloff(distance_sq / (2.0 * sigma_sq)) / (kTwoPi * sigma_sq);
 }
 
 double max_cluster_radius(double f_r) { return 1.0 / std::sqrt(std::numbers::pi * std::numbers::e * f_r); }
@@ -208,7 +220,7 @@ PtemSnapshot::PtemSnapshot(std::vector<PtemCluster> clusters, std::optional<doub
 double PtemSnapshot::threat(const Eigen::Vector2d& p_W) const {
   // Eq 4.1 with K_i = σ_i² I: f(r) = Σ_i exp(−|r − μ_i|²/(2σ_i²)) / (2πσ_i²).
   double f = 0.0;
-  for (const Term& term : terms_) f += term.peak * std::exp(-(p_W - term.mean_W).squaredNorm() * term.inv_two_sigma_sq);
+  for (const Term& term : terms_) f += term.peak * falloff((p_W - term.mean_W).squaredNorm() * term.inv_two_sigma_sq);
   return f;
 }
 
@@ -217,7 +229,7 @@ PtemThreat PtemSnapshot::threat_and_gradient(const Eigen::Vector2d& p_W) const {
   PtemThreat out;
   for (const Term& term : terms_) {
     const Eigen::Vector2d d = p_W - term.mean_W;
-    const double f_i = term.peak * std::exp(-d.squaredNorm() * term.inv_two_sigma_sq);
+    const double f_i = term.peak * falloff(d.squaredNorm() * term.inv_two_sigma_sq);
     out.value += f_i;
     out.gradient_W -= (2.0 * term.inv_two_sigma_sq * f_i) * d;
   }
