@@ -3,7 +3,8 @@
 # two markers; what follows them, earlier runs and comparisons written by hand, stays as it is):
 #  - in-process: every Google Benchmark binary in BUILD_DIR/tests/bench;
 #  - the mix users run: 2 simulated robots at real rates with 64 query clients (default mix, then clearance only), on
-#    the seeded map and on the Intel log's map, command latency with and without the clients, next to redis GET;
+#    the seeded map, on the Intel log's map and on a map about ten times the seeded one, command latency with and
+#    without the clients (and again with the robots' threads at SCHED_FIFO), next to redis GET;
 #  - over loopback: occgeo-load (one sequential client; 1, 16 and 64 clients; 16 clients pipelined 16 deep) next to
 #    redis-benchmark (PING and GET, the same client counts, -P 16 for the pipelined one) against a redis-server this
 #    script starts on 127.0.0.1 and stops;
@@ -13,7 +14,8 @@
 # Environment: BUILD_DIR (default build), OUT (default docs/BENCHMARKS.md), DURATION (seconds per occgeo-load run,
 # default 5), COMMAND_DURATION (seconds of the runs with robots, whose command p99 wants some hundreds of commands,
 # default 30), BENCH_MIN_TIME (Google Benchmark --benchmark_min_time, default 0.5), BENCH_DIR (the benchmark binaries,
-# default BUILD_DIR/tests/bench), SKIP_BUILD=1 to use the build as is.
+# default BUILD_DIR/tests/bench), WIDE_WARMUP_SCANS (lockstep scans mapping the wide map, default 20000), SKIP_BUILD=1
+# to use the build as is.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
@@ -100,6 +102,11 @@ occgeo_load_for "$COMMAND_DURATION" mix --robots 2 --clients 64 --depth 1
 occgeo_load_for "$COMMAND_DURATION" mix_clearance --robots 2 --clients 64 --depth 1 --mix clearance
 occgeo_load_for "$COMMAND_DURATION" mix_status --robots 2 --clients 64 --depth 1 --mix status
 occgeo_load_for "$COMMAND_DURATION" command_idle --robots 2 --clients 0
+# The same two command runs with the simulated robots' threads at SCHED_FIFO: here the robots share the 2 cores with
+# the 64 clients, and a robot thread woken by its command can wait for a core behind them, which a driver on its own
+# computer does not; these runs time the server's side of the control loop.
+occgeo_load_for "$COMMAND_DURATION" mix_robot_fifo --robots 2 --clients 64 --depth 1 --robot-sched fifo
+occgeo_load_for "$COMMAND_DURATION" command_idle_robot_fifo --robots 2 --clients 0 --robot-sched fifo
 # The same mix on a larger map: a server that replayed the Intel log first (its map several times the seeded open
 # field's), with the robots and clients added to that world.
 # Starts occgeod in DIR (data, log, port file) on free loopback ports at LOG_LEVEL; sets server_pid and server.
@@ -112,6 +119,10 @@ start_server() {  # DIR LOG_LEVEL
   for _ in $(seq 200); do [ -s "$dir/port" ] && break; sleep 0.05; done
   server="127.0.0.1:$(cat "$dir/port")"
 }
+stop_server() {
+  kill "$server_pid" 2>/dev/null || true
+  wait "$server_pid" 2>/dev/null || true
+}
 large_map_load() {
   start_server "$work/large_map" warn
   "$BUILD_DIR/clients/occgeo" replay --server "$server" --max --format carmen \
@@ -119,11 +130,25 @@ large_map_load() {
   "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/large_map.status.json" 2>/dev/null || true
   occgeo_load_for "$COMMAND_DURATION" mix_large --server "$server" --server-pid "$server_pid" --robots 2 --clients 64 \
     --depth 1
-  kill "$server_pid" 2>/dev/null || true
-  wait "$server_pid" 2>/dev/null || true
+  stop_server
 }
 DATASETS=${DATASETS:-../shared/datasets}
 [ -f "$DATASETS/carmen-intel/intel-corrected.log.gz" ] && large_map_load
+# And on a map about ten times the seeded one: the open field mapped by WIDE_WARMUP_SCANS lockstep scans of a robot
+# wandering over it first. The seeded map's size is taken the same way (the load tool's 100 warm-up scans), so the
+# report can say how much larger the wide map is.
+WIDE_WARMUP_SCANS=${WIDE_WARMUP_SCANS:-20000}
+map_status_after_warmup() {  # NAME SCANS: starts a server, warms its map, saves its status; leaves it running
+  start_server "$work/$1" warn
+  "$load" --server "$server" --robots 1 --clients 1 --duration 1 --warmup-scans "$2" --quiet --json >/dev/null 2>&1 || true
+  "$BUILD_DIR/clients/occgeo" --server "$server" --json status >"$work/$1.status.json" 2>/dev/null || true
+}
+map_status_after_warmup seeded_map 100
+stop_server
+echo "== wide map: $WIDE_WARMUP_SCANS warm-up scans" >&2
+map_status_after_warmup wide_map "$WIDE_WARMUP_SCANS"
+occgeo_load_for "$COMMAND_DURATION" mix_wide --server "$server" --server-pid "$server_pid" --robots 2 --clients 64 --depth 1
+stop_server
 
 # The same shapes side by side: occgeo answers one collision query per request (a footprint against the map), redis
 # one GET of a 3-byte value (SET first so GET finds it) or a PING.
@@ -174,7 +199,7 @@ if [ -d "$DATASETS" ]; then
 fi
 
 python3 - "$work" "$OUT" "$DURATION" "$COMMAND_DURATION" <<'PY'
-import csv, glob, json, os, sys
+import csv, glob, json, os, re, sys
 
 work, out, duration, command_duration = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 machine = dict(line.rstrip("\n").split("=", 1) for line in open(os.path.join(work, "machine.txt")))
@@ -267,13 +292,21 @@ add("Two simulated Bearcats stream LMS200 scans at 10 Hz each (every model on: g
 add("in the open-field world, map seeded by 100 lockstep scans) while 64 query clients ask one request at a time. The")
 add("command latency runs from the send of a steering scan to the `MotionCommand` answering it. redis GET: 64 clients,")
 add("same run. \"Intel map\": the same, on a server that replayed the Intel log (910 scans) into the world first.")
+add("\"Wide map\": the same, on a server whose open field a robot mapped first with lockstep scans as it wandered")
+add("over it (sizes below). \"Threads SCHED_FIFO\": the simulated robots' threads at the real-time policy; the")
+add("robots run in the load tool, on the same 2 cores as its 64 clients, and a robot woken by its command can wait")
+add("behind them for a core, which a driver on its own computer does not: those rows time the server's side of the")
+add("control loop, the rows above include the load tool's scheduling.")
 add("")
 add("| run | queries/s | p50 / p99 µs | command p50 / p99 ms | errors | redis GET/s | occgeo ÷ GET |")
 add("|---|---|---|---|---|---|---|")
 get64 = redis_rps(redis("c64"), "GET")
 mix_rows = [("mix", "2 robots, 64 clients, default mix"), ("mix_clearance", "2 robots, 64 clients, clearance only"),
             ("mix_status", "2 robots, 64 clients, status only"),
-            ("mix_large", "2 robots, 64 clients, default mix, Intel map"), ("command_idle", "2 robots, no clients")]
+            ("mix_large", "2 robots, 64 clients, default mix, Intel map"),
+            ("mix_wide", "2 robots, 64 clients, default mix, wide map"), ("command_idle", "2 robots, no clients"),
+            ("mix_robot_fifo", "2 robots (threads SCHED_FIFO), 64 clients, default mix"),
+            ("command_idle_robot_fifo", "2 robots (threads SCHED_FIFO), no clients")]
 for name, label in mix_rows:
     run = occgeo(name)
     if not run:
@@ -291,6 +324,22 @@ if idle and loaded and idle.get("command_p99_us") and loaded.get("command_p99_us
     add(f"Command p99 with the 64 clients ÷ without: {loaded['command_p99_us'] / idle['command_p99_us']:.2f}×. "
         f"Commands timed per run: {loaded.get('commands', 0):,} with the clients, {idle.get('commands', 0):,} without "
         f"(the p99 lies among the {max(1, round(int(loaded.get('commands', 0)) / 100))} slowest).")
+idle_fifo, loaded_fifo = occgeo("command_idle_robot_fifo"), occgeo("mix_robot_fifo")
+if idle_fifo and loaded_fifo and idle_fifo.get("command_p99_us") and loaded_fifo.get("command_p99_us"):
+    add(f"With the robots' threads at SCHED_FIFO: {loaded_fifo['command_p99_us'] / idle_fifo['command_p99_us']:.2f}×.")
+def world_sizes(name):
+    try:
+        worlds = json.loads(open(os.path.join(work, name + ".status.json")).read()).get("worlds", [])
+    except (OSError, ValueError):
+        return None
+    return (sum(int(w.get("octomap_leaves", 0)) for w in worlds), sum(int(w.get("tiles", 0)) for w in worlds),
+            sum(int(w.get("ptem_clusters", 0)) for w in worlds))
+seeded_size, wide_size = world_sizes("seeded_map"), world_sizes("wide_map")
+if seeded_size and wide_size and seeded_size[0] and seeded_size[1]:
+    add(f"The wide map at the start of its run: {wide_size[0]:,} octree leaves, {wide_size[1]:,} grid tiles, "
+        f"{wide_size[2]} PTEM clusters; the seeded map's: {seeded_size[0]:,} leaves, {seeded_size[1]:,} tiles, "
+        f"{seeded_size[2]} clusters ({wide_size[0] / seeded_size[0]:.1f}× the leaves, "
+        f"{wide_size[1] / seeded_size[1]:.1f}× the tiles).")
 try:
     large_status = json.loads(open(os.path.join(work, "large_map.status.json")).read())
     add("The Intel map's world at the start of its run: " + ", ".join(
@@ -507,6 +556,15 @@ if mix_run and idle_run and mix_run.get("command_p99_us") and idle_run.get("comm
          f"{p99:.2f} ms loaded, {idle_p99:.2f} ms without clients ({p99 / idle_p99:.2f}×)")
 else:
     goal("command p99 with 64 clients ≤ 5 ms and within 1.5× of no clients", None, "a run failed")
+fifo_run, fifo_idle_run = occgeo("mix_robot_fifo"), occgeo("command_idle_robot_fifo")
+fifo_goal = ("the same with the robots' threads at SCHED_FIFO (a driver not sharing the load tool's cores): "
+             "command p99 ≤ 5 ms and within 1.5× of no clients")
+if fifo_run and fifo_idle_run and fifo_run.get("command_p99_us") and fifo_idle_run.get("command_p99_us"):
+    p99, idle_p99 = fifo_run["command_p99_us"] / 1000, fifo_idle_run["command_p99_us"] / 1000
+    goal(fifo_goal, p99 <= 5.0 and p99 <= 1.5 * idle_p99 and fifo_run["errors"] == 0,
+         f"{p99:.2f} ms loaded, {idle_p99:.2f} ms without clients ({p99 / idle_p99:.2f}×), {fifo_run['errors']} errors")
+else:
+    goal(fifo_goal, None, "a run failed")
 ours, qps, ping, get = figures["c1"]
 if qps and ping:
     rt_ours, rt_ping = 1e6 / qps, 1e6 / ping
@@ -553,6 +611,18 @@ elif batch and batch["kinds"].get("collision_batch"):
     goal("batched collision ≥ 5M poses/s", rate >= 5e6, f"{rate:,.0f} poses/s over loopback (no in-process batch benchmark)")
 else:
     goal("batched collision ≥ 5M poses/s", None, "no batch benchmark found")
+# bench_batch prints the latency of single all-model clearance lookups (wall clock per lookup) before its JSON.
+clearance_goal = "in-process clearance of the Bearcat box with all models (grid, octree, PTEM) ≤ 5 µs at p99"
+try:
+    summary = open(os.path.join(work, "inprocess", "bench_batch.json")).read()
+    match = re.search(r"with all models.*?(\d+) lookups: p50 ([0-9.]+) us\s+p99 ([0-9.]+) us", summary)
+except OSError:
+    match = None
+if match:
+    p50, p99 = float(match.group(2)), float(match.group(3))
+    goal(clearance_goal, p99 <= 5.0, f"p50 {p50:.2f} µs, p99 {p99:.2f} µs over {int(match.group(1)):,} lookups")
+else:
+    goal(clearance_goal, None, "bench_batch printed no clearance latency")
 add("")
 add("Where a goal is missed the ratio above says by how much; the yardsticks run with their defaults.")
 try:

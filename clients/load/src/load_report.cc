@@ -28,6 +28,7 @@ std::string report_json(const LoadReport& report) {
       << ",\"clients\":" << report.clients << ",\"depth\":" << report.depth << ",\"observers\":" << report.observers
       << ",\"client_threads\":" << report.client_threads
       << ",\"client_sched\":" << (report.client_sched_batch ? "\"batch\"" : "\"normal\"")
+      << ",\"robot_sched\":" << (report.robot_sched_fifo ? "\"fifo\"" : "\"normal\"")
       << ",\"queries\":" << report.queries << ",\"queries_per_s\":" << json_number(report.queries_per_s)
       << ",\"p50_us\":" << json_number(report.p50_us) << ",\"p99_us\":" << json_number(report.p99_us)
       << ",\"p999_us\":" << json_number(report.p999_us) << ",\"errors\":" << report.errors << ",\"error_samples\":[";

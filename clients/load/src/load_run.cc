@@ -1,7 +1,11 @@
 #include "occgeo/load/load_run.h"
 
+#include <sched.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <thread>
 
 #include "load_common.h"
@@ -94,7 +98,14 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   std::atomic<bool> go{false};
   std::vector<std::thread> robot_threads;
   for (auto& robot : robots) {
-    robot_threads.emplace_back([&robot, &stop_robots, &errors] {
+    robot_threads.emplace_back([&robot, &stop_robots, &errors, fifo = options.robot_sched_fifo] {
+      if (fifo) {
+        // On Linux this sets the calling thread's policy only.
+        const sched_param priority{.sched_priority = kRobotFifoPriority};
+        if (sched_setscheduler(0, SCHED_FIFO, &priority) != 0) {
+          errors.add(std::string("--robot-sched fifo: ") + std::strerror(errno));
+        }
+      }
       try {
         robot->run(stop_robots);
       } catch (const std::exception& error) {
@@ -149,6 +160,7 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   report.observers = options.observers;
   report.client_threads = static_cast<std::uint32_t>(threads.size());
   report.client_sched_batch = options.client_sched_batch;
+  report.robot_sched_fifo = options.robot_sched_fifo;
   if (server_pid) {
     const auto ticks_end = process_cpu_ticks(*server_pid);
     if (server_ticks_start && ticks_end) {

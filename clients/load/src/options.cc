@@ -139,7 +139,7 @@ namespace {
 struct LoadCommandLine {
   CLI::App app{"occgeo-load: load an occgeod on this machine with simulated robots, query clients and observers",
                "occgeo-load"};
-  std::string server, occgeod, server_config, robot_pace, client_sched, mix, world_file;
+  std::string server, occgeod, server_config, robot_pace, client_sched, robot_sched, mix, world_file;
   std::uint64_t server_pid = 0, robots = 0, clients = 0, depth = 0, ptem_points = 0, batch = 0, observers = 0,
                 warmup_scans = 0, threads = 0;
   double observer_interval_s = 0.0, duration_s = 0.0, area_m = 0.0;
@@ -190,9 +190,13 @@ struct LoadCommandLine {
     add_whole(app, "--threads", threads, 1, 64, "threads running the query clients and observers (default 1)");
     add_text(app, "--client-sched", client_sched,
              "their scheduling policy (default batch: SCHED_BATCH, so that a client thread woken by a reply waits "
-             "for its turn instead of preempting the server it measures on a shared core; the server and the "
-             "simulated robots keep the normal policy)",
+             "for its turn instead of preempting the server it measures on a shared core; the server keeps its "
+             "policies, the simulated robots --robot-sched's)",
              "batch|normal");
+    add_text(app, "--robot-sched", robot_sched,
+             "the simulated robots' threads' policy (default normal; fifo: SCHED_FIFO, as a driver on its own "
+             "computer would not share cores with the query clients; needs CAP_SYS_NICE or an RLIMIT_RTPRIO)",
+             "normal|fifo");
     add_whole(app, "--seed", options.seed, 0, UINT64_MAX, "random seed (default 1)")->type_name("S");
     app.add_flag("--json", options.json, "print one JSON object (queries_per_s, p50_us, p99_us, errors, ...)");
     app.add_flag_callback(
@@ -266,6 +270,12 @@ LoadOptions parse_load_args(const std::vector<std::string_view>& args) {
       throw LoadArgsError("option '--client-sched' needs batch or normal, got '" + line.client_sched + "'");
     }
     options.client_sched_batch = line.client_sched == "batch";
+  }
+  if (given("--robot-sched")) {
+    if (line.robot_sched != "normal" && line.robot_sched != "fifo") {
+      throw LoadArgsError("option '--robot-sched' needs normal or fifo, got '" + line.robot_sched + "'");
+    }
+    options.robot_sched_fifo = line.robot_sched == "fifo";
   }
   if (options.server_pid && !options.server) {
     throw LoadArgsError("option '--server-pid' needs --server (a server this tool starts is measured anyway)");

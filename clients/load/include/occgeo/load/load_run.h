@@ -31,6 +31,7 @@ struct LoadReport {
   std::uint32_t observers = 0;
   std::uint32_t client_threads = 0;
   bool client_sched_batch = false;  // the query-client threads ran as SCHED_BATCH (--client-sched)
+  bool robot_sched_fifo = false;    // the simulated robots' threads ran as SCHED_FIFO (--robot-sched)
 
   // Query clients, all kinds together.
   std::uint64_t queries = 0;

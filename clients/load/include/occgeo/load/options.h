@@ -52,6 +52,10 @@ std::optional<QueryKind> parse_query_kind(std::string_view name);
 // acknowledged and answered (lockstep, as fast as the server ingests).
 enum class RobotPace { realtime, lockstep };
 
+// SCHED_FIFO priority of the simulated robots' threads with --robot-sched fifo: occgeod's default
+// control.realtime_priority, so that a robot and the server's command path do not preempt each other.
+inline constexpr int kRobotFifoPriority = 10;
+
 struct LoadOptions {
   std::optional<client::Endpoint> server;  // --server: a loopback address; unset: start occgeod
   std::filesystem::path occgeod;           // --occgeod: the server binary to start (default: next to this tool)
@@ -76,6 +80,10 @@ struct LoadOptions {
   // --client-sched: the query-client threads' scheduling policy. Batch (SCHED_BATCH) keeps a client thread woken by a
   // reply from preempting the server mid-burst on a shared core; normal leaves them as the OS starts them.
   bool client_sched_batch = true;
+  // --robot-sched: the simulated robots' threads at the normal policy, or SCHED_FIFO (priority
+  // kRobotFifoPriority): a robot's driver runs on its own computer, so FIFO keeps the query clients, which share
+  // this machine's cores with the robots here, out of the command latency measured.
+  bool robot_sched_fifo = false;
   std::uint64_t seed = 1;  // --seed
   bool json = false;       // --json
   bool progress = true;    // --quiet turns progress lines off
