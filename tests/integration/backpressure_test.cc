@@ -25,6 +25,7 @@
 #include "occgeo/proto/protocol.h"
 #include "process.h"
 #include "raw_client.h"
+#include "realtime.h"
 #include "test_clients.h"
 
 namespace occgeo::testing {
@@ -448,13 +449,7 @@ TEST(Backpressure, OnlyTheQueryThreadsRunAtTheLowerQueryPriorityAndTheOctreeLane
 // SCHED_FIFO at control.realtime_priority, every other thread under the normal policy; where the process may not
 // (no CAP_SYS_NICE) the server says so in its log and goes on; 0 leaves them all normal.
 TEST(Backpressure, TheCommandPathRunsAtRealtimePriorityWhenThePlatformAllowsIt) {
-  sched_param probe{};
-  probe.sched_priority = 10;  // the priority tested below (RLIMIT_RTPRIO may allow less)
-  const bool allowed = sched_setscheduler(0, SCHED_FIFO, &probe) == 0;
-  if (allowed) {
-    const sched_param normal{};
-    sched_setscheduler(0, SCHED_OTHER, &normal);
-  }
+  const bool allowed = may_run_realtime(10);  // the priority tested below
   for (const int priority : {10, 0}) {
     TempDir dir;
     auto server = start_server(dir, "control:\n  realtime_priority: " + std::to_string(priority) + "\n");

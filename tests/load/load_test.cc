@@ -2,7 +2,6 @@
 // observers against it for about 25 s. Any protocol error, lost request or server crash fails the test; the figures
 // are printed.
 #include <gtest/gtest.h>
-#include <sched.h>
 
 #include <cmath>
 #include <iostream>
@@ -10,6 +9,7 @@
 
 #include "../support/json_fields.h"
 #include "../support/process.h"
+#include "../support/realtime.h"
 
 namespace occgeo::testing {
 namespace {
@@ -63,13 +63,7 @@ TEST(LoadTest, RunsAgainAgainstTheSameServerWithoutErrors) {
 // --robot-sched fifo runs the simulated robots' threads at SCHED_FIFO, so that the command latency leaves out the load
 // tool's own scheduling; where the process may not, the run says so as an error instead of timing something else.
 TEST(LoadTest, RobotsRunAtTheRealtimePolicyWhenAskedAndThePlatformAllowsIt) {
-  sched_param probe{};
-  probe.sched_priority = 10;  // the priority the tool asks for (RLIMIT_RTPRIO may allow less)
-  const bool allowed = sched_setscheduler(0, SCHED_FIFO, &probe) == 0;
-  if (allowed) {
-    const sched_param normal{};
-    sched_setscheduler(0, SCHED_OTHER, &normal);
-  }
+  const bool allowed = may_run_realtime(10);  // the priority the tool asks for
   const ProcessResult run =
       run_process({binary("clients/load/occgeo-load").string(), "--robots", "1", "--clients", "2", "--mix", "collision",
                    "--warmup-scans", "10", "--duration", "2", "--robot-sched", "fifo", "--json", "--quiet"},

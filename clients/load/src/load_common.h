@@ -1,12 +1,17 @@
 #pragma once
 
-// What the load tool's parts share: the clock, the error log every thread writes to and latency samples.
+// What the load tool's parts share: the clock, the error log every thread writes to, setting a thread's scheduling
+// policy, and latency samples.
+
+#include <sched.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -40,6 +45,13 @@ class ErrorLog {
   mutable std::mutex mutex_;
   std::vector<std::string> samples_;
 };
+
+// Puts the calling thread (only it, on Linux) under `policy` at `priority`; an error naming `option` when it may not.
+inline void set_this_threads_policy(int policy, int priority, const std::string& option, ErrorLog& errors) {
+  sched_param param{};
+  param.sched_priority = priority;
+  if (sched_setscheduler(0, policy, &param) != 0) errors.add(option + ": " + std::strerror(errno));
+}
 
 // Latency samples, nanoseconds.
 using Samples = std::vector<std::uint64_t>;

@@ -1,11 +1,7 @@
 #include "occgeo/load/load_run.h"
 
-#include <sched.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
-#include <cstring>
 #include <thread>
 
 #include "load_common.h"
@@ -99,13 +95,7 @@ LoadReport run_load(const LoadOptions& options, std::ostream& progress) {
   std::vector<std::thread> robot_threads;
   for (auto& robot : robots) {
     robot_threads.emplace_back([&robot, &stop_robots, &errors, fifo = options.robot_sched_fifo] {
-      if (fifo) {
-        // On Linux this sets the calling thread's policy only.
-        const sched_param priority{.sched_priority = kRobotFifoPriority};
-        if (sched_setscheduler(0, SCHED_FIFO, &priority) != 0) {
-          errors.add(std::string("--robot-sched fifo: ") + std::strerror(errno));
-        }
-      }
+      if (fifo) set_this_threads_policy(SCHED_FIFO, kRobotFifoPriority, "--robot-sched fifo", errors);
       try {
         robot->run(stop_robots);
       } catch (const std::exception& error) {

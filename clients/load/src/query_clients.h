@@ -350,13 +350,8 @@ struct ClientThread {
   }
 
   void run(ClientShared& shared, const std::atomic<bool>& go) {
-    if (shared.options.client_sched_batch) {
-      // On Linux this sets the calling thread's policy only; the server and the robots' threads keep theirs.
-      const sched_param no_priority{};
-      if (sched_setscheduler(0, SCHED_BATCH, &no_priority) != 0) {
-        shared.errors.add(std::string("--client-sched batch: ") + std::strerror(errno));
-      }
-    }
+    if (shared.options.client_sched_batch)
+      set_this_threads_policy(SCHED_BATCH, 0, "--client-sched batch", shared.errors);
     while (!go.load()) std::this_thread::sleep_for(milliseconds(1));
     for (auto& client : clients) client->start();
     for (auto& observer : observers) observer->start();
