@@ -116,16 +116,23 @@ struct PlacedFootprint {
     return out * out;
   }
 
-  // The x interval of row y holding every point within r >= 0 of the footprint (and some farther: for a box, the
-  // box grown by r along both its axes; for a polygon, its bounding box grown by r), or nullopt when the row passes
-  // farther.
-  [[nodiscard]] std::optional<std::pair<double, double>> row_span(double y, double r) const {
-    if (is_polygon) {
-      if (std::abs(y - center_W.y()) > aabb_half_extents_W.y() + r) return std::nullopt;
-      return std::pair{center_W.x() - aabb_half_extents_W.x() - r, center_W.x() + aabb_half_extents_W.x() + r};
+  // Squared distance from p_W to the footprint (as squared_distance_to_point) and whether p_W lies inside it by more
+  // than margin (as deep_inside): the two tests a clearance lookup puts every cell it reads through, in one pass.
+  struct Placement {
+    double squared_distance;
+    bool deep;
+  };
+  [[nodiscard]] [[gnu::always_inline]] Placement place(const Eigen::Vector2d& p_W, double margin) const {
+    if (is_box) {
+      const Eigen::Vector2d offset = p_W - center_W;
+      const double out_x = std::abs(offset.dot(axis_x_W)) - half_extents.x();
+      const double out_y = std::abs(offset.dot(axis_y_W)) - half_extents.y();
+      const double clamped_x = std::max(out_x, 0.0);
+      const double clamped_y = std::max(out_y, 0.0);
+      return {clamped_x * clamped_x + clamped_y * clamped_y, out_x < -margin && out_y < -margin};
     }
-    if (!is_box) return disc_row_span(center_W, radius + r, y);
-    return box_row_span(y, half_extents.x() + r, half_extents.y() + r);
+    const double squared = squared_distance_to_point(p_W);
+    return {squared, squared == 0.0 && deep_inside(p_W, margin)};
   }
 
   // True when p_W is inside the footprint and more than margin from its edge (never for a polygon).
@@ -137,39 +144,17 @@ struct PlacedFootprint {
            std::abs(offset.dot(axis_y_W)) < half_extents.y() - margin;
   }
 
- private:
-  // x interval of the row y inside the disc (centre, r).
-  static std::optional<std::pair<double, double>> disc_row_span(const Eigen::Vector2d& centre, double r, double y) {
-    const double dy = y - centre.y();
-    if (std::abs(dy) > r) return std::nullopt;
-    const double half_width = std::sqrt(r * r - dy * dy);
-    return std::pair{centre.x() - half_width, centre.x() + half_width};
-  }
-
-  // x interval of the row y inside the box's rectangle of half extents (hx, hy) on its own axes.
-  [[nodiscard]] std::optional<std::pair<double, double>> box_row_span(double y, double hx, double hy) const {
-    // Offsets t = x - centre.x where |t * axis.x + dy * axis.y| <= half extent, for both axes.
-    const double dy = y - center_W.y();
-    double first = -std::numeric_limits<double>::infinity();
-    double last = std::numeric_limits<double>::infinity();
-    const auto clip = [&](double slope, double offset, double half) {
-      if (std::abs(slope) < 1e-12) return std::abs(offset) <= half;
-      double a = (-half - offset) / slope;
-      double b = (half - offset) / slope;
-      if (a > b) std::swap(a, b);
-      first = std::max(first, a);
-      last = std::min(last, b);
-      return first <= last;
-    };
-    if (!clip(axis_x_W.x(), dy * axis_x_W.y(), hx) || !clip(axis_y_W.x(), dy * axis_y_W.y(), hy)) return std::nullopt;
-    return std::pair{center_W.x() + first, center_W.x() + last};
-  }
-
- public:
   // Exact distance to the closed axis-aligned square (centre, half side), metres, and the square's point where it is
   // attained; 0 and the square's point nearest the footprint's centre when they overlap.
   [[nodiscard]] std::pair<double, Eigen::Vector2d> distance_to_square(const Eigen::Vector2d& square_center_W,
                                                                       double half) const {
+    return distance_to_square_below(square_center_W, half, std::numeric_limits<double>::infinity());
+  }
+  // The same, or infinity (and no point) when it is not below `bound`. For a box, the gap along the separating axes
+  // (a lower bound of the distance) settles most squares without the corner tests: the many wall cells an edge
+  // parallel to a wall refers to, all as far as the nearest.
+  [[nodiscard]] std::pair<double, Eigen::Vector2d> distance_to_square_below(const Eigen::Vector2d& square_center_W,
+                                                                            double half, double bound) const {
     const Eigen::Vector2d lo = square_center_W - Eigen::Vector2d::Constant(half);
     const Eigen::Vector2d hi = square_center_W + Eigen::Vector2d::Constant(half);
     const Eigen::Vector2d nearest_to_center = center_W.cwiseMax(lo).cwiseMin(hi);
@@ -191,6 +176,7 @@ struct PlacedFootprint {
                                  std::abs(offset.dot(axis_x_W)) - half_extents.x() - square_on_box_axes,
                                  std::abs(offset.dot(axis_y_W)) - half_extents.y() - square_on_box_axes});
     if (gap <= 0.0) return {0.0, nearest_to_center};
+    if (gap >= bound) return {std::numeric_limits<double>::infinity(), square_center_W};
     // The closest pair of two disjoint convex polygons includes a vertex of one of them.
     double best = std::numeric_limits<double>::infinity();
     Eigen::Vector2d best_point = square_center_W;
@@ -363,6 +349,10 @@ class DistanceField::Brushfire {
   // Costs what the updates since the previous call wrote, plus a pointer per chunk (64 blocks).
   [[nodiscard]] DistanceFieldSnapshot::RefDirectory references(DistanceFieldUpdate& result) {
     using Snapshot = DistanceFieldSnapshot;
+    // A cell without a reference is beyond the reach, so the reach bounds its distance from below (as the lookup
+    // reads it: DistanceFieldSnapshot::answer).
+    const std::int32_t unreached_squared =
+        std::min<std::int32_t>(max_squared_, std::numeric_limits<std::uint16_t>::max());
     result.copied_blocks = dirty_blocks_.size();
     std::vector<std::size_t> dirty_slots;
     dirty_slots.reserve(dirty_blocks_.size());
@@ -398,10 +388,20 @@ class DistanceField::Brushfire {
       }
       auto refs = std::make_shared_for_overwrite<Snapshot::RefBlock>();  // Every reference is written below.
       const Block& block = *blocks_[b];
+      refs->line_min_squared.fill(std::numeric_limits<std::uint16_t>::max());
+      for (auto& quarters : refs->quarter_min_squared) quarters.fill(std::numeric_limits<std::uint16_t>::max());
       for (std::int32_t ly = 0; ly < kBlockCells; ++ly) {
         for (std::int32_t lx = 0; lx < kBlockCells; ++lx) {
           const Cell& cell = block.cells[local_index(lx, ly)];
-          refs->refs[DistanceFieldSnapshot::index_in_block(lx, ly)] = {cell.dx, cell.dy};
+          const std::size_t index = DistanceFieldSnapshot::index_in_block(lx, ly);
+          refs->refs[index] = {cell.dx, cell.dy};
+          const std::int32_t squared = cell.dx == kNone ? unreached_squared : squared_half_cells(cell.dx, cell.dy);
+          std::uint16_t& line_min = refs->line_min_squared[index >> 4U];
+          line_min = static_cast<std::uint16_t>(std::min<std::int32_t>(line_min, squared));
+          // In the line, cell (x, y) is at 4 y + x; its quarter is 2 (y / 2) + x / 2.
+          const std::size_t quarter = ((index >> 2U) & 2U) | ((index >> 1U) & 1U);
+          std::uint16_t& quarter_min = refs->quarter_min_squared[index >> 4U][quarter];
+          quarter_min = static_cast<std::uint16_t>(std::min<std::int32_t>(quarter_min, squared));
         }
       }
       const auto [i, j] = column_row(b);
@@ -787,31 +787,37 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const double scale = cell_size / 2.0;
   const double squared_scale = scale * scale;
   const double squared_half_diagonal = half_diagonal * half_diagonal;
-  // Cell columns whose centres lie in the x interval span (widened by a rounding margin), within `within`; first >
-  // last when there are none.
   const double rounding = 1e-9 * cell_size;
-  const auto columns = [&](const std::optional<std::pair<double, double>>& span,
-                           std::pair<std::int32_t, std::int32_t> within) {
-    if (!span) return std::pair{within.second + 1, within.second};
-    const double first = std::ceil((span->first - rounding) / cell_size - 0.5);
-    const double last = std::floor((span->second + rounding) / cell_size - 0.5);
-    return std::pair{static_cast<std::int32_t>(std::max<double>(first, within.first)),
-                     static_cast<std::int32_t>(std::min<double>(last, within.second))};
+
+  // The lookup reads the field a line at a time (4x4 cells, one cache line of references): a line's smallest
+  // distance bounds all of its cells, so most lines are settled by one read, without looking at their cells.
+  constexpr std::int32_t kLineCells = 1 << kLineShift;
+  constexpr std::int32_t kLinesPerBlockSide = kBlockCells >> kLineShift;
+  // Every cell centre of a line lies within this of the line's centre.
+  const double line_half_diagonal = 0.5 * (kLineCells - 1) * cell_size * std::sqrt(2.0);
+  // What a line of cells without a reference reads: the brushfire's reach, which they are beyond.
+  const double reach_half_cells = 2.0 * max_distance_m_ / cell_size;
+  const auto unreached_squared =
+      static_cast<std::uint16_t>(std::min(std::floor(reach_half_cells * reach_half_cells), 65535.0));
+  struct Line {
+    const RefBlock* block = nullptr;  // nullptr: no reference written there
+    std::size_t index = 0;            // in the block's lines
+    std::uint16_t min_squared = 0;
   };
-  // The reference of cell (ix, iy), the row's block found once per 64 cells.
-  struct RowReader {
-    const DistanceFieldSnapshot& field;
-    std::int32_t iy;
-    const RefBlock* block = nullptr;
-    std::int32_t block_column = std::numeric_limits<std::int32_t>::min();
-    Ref at(std::int32_t ix) {
-      if ((ix >> kBlockShift) != block_column) {
-        block_column = ix >> kBlockShift;
-        block = field.block_at(block_column, iy >> kBlockShift);
-      }
-      if (block == nullptr) return Ref{kNone, 0};
-      return block->refs[index_in_block(ix, iy)];
-    }
+  const auto line_at = [&](std::int32_t gx, std::int32_t gy) {
+    Line line;
+    line.block = block_at(gx >> (kBlockShift - kLineShift), gy >> (kBlockShift - kLineShift));
+    line.index = static_cast<std::size_t>(gy & (kLinesPerBlockSide - 1)) * kLinesPerBlockSide +
+                 static_cast<std::size_t>(gx & (kLinesPerBlockSide - 1));
+    line.min_squared = line.block == nullptr ? unreached_squared : line.block->line_min_squared[line.index];
+    return line;
+  };
+  const auto ref_in = [](const Line& line, std::int32_t cx, std::int32_t cy) {
+    if (line.block == nullptr) return Ref{kNone, 0};
+    return line.block->refs[(line.index << 4U) + (static_cast<std::size_t>(cy) << 2U) + static_cast<std::size_t>(cx)];
+  };
+  const auto cell_center = [cell_size](std::int32_t ix, std::int32_t iy) {
+    return Eigen::Vector2d((ix + 0.5) * cell_size, (iy + 0.5) * cell_size);
   };
 
   // The smallest squared field distance (half cells) of the edge cells visited, and whether one had no occupied cell
@@ -834,27 +840,23 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   };
   std::array<EdgeCell, 512> edge_cells;
   std::size_t edge_cell_count = 0;
-  // Only the cells along the footprint's edge bound its clearance: the nearest footprint point to any obstacle
-  // outside lies on the edge, within half a diagonal of its own cell's centre. The cells deeper inside only have to
-  // be free, and a free cell's field distance vouches for its neighbours along the row (below), so a lookup costs
-  // the edge's length in cells, not the footprint's area.
-  const auto visit_edge_cell = [&](RowReader& row, std::int32_t ix, double center_y) {
-    const Eigen::Vector2d center_W((ix + 0.5) * cell_size, center_y);
-    if (placed.squared_distance_to_point(center_W) > squared_half_diagonal) return;
-    const Ref ref = row.at(ix);
+  // Only the cells along the footprint's edge (centres within half a diagonal of it, and not deeper inside) bound
+  // its clearance: the nearest footprint point to any obstacle outside lies on the edge, within half a diagonal of
+  // its own cell's centre. The cells deeper inside only have to be free.
+  const auto visit_edge_cell = [&](std::int32_t ix, std::int32_t iy, Ref ref) {
     if (ref.x == kNone) {
       visited_cell_out_of_range = true;
       return;
     }
     const std::int32_t squared = squared_half_cells(ref.x, ref.y);
     smallest_squared = std::min(smallest_squared, squared);
-    if (edge_cell_count < edge_cells.size()) edge_cells[edge_cell_count] = {ix, row.iy, squared};
+    if (edge_cell_count < edge_cells.size()) edge_cells[edge_cell_count] = {ix, iy, squared};
     ++edge_cell_count;
-    const CellIndex nearest{ix + ref.x, row.iy + ref.y};
+    const CellIndex nearest{ix + ref.x, iy + ref.y};
     if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) return;
     last_cell = nearest;
-    const Eigen::Vector2d square_W((nearest.ix + 0.5) * cell_size, (nearest.iy + 0.5) * cell_size);
-    const auto [exact_distance, point_W] = placed.distance_to_square(square_W, half_cell);
+    const auto [exact_distance, point_W] =
+        placed.distance_to_square_below(cell_center(nearest.ix, nearest.iy), half_cell, upper);
     if (exact_distance < upper) {
       upper = exact_distance;
       squared_distance_to_beat = (upper + half_diagonal) * (upper + half_diagonal);
@@ -862,55 +864,119 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
       best_point = point_W;
     }
   };
-  // A free cell whose nearest occupied square is d cells from its centre vouches for the next k cells of its row
-  // while k - 1/2 < d; with no occupied cell within max_distance(), for as many as that allows (one fewer, for the
-  // bound's own rounding).
-  const double cells_in_range = max_distance_m_ / cell_size;
-  const auto vouched = [](double distance_cells) { return std::max(0.0, std::floor(distance_cells + 0.5 - 1e-6)); };
-  const std::int32_t vouched_without_obstacle = static_cast<std::int32_t>(std::max(0.0, vouched(cells_in_range) - 1.0));
+  // A line (or quarter) whose cells are all at least sqrt(min_squared) half cells off an obstacle cannot bring the
+  // lower bound more than a cell below the upper one (nor hold an edge cell the shell below would look around).
+  const auto may_matter = [&](std::uint32_t min_squared) {
+    if (min_squared == 0) return true;  // an occupied cell: perhaps inside the footprint
+    const double settled = std::min(upper, limit) - cell_size + half_diagonal + rounding;
+    return settled > 0.0 && static_cast<double>(min_squared) * squared_scale < settled * settled;
+  };
+  // The smallest squared distance of the quarters not read that hold edge cells: a bound for those cells.
+  std::uint32_t skipped_squared = std::numeric_limits<std::uint32_t>::max();
+  // Reads line (gx, gy) a quarter (2x2 cells) at a time: a quarter holding no edge cell is passed over, one that
+  // cannot matter is counted in skipped_squared, the others' edge cells are visited; a deep cell that is occupied
+  // ends the lookup (true, at occupied_inside).
   std::optional<CellIndex> occupied_inside;
-  for (std::int32_t iy = near.min.iy; iy <= near.max.iy && !occupied_inside; ++iy) {
-    const double center_y = (iy + 0.5) * cell_size;
-    RowReader row{*this, iy};
-    const auto [first, last] = columns(placed.row_span(center_y, half_diagonal), {near.min.ix, near.max.ix});
-    if (first > last) continue;
-    // Cells whose centres are inside the footprint by more than half a diagonal hold no point of its edge: the row
-    // is walked from both ends to them (they are one interval, the footprint being convex).
-    const auto deep = [&](std::int32_t ix) {
-      return placed.deep_inside({(ix + 0.5) * cell_size, center_y}, half_diagonal);
-    };
-    std::int32_t inner_first = first;
-    for (; inner_first <= last && !deep(inner_first); ++inner_first) visit_edge_cell(row, inner_first, center_y);
-    std::int32_t inner_last = last;
-    for (; inner_last > inner_first && !deep(inner_last); --inner_last) visit_edge_cell(row, inner_last, center_y);
-    for (std::int32_t ix = inner_first; ix <= inner_last;) {
-      const Ref ref = row.at(ix);
-      if (ref.x == kNone) {
-        ix += 1 + vouched_without_obstacle;
-      } else if (ref.x == 0 && ref.y == 0) {
-        occupied_inside = CellIndex{ix, iy};
-        break;
-      } else {
-        ix += 1 +
-              static_cast<std::int32_t>(vouched(std::sqrt(static_cast<double>(squared_half_cells(ref.x, ref.y))) / 2));
+  // A quarter's cell centres lie within half a diagonal of its centre.
+  const double quarter_reach = 2.0 * half_diagonal;
+  const auto visit_line = [&](std::int32_t gx, std::int32_t gy, const Line& line) {
+    for (std::uint32_t q = 0; q < 4; ++q) {
+      const std::int32_t cx0 = static_cast<std::int32_t>(q & 1U) * 2;
+      const std::int32_t cy0 = static_cast<std::int32_t>(q >> 1U) * 2;
+      const auto [squared, deep] = placed.place(
+          {(gx * kLineCells + cx0 + 1) * cell_size, (gy * kLineCells + cy0 + 1) * cell_size}, quarter_reach);
+      if (squared > quarter_reach * quarter_reach) continue;
+      const std::uint32_t min_squared =
+          line.block == nullptr ? unreached_squared : line.block->quarter_min_squared[line.index][q];
+      if (deep && min_squared != 0) continue;  // all its cells deep inside, and free
+      if (!may_matter(min_squared)) {
+        skipped_squared = std::min(skipped_squared, min_squared);
+        continue;
+      }
+      for (std::int32_t j = 0; j < 4; ++j) {
+        const std::int32_t cx = cx0 + (j & 1);
+        const std::int32_t cy = cy0 + (j >> 1);
+        const std::int32_t ix = gx * kLineCells + cx;
+        const std::int32_t iy = gy * kLineCells + cy;
+        const auto [cell_squared, cell_deep] = placed.place(cell_center(ix, iy), half_diagonal);
+        if (cell_squared > squared_half_diagonal) continue;
+        const Ref ref = ref_in(line, cx, cy);
+        if (cell_deep) {
+          if (ref.x == 0 && ref.y == 0) {
+            occupied_inside = CellIndex{ix, iy};
+            return true;
+          }
+          continue;
+        }
+        visit_edge_cell(ix, iy, ref);
       }
     }
+    return false;
+  };
+
+  // The lines holding an edge cell, in the order met. A line wholly deeper inside only has to be free: its smallest
+  // distance says so. The lines that may be read have their references fetched early, all at once.
+  struct EdgeLine {
+    Line line;
+    std::int32_t gx;
+    std::int32_t gy;
+  };
+  const std::int32_t first_gx = near.min.ix >> kLineShift;
+  const std::int32_t first_gy = near.min.iy >> kLineShift;
+  const std::int32_t last_gx = near.max.ix >> kLineShift;
+  const std::int32_t last_gy = near.max.iy >> kLineShift;
+  thread_local std::vector<EdgeLine> edge_lines;
+  edge_lines.resize(static_cast<std::size_t>(last_gx - first_gx + 1) *
+                    static_cast<std::size_t>(last_gy - first_gy + 1));
+  std::size_t edge_line_count = 0;
+  std::size_t nearest_line = 0;
+  const double line_reach = line_half_diagonal + half_diagonal;
+  for (std::int32_t gy = first_gy; gy <= last_gy && !occupied_inside; ++gy) {
+    for (std::int32_t gx = first_gx; gx <= last_gx; ++gx) {
+      const Eigen::Vector2d line_center_W((gx * kLineCells + 0.5 * kLineCells) * cell_size,
+                                          (gy * kLineCells + 0.5 * kLineCells) * cell_size);
+      const auto [squared, deep] = placed.place(line_center_W, line_reach);
+      if (squared > line_reach * line_reach) continue;  // no cell centre within half a diagonal of the footprint
+      const Line line = line_at(gx, gy);
+      if (deep) {
+        if (line.min_squared == 0 && visit_line(gx, gy, line)) break;
+        continue;
+      }
+      if (line.block != nullptr && may_matter(line.min_squared))
+        __builtin_prefetch(&line.block->refs[line.index << 4U]);
+      if (edge_line_count == 0 || line.min_squared < edge_lines[nearest_line].line.min_squared) {
+        nearest_line = edge_line_count;
+      }
+      edge_lines[edge_line_count++] = {line, gx, gy};
+    }
+  }
+  // The nearest line first, which mostly settles `upper`; then every other line that may still matter. The smallest
+  // squared distance of the lines not read bounds their edge cells.
+  const auto read_or_skip = [&](const EdgeLine& edge_line) {
+    if (may_matter(edge_line.line.min_squared)) {
+      visit_line(edge_line.gx, edge_line.gy, edge_line.line);
+    } else {
+      skipped_squared = std::min<std::uint32_t>(skipped_squared, edge_line.line.min_squared);
+    }
+  };
+  if (edge_line_count > 0 && !occupied_inside) read_or_skip(edge_lines[nearest_line]);
+  for (std::size_t i = 0; i < edge_line_count && !occupied_inside; ++i) {
+    if (i != nearest_line) read_or_skip(edge_lines[i]);
   }
   Answer answer{{}, placed};
   if (occupied_inside) {
     answer.result.found = true;
     answer.result.clearance_m = 0.0;
     answer.result.nearest_cell = occupied_inside;
-    answer.result.nearest_point_W = placed
-                                        .distance_to_square(Eigen::Vector2d((occupied_inside->ix + 0.5) * cell_size,
-                                                                            (occupied_inside->iy + 0.5) * cell_size),
-                                                            half_cell)
-                                        .second;
+    answer.result.nearest_point_W =
+        placed.distance_to_square(cell_center(occupied_inside->ix, occupied_inside->iy), half_cell).second;
     return answer;
   }
   double lower = std::numeric_limits<double>::infinity();
-  if (smallest_squared != kInfiniteSquared) {
-    lower = std::sqrt(static_cast<double>(smallest_squared)) * scale - half_diagonal;
+  std::uint32_t smallest = skipped_squared;
+  if (smallest_squared != kInfiniteSquared) smallest = std::min(smallest, static_cast<std::uint32_t>(smallest_squared));
+  if (smallest != std::numeric_limits<std::uint32_t>::max()) {
+    lower = std::sqrt(static_cast<double>(smallest)) * scale - half_diagonal;
   }
   if (visited_cell_out_of_range) lower = std::min(lower, max_distance_m_ - half_diagonal);
   // The exact clearance, capped at limit, lies in [lower, upper] (both capped likewise).
@@ -919,18 +985,18 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   if (capped_upper - capped_lower > cell_size) {
     // The lower bound is loose by up to 1.2 cells even when the upper one is exact (a cell centre half a cell off the
     // footprint's edge, minus half a diagonal), so settle it: an occupied cell nearer than capped_upper - cell_size
-    // has its centre within that plus half a diagonal of the footprint, and no occupied cell is nearer than `lower`,
-    // so only the cells in that thin shell around the footprint are read, row by row, occupied where the field says 0.
+    // has its centre within that plus half a diagonal of the footprint, so only the occupied cells in that shell
+    // around the footprint are measured, found a line at a time (a line without one reads 0 nowhere).
     fallbacks_.fetch_add(1, std::memory_order_relaxed);
     const double radius = capped_upper - cell_size;
     const double shell_out = radius + half_diagonal;
     const double squared_shell_out = shell_out * shell_out;
-    const double squared_lower = lower > 0.0 ? lower * lower : -1.0;
     auto shell_ys = *cell_range(lo.y() - shell_out, hi.y() + shell_out, cell_size);
     auto shell_xs = *cell_range(lo.x() - shell_out, hi.x() + shell_out, cell_size);
     // An occupied cell nearer than radius is nearest to a footprint point p in the square of an edge cell c with
     // d(c) - half_diagonal <= |p - obstacle| < radius, and its centre is within radius + half a diagonal of p, so
-    // within radius + a diagonal of c's centre: only the shell around such edge cells is read.
+    // within radius + a diagonal of c's centre: only the shell around such edge cells is read. The edge cells of the
+    // lines not read are farther than that (see above).
     if (edge_cell_count <= edge_cells.size()) {
       const double at_risk_within = radius + half_diagonal + rounding;
       const double squared_at_risk = at_risk_within * at_risk_within / squared_scale;
@@ -948,32 +1014,36 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
         shell_ys = {std::max(shell_ys.first, at_risk.min.iy - grow), std::min(shell_ys.second, at_risk.max.iy + grow)};
       }
     }
-    for (std::int32_t iy = shell_ys.first; iy <= shell_ys.second; ++iy) {
-      const double center_y = (iy + 0.5) * cell_size;
-      RowReader row{*this, iy};
-      const auto [first, last] = columns(placed.row_span(center_y, shell_out), shell_xs);
-      if (first > last) continue;
-      // Reads cell ix when it lies in the shell; false once the walk reaches the cells nearer than `lower`, which are
-      // free and one interval of the row, so the row is walked from both ends up to them.
-      const auto check = [&](std::int32_t ix) {
-        const Eigen::Vector2d square_W((ix + 0.5) * cell_size, center_y);
-        const double squared = placed.squared_distance_to_point(square_W);
-        if (squared < squared_lower) return false;
-        if (squared > squared_shell_out) return true;
-        const Ref ref = row.at(ix);
-        if (ref.x != 0 || ref.y != 0) return true;
-        const auto [distance, point_W] = placed.distance_to_square(square_W, half_cell);
-        if (distance < upper) {
-          upper = distance;
-          best_cell = CellIndex{ix, iy};
-          best_point = point_W;
+    // A line is read only when some cell centre of it may lie in the shell: not all farther than shell_out, nor all
+    // nearer than `lower` (such cells are free).
+    const double line_shell_out = shell_out + line_half_diagonal;
+    const double line_shell_in = lower - line_half_diagonal;
+    const double squared_line_shell_in = line_shell_in > 0.0 ? line_shell_in * line_shell_in : -1.0;
+    for (std::int32_t gy = shell_ys.first >> kLineShift; gy <= shell_ys.second >> kLineShift; ++gy) {
+      for (std::int32_t gx = shell_xs.first >> kLineShift; gx <= shell_xs.second >> kLineShift; ++gx) {
+        const Eigen::Vector2d line_center_W((gx * kLineCells + 0.5 * kLineCells) * cell_size,
+                                            (gy * kLineCells + 0.5 * kLineCells) * cell_size);
+        const double squared = placed.place(line_center_W, 0.0).squared_distance;
+        if (squared > line_shell_out * line_shell_out || squared < squared_line_shell_in) continue;
+        const Line line = line_at(gx, gy);
+        if (line.min_squared != 0) continue;
+        // Any occupied cell's distance is an upper bound; those in the shell can improve on `upper`.
+        for (std::int32_t cy = 0; cy < kLineCells; ++cy) {
+          for (std::int32_t cx = 0; cx < kLineCells; ++cx) {
+            const Ref ref = ref_in(line, cx, cy);
+            if (ref.x != 0 || ref.y != 0) continue;
+            const CellIndex cell{gx * kLineCells + cx, gy * kLineCells + cy};
+            const Eigen::Vector2d square_W = cell_center(cell.ix, cell.iy);
+            if (placed.squared_distance_to_point(square_W) > squared_shell_out) continue;
+            const auto [distance, point_W] = placed.distance_to_square_below(square_W, half_cell, upper);
+            if (distance < upper) {
+              upper = distance;
+              best_cell = cell;
+              best_point = point_W;
+            }
+          }
         }
-        return true;
-      };
-      std::int32_t ix = first;
-      while (ix <= last && check(ix)) ++ix;
-      std::int32_t jx = last;
-      while (jx > ix && check(jx)) --jx;
+      }
     }
   }
   if (upper <= limit) {

@@ -50,15 +50,17 @@ class DistanceFieldSnapshot {
   [[nodiscard]] std::optional<geometry::CellIndex> nearest_occupied(const geometry::CellIndex& c) const;
 
   // The clearance of request.footprint at request.pose, from the field: never below the exact clearance
-  // (geometry::compute_clearance on grid()) and at most one cell_size() above it. It reads the cells along the
-  // footprint's edge (centres within half a cell diagonal of it and not deeper inside): they give an upper bound (the
-  // exact distance to the occupied cells they refer to; equal to the exact clearance in most queries) and a lower
-  // bound (their smallest distance minus half a cell diagonal, the distance being 1-Lipschitz). The cells deeper
-  // inside only have to be free, and a free cell's distance vouches for the next cells of its row, so those are read
-  // a few per row. When the bounds are more than a cell apart (up to 1.2 cells even for an exact upper bound), the
-  // cells in the thin shell around the footprint where a nearer occupied cell could hide (between the lower bound and
-  // the upper bound less a cell, near the edge cells whose distance allows one) are read. When the footprint grown by
-  // request.max_distance_m reaches beyond bounds(), or request.max_distance_m > max_distance(),
+  // (geometry::compute_clearance on grid()) and at most one cell_size() above it. The cells along the footprint's
+  // edge (centres within half a cell diagonal of it and not deeper inside) give an upper bound (the exact distance to
+  // the occupied cells they refer to; equal to the exact clearance in most queries) and a lower bound (their smallest
+  // distance minus half a cell diagonal, the distance being 1-Lipschitz); the cells deeper inside only have to be
+  // free. The field is read a line (4x4 cells, one cache line) at a time, each line's and each quarter's smallest
+  // distance kept beside it: the nearest line along the edge is read first, and a line or quarter whose smallest
+  // distance cannot bring the lower bound within a cell of the upper one is settled by that one number, so a lookup
+  // costs the lines along the edge plus the cells of the few near an obstacle. When the bounds are still more than a
+  // cell apart (up to 1.2 cells even for an exact upper bound), the occupied cells in the thin shell around the
+  // footprint where a nearer one could hide are measured, the lines without one passed over. When the footprint grown
+  // by request.max_distance_m reaches beyond bounds(), or request.max_distance_m > max_distance(),
   // geometry::compute_clearance answers. Throws std::invalid_argument naming the field like
   // geometry::compute_clearance.
   [[nodiscard]] geometry::ClearanceResult compute_clearance(const geometry::ClearanceRequest& request) const;
@@ -97,8 +99,18 @@ class DistanceFieldSnapshot {
   static constexpr std::int32_t kBlockCells = 1 << kBlockShift;
   static constexpr std::int32_t kChunkShift = 3;  // in blocks
   static constexpr std::int32_t kChunkBlocks = 1 << kChunkShift;
+  // Cells per cache line of references: a 4x4 square (see index_in_block), and such squares per block.
+  static constexpr std::int32_t kLineShift = 2;
+  static constexpr std::size_t kLinesPerBlock = (kBlockCells >> kLineShift) * (kBlockCells >> kLineShift);
   struct alignas(64) RefBlock {
     std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
+    // Per line, the smallest squared distance of its 16 cells, in half cells squared (as the brushfire keeps it),
+    // saturated at 65535, a cell without a reference counting as the field's reach: a lookup skips a line whose
+    // cells are all too far to matter, and the shell search a line without an occupied cell (0), after one read.
+    std::array<std::uint16_t, kLinesPerBlock> line_min_squared;
+    // The same per 2x2 quarter of each line (row-major: the quarter of cells (0..1, 0..1) first), for a lookup to
+    // read only the quarters of a line that can matter.
+    std::array<std::array<std::uint16_t, 4>, kLinesPerBlock> quarter_min_squared;
   };
   // A cell's place in its block: 4x4 cells per 64-byte cache line (the lines row-major), so that a clearance lookup,
   // which reads the cells along a footprint's edge, reads a line per four cells of edge in any direction rather than
