@@ -942,8 +942,9 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
         if (line.min_squared == 0 && visit_line(gx, gy, line)) break;
         continue;
       }
-      if (line.block != nullptr && may_matter(line.min_squared))
+      if (line.block != nullptr && may_matter(line.min_squared)) {
         __builtin_prefetch(&line.block->refs[line.index << 4U]);
+      }
       if (edge_line_count == 0 || line.min_squared < edge_lines[nearest_line].line.min_squared) {
         nearest_line = edge_line_count;
       }

@@ -101,7 +101,8 @@ class DistanceFieldSnapshot {
   static constexpr std::int32_t kChunkBlocks = 1 << kChunkShift;
   // Cells per cache line of references: a 4x4 square (see index_in_block), and such squares per block.
   static constexpr std::int32_t kLineShift = 2;
-  static constexpr std::size_t kLinesPerBlock = (kBlockCells >> kLineShift) * (kBlockCells >> kLineShift);
+  static constexpr auto kLinesPerBlock =
+      static_cast<std::size_t>(kBlockCells >> kLineShift) * (kBlockCells >> kLineShift);
   struct alignas(64) RefBlock {
     std::array<Ref, static_cast<std::size_t>(kBlockCells) * kBlockCells> refs;
     // Per line, the smallest squared distance of its 16 cells, in half cells squared (as the brushfire keeps it),
