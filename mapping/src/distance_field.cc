@@ -37,6 +37,18 @@ inline std::int32_t squared_half_cells(std::int32_t dx, std::int32_t dy) {
   return ax * ax + ay * ay;
 }
 
+// The brushfire's reach, max_distance_m, as a squared distance in half cells: no cell keeps a reference beyond it.
+std::int32_t reach_squared_half_cells(double max_distance_m, double cell_size) {
+  const double reach_half_cells = 2.0 * max_distance_m / cell_size;
+  return static_cast<std::int32_t>(std::floor(reach_half_cells * reach_half_cells));
+}
+
+// What a line or quarter of cells without a reference reads as its smallest squared distance: the reach, which they
+// are beyond, saturated like every stored smallest distance.
+std::uint16_t unreached_min_squared(std::int32_t reach_squared) {
+  return static_cast<std::uint16_t>(std::min<std::int32_t>(reach_squared, std::numeric_limits<std::uint16_t>::max()));
+}
+
 std::optional<CellBox> intersect(const CellBox& a, const CellBox& b) {
   const CellBox box{{std::max(a.min.ix, b.min.ix), std::max(a.min.iy, b.min.iy)},
                     {std::min(a.max.ix, b.max.ix), std::min(a.max.iy, b.max.iy)}};
@@ -349,10 +361,7 @@ class DistanceField::Brushfire {
   // Costs what the updates since the previous call wrote, plus a pointer per chunk (64 blocks).
   [[nodiscard]] DistanceFieldSnapshot::RefDirectory references(DistanceFieldUpdate& result) {
     using Snapshot = DistanceFieldSnapshot;
-    // A cell without a reference is beyond the reach, so the reach bounds its distance from below (as the lookup
-    // reads it: DistanceFieldSnapshot::answer).
-    const std::int32_t unreached_squared =
-        std::min<std::int32_t>(max_squared_, std::numeric_limits<std::uint16_t>::max());
+    const std::int32_t unreached_squared = unreached_min_squared(max_squared_);
     result.copied_blocks = dirty_blocks_.size();
     std::vector<std::size_t> dirty_slots;
     dirty_slots.reserve(dirty_blocks_.size());
@@ -657,8 +666,7 @@ bool DistanceField::prepare(std::shared_ptr<const GridSnapshot>& grid, DistanceF
   }
   if (brushfire_) return true;
 
-  const double max_half_cells = 2.0 * params_.max_distance_m / cell_size;
-  brushfire_ = std::make_unique<Brushfire>(static_cast<std::int32_t>(std::floor(max_half_cells * max_half_cells)));
+  brushfire_ = std::make_unique<Brushfire>(reach_squared_half_cells(params_.max_distance_m, cell_size));
   Brushfire& brushfire = *brushfire_;
   const CellBox tiles = *grid->tile_bounds();
   grid->for_each_occupied(tiles.min, tiles.max, [&brushfire](const CellIndex& c) {
@@ -795,10 +803,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   constexpr std::int32_t kLinesPerBlockSide = kBlockCells >> kLineShift;
   // Every cell centre of a line lies within this of the line's centre.
   const double line_half_diagonal = 0.5 * (kLineCells - 1) * cell_size * std::sqrt(2.0);
-  // What a line of cells without a reference reads: the brushfire's reach, which they are beyond.
-  const double reach_half_cells = 2.0 * max_distance_m_ / cell_size;
-  const auto unreached_squared =
-      static_cast<std::uint16_t>(std::min(std::floor(reach_half_cells * reach_half_cells), 65535.0));
+  const std::uint16_t unreached_squared = unreached_min_squared(reach_squared_half_cells(max_distance_m_, cell_size));
   struct Line {
     const RefBlock* block = nullptr;  // nullptr: no reference written there
     std::size_t index = 0;            // in the block's lines
@@ -816,9 +821,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     if (line.block == nullptr) return Ref{kNone, 0};
     return line.block->refs[(line.index << 4U) + (static_cast<std::size_t>(cy) << 2U) + static_cast<std::size_t>(cx)];
   };
-  const auto cell_center = [cell_size](std::int32_t ix, std::int32_t iy) {
-    return Eigen::Vector2d((ix + 0.5) * cell_size, (iy + 0.5) * cell_size);
-  };
+  const geometry::GridGeometry cells(cell_size);
 
   // The smallest squared field distance (half cells) of the edge cells visited, and whether one had no occupied cell
   // in range: the lower bound follows from them once the loop is done, with one square root instead of one per cell.
@@ -855,8 +858,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     const CellIndex nearest{ix + ref.x, iy + ref.y};
     if (static_cast<double>(squared) * squared_scale >= squared_distance_to_beat || nearest == last_cell) return;
     last_cell = nearest;
-    const auto [exact_distance, point_W] =
-        placed.distance_to_square_below(cell_center(nearest.ix, nearest.iy), half_cell, upper);
+    const auto [exact_distance, point_W] = placed.distance_to_square_below(cells.center_of(nearest), half_cell, upper);
     if (exact_distance < upper) {
       upper = exact_distance;
       squared_distance_to_beat = (upper + half_diagonal) * (upper + half_diagonal);
@@ -898,7 +900,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
         const std::int32_t cy = cy0 + (j >> 1);
         const std::int32_t ix = gx * kLineCells + cx;
         const std::int32_t iy = gy * kLineCells + cy;
-        const auto [cell_squared, cell_deep] = placed.place(cell_center(ix, iy), half_diagonal);
+        const auto [cell_squared, cell_deep] = placed.place(cells.center_of({ix, iy}), half_diagonal);
         if (cell_squared > squared_half_diagonal) continue;
         const Ref ref = ref_in(line, cx, cy);
         if (cell_deep) {
@@ -969,8 +971,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     answer.result.found = true;
     answer.result.clearance_m = 0.0;
     answer.result.nearest_cell = occupied_inside;
-    answer.result.nearest_point_W =
-        placed.distance_to_square(cell_center(occupied_inside->ix, occupied_inside->iy), half_cell).second;
+    answer.result.nearest_point_W = placed.distance_to_square(cells.center_of(*occupied_inside), half_cell).second;
     return answer;
   }
   double lower = std::numeric_limits<double>::infinity();
@@ -1034,7 +1035,7 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
             const Ref ref = ref_in(line, cx, cy);
             if (ref.x != 0 || ref.y != 0) continue;
             const CellIndex cell{gx * kLineCells + cx, gy * kLineCells + cy};
-            const Eigen::Vector2d square_W = cell_center(cell.ix, cell.iy);
+            const Eigen::Vector2d square_W = cells.center_of(cell);
             if (placed.squared_distance_to_point(square_W) > squared_shell_out) continue;
             const auto [distance, point_W] = placed.distance_to_square_below(square_W, half_cell, upper);
             if (distance < upper) {
