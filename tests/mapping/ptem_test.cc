@@ -181,6 +181,70 @@ TEST(PtemTest, NearPointGrowsNearestCluster) {
   EXPECT_EQ(snapshot->clusters()[1].radius_m, 0.02);
 }
 
+// §4.2.1's rule as the seed states it, point by point over every cluster (the nearest boundary, the first of equals;
+// grown to the enclosing circle, or a new cluster beyond C_r or past the radius bound), for cumulative scans: what the
+// model's search, which passes over clusters it can tell are farther, must reproduce exactly.
+std::vector<PtemCircle> clusters_by_the_plain_rule(const PtemParams& params,
+                                                   const std::vector<std::vector<Eigen::Vector2d>>& scans) {
+  std::vector<PtemCircle> clusters;
+  for (const auto& points : scans) {
+    for (const Eigen::Vector2d& p : points) {
+      std::size_t nearest = clusters.size();
+      double nearest_distance = std::numeric_limits<double>::infinity();
+      for (std::size_t i = 0; i < clusters.size(); ++i) {
+        const double distance = (p - clusters[i].centre_W).norm() - clusters[i].radius_m;
+        if (distance < nearest_distance) {
+          nearest_distance = distance;
+          nearest = i;
+        }
+      }
+      bool start_new = nearest == clusters.size() || nearest_distance > params.cluster_distance_m;
+      if (!start_new && nearest_distance > 0.0) {
+        const PtemCircle enclosing = enclose_circle_and_point(clusters[nearest], p);
+        if (params.max_cluster_radius_m > 0.0 && enclosing.radius_m > params.max_cluster_radius_m) {
+          start_new = true;
+        } else {
+          clusters[nearest] = enclosing;
+        }
+      }
+      if (start_new) clusters.push_back({p, params.initial_cluster_radius_m});
+    }
+  }
+  return clusters;
+}
+
+// Many clusters close together (a hall of pillars 0.6 m apart, seen from a robot driving through it): each point has
+// several clusters near it, the case where a search that passes clusters over could pick another than the rule's.
+TEST(PtemTest, ClustersAreThoseOfTheNearestBoundaryRuleAmongManyClusters) {
+  const PtemParams params = params_for(PtemConstruction::kCumulative);
+  std::vector<Disc> pillars;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.1, 0.1);
+  std::uniform_real_distribution<double> radius(0.05, 0.2);
+  for (int i = -6; i <= 6; ++i) {
+    for (int j = -6; j <= 6; ++j) {
+      if (std::abs(i) + std::abs(j) <= 1) continue;  // room for the robot
+      pillars.push_back({{0.6 * i + jitter(rng), 0.6 * j + jitter(rng)}, radius(rng)});
+    }
+  }
+  PtemModel model(params);
+  std::vector<std::vector<Eigen::Vector2d>> scans;
+  for (int k = 0; k < 12; ++k) {
+    const Eigen::Vector2d p_WS(0.02 * k, -0.01 * k);
+    const double yaw_WS = 0.5 * k;
+    scans.push_back(urg_points(p_WS, yaw_WS, pillars));
+    model.insert_scan(urg_scan(0.1 * k, p_WS, yaw_WS, scans.back()));
+  }
+  const std::vector<PtemCircle> expected = clusters_by_the_plain_rule(params, scans);
+  const auto snapshot = model.snapshot();
+  ASSERT_GT(expected.size(), 40U);
+  ASSERT_EQ(snapshot->clusters().size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(snapshot->clusters()[i].centre_W, expected[i].centre_W) << "cluster " << i;
+    EXPECT_EQ(snapshot->clusters()[i].radius_m, expected[i].radius_m) << "cluster " << i;
+  }
+}
+
 // A point exactly C_r from the boundary grows the cluster ("greater than the threshold" starts a new one).
 TEST(PtemTest, PointAtClusterDistanceGrows) {
   PtemParams params = params_for(PtemConstruction::kCumulative);
