@@ -332,8 +332,9 @@ void PtemModel::insert_scan(const PtemScan& scan) {
   std::vector<PtemCluster> clusters;
   std::vector<bool> grown;
   if (params_.construction == PtemConstruction::kCumulative) {
-    // §4.2.2: the clusters of earlier scans are kept and take part in clustering this scan's points.
-    clusters = clusters_;
+    // §4.2.2: the clusters of earlier scans are kept and take part in clustering this scan's points. Moved, not
+    // copied: clusters_ is replaced below, and the snapshots hold their own copies.
+    clusters = std::move(clusters_);
     grown.assign(clusters.size(), false);
     cluster_points(scan.points_W, scan.stamp_s, clusters, grown);
   } else {
@@ -347,9 +348,10 @@ void PtemModel::insert_scan(const PtemScan& scan) {
     // (a cluster's copy aside).
     double reach_m = scan.max_range_m;
     for (const PtemCluster& f : fresh) reach_m = std::max(reach_m, (f.centre_W - scan.p_WS).norm() + f.radius_m);
-    for (const PtemCluster& cluster : clusters_) {
+    // The kept clusters are moved out of clusters_ (replaced below) rather than copied with their extents.
+    for (PtemCluster& cluster : clusters_) {
       if ((cluster.centre_W - scan.p_WS).norm() - cluster.radius_m > reach_m) {
-        clusters.push_back(cluster);
+        clusters.push_back(std::move(cluster));
         grown.push_back(false);
         continue;
       }
@@ -368,7 +370,7 @@ void PtemModel::insert_scan(const PtemScan& scan) {
       const bool re_observed = std::any_of(fresh.begin(), fresh.end(),
                                            [&cluster](const PtemCluster& f) { return circles_overlap(cluster, f); });
       if (!wholly_inside && !re_observed) {
-        clusters.push_back(cluster);
+        clusters.push_back(std::move(cluster));
         grown.push_back(false);
       }
     }
