@@ -917,7 +917,8 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   };
 
   // The lines holding an edge cell, in the order met. A line wholly deeper inside only has to be free: its smallest
-  // distance says so. The lines that may be read have their references fetched early, all at once.
+  // distance says so. (Prefetching the references of every line that might be read, here, made cold lookups slower:
+  // most of those lines are then settled by their smallest distance, unread.)
   struct EdgeLine {
     Line line;
     std::int32_t gx;
@@ -943,9 +944,6 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
       if (deep) {
         if (line.min_squared == 0 && visit_line(gx, gy, line)) break;
         continue;
-      }
-      if (line.block != nullptr && may_matter(line.min_squared)) {
-        __builtin_prefetch(&line.block->refs[line.index << 4U]);
       }
       if (edge_line_count == 0 || line.min_squared < edge_lines[nearest_line].line.min_squared) {
         nearest_line = edge_line_count;
