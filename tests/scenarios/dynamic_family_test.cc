@@ -9,10 +9,11 @@
 //   OCCGEO_DYNAMIC_WORLDS=50 dynamic_family_test
 // and the run's rates are printed either way; OCCGEO_DYNAMIC_FIRST=N starts the family at seed N. OCCGEO_DYNAMIC_CONFIG
 // is YAML added to the server's configuration, e.g. "guard: {predict_horizon_s: 0}" for the same worlds without the
-// prediction of moving obstacles.
+// prediction of moving obstacles. OCCGEO_DYNAMIC_WORLD_DIR=DIR keeps each world's file there, to drive it by hand.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -78,6 +79,11 @@ TEST(DynamicFamily, PeopleAndCartsInGeneratedWorlds) {
     const auto static_file = dir.path() / (world.name + "-static.yaml");
     std::ofstream(dynamic_file) << world.yaml;
     std::ofstream(static_file) << world.yaml_static;
+    if (const char* keep = std::getenv("OCCGEO_DYNAMIC_WORLD_DIR")) {
+      // To drive a world of the family by hand (occgeo-sim --world FILE), outside this test.
+      std::filesystem::create_directories(keep);
+      std::ofstream(std::filesystem::path(keep) / (world.name + ".yaml")) << world.yaml;
+    }
     std::cout << world.name << ": " << world.description << '\n';
     for (const std::string preset : {"ugv", "bearcat"}) {
       Row row{world.name, preset, {}, {}};
