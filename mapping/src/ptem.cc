@@ -345,7 +345,7 @@ void PtemModel::insert_scan(const PtemScan& scan) {
     cluster_points(scan.points_W, scan.stamp_s, fresh, fresh_grown);
     // How far from the sensor a kept cluster can reach a fresh one or the sector: clusters beyond it are kept as they
     // are without the per-fresh-cluster test, so the cost of this loop follows what the scan saw, not the map's size
-    // (a cluster's copy aside).
+    // (each kept cluster is still moved into the new list).
     double reach_m = scan.max_range_m;
     for (const PtemCluster& f : fresh) reach_m = std::max(reach_m, (f.centre_W - scan.p_WS).norm() + f.radius_m);
     // The kept clusters are moved out of clusters_ (replaced below) rather than copied with their extents.
