@@ -88,16 +88,18 @@ bool circles_overlap(const PtemCluster& a, const PtemCluster& b) {
 
 // Checks each field before its value is formatted for the message: a valid scan costs no string work.
 void validate_scan(const PtemScan& scan, const std::optional<double>& latest_stamp_s) {
-  if (!std::isfinite(scan.stamp_s))
+  if (!std::isfinite(scan.stamp_s)) {
     geometry::fail_requirement("PtemScan.stamp_s", "must be finite", geometry::number_text(scan.stamp_s));
+  }
   if (latest_stamp_s && !(scan.stamp_s >= *latest_stamp_s)) {
     geometry::fail_requirement("PtemScan.stamp_s",
                                "must be >= the previous scan's stamp " + geometry::number_text(*latest_stamp_s),
                                geometry::number_text(scan.stamp_s));
   }
   if (!scan.p_WS.allFinite()) geometry::fail_requirement("PtemScan.p_WS", "must be finite", format_point(scan.p_WS));
-  if (!std::isfinite(scan.yaw_WS))
+  if (!std::isfinite(scan.yaw_WS)) {
     geometry::fail_requirement("PtemScan.yaw_WS", "must be finite", geometry::number_text(scan.yaw_WS));
+  }
   if (!(scan.field_of_view_rad > 0.0 && scan.field_of_view_rad <= kTwoPi)) {
     geometry::fail_requirement("PtemScan.field_of_view_rad", "must be in (0, 2pi]",
                                geometry::number_text(scan.field_of_view_rad));
@@ -527,8 +529,9 @@ bool PtemModel::restore(std::string_view bytes) {
     cluster.first_seen_scan = in.get<std::uint64_t>("clusters.first_seen_scan");
     cluster.first_seen_stamp_s = in.get<double>("clusters.first_seen_stamp_s");
     const auto extent_count = in.get<std::uint64_t>("clusters.extent count");
-    if (extent_count > body.size() / 16)
+    if (extent_count > body.size() / 16) {
       throw std::invalid_argument("PTEM state is damaged: an extent count is impossible");
+    }
     cluster.extent_W.resize(static_cast<std::size_t>(extent_count));
     for (Eigen::Vector2d& p_W : cluster.extent_W) {
       p_W.x() = in.get<double>("clusters.extent_W");
