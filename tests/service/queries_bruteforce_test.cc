@@ -952,5 +952,85 @@ TEST(QueriesBruteForce, OctomapClearanceFromTheBandFieldsIsWithinAVoxelAcrossTil
   EXPECT_GT(found, cases / 3);
 }
 
+// Clearance over every model (grid, octree band field, PTEM extents) against the exact distance to the nearest of their
+// obstacles: never below it, at most a cell above, in either order of the grid and the octree, and never below the
+// exact distance of the model said to hold the nearest obstacle. The worlds put the grid's and the octree's obstacles
+// in different places, so that either can hold the nearest one. (A later model asked only for an obstacle more than
+// its resolution nearer than the answer so far fails this: its own answer may lie up to a cell above its exact one.)
+TEST(QueriesBruteForce, AllModelsClearanceIsWithinACellOfTheNearestObstacleOfAnyModel) {
+  std::mt19937 rng(41);
+  constexpr double kMaxDistance = 1.5;
+  constexpr double kBandTop = 0.65;
+  int cases = 0, found = 0, octree_nearest = 0, grid_nearest = 0;
+  for (int w = 0; w < 3; ++w) {
+    const RandomWorld world = make_world(rng, 50, 40, 5, 15);
+    mapping::OctoMapParams params;
+    params.resolution_m = kCell;
+    mapping::OctoMapModel model(params);
+    std::vector<VoxelIndex> voxels;
+    std::uniform_int_distribution<int> x_of(0, 49), y_of(0, 39), side(1, 5);
+    for (int b = 0; b < 8; ++b) {
+      const int x0 = x_of(rng), y0 = y_of(rng), wx = side(rng), wy = side(rng);
+      for (int x = x0; x < std::min(x0 + wx, 50); ++x) {
+        for (int y = y0; y < std::min(y0 + wy, 40); ++y) {
+          for (int z = 2; z < 6; ++z) {
+            voxels.push_back({x, y, z});
+            mark_voxel(model, voxels.back());
+          }
+        }
+      }
+    }
+    const auto octomap = model.publish();
+    OctreeBandField band(kBandTop, mapping::DistanceFieldParams{});
+    band.update(*octomap);
+    WorldSnapshot snapshot = world.snapshot;
+    snapshot.octomap = octomap;
+    snapshot.octree_bands = std::make_shared<const std::vector<OctreeBandSnapshot>>(1, band.snapshot());
+    const auto grid_cells = world.occupied_cells();
+    const auto columns = occupied_columns(*octomap, voxels, kBandTop);
+    for (int i = 0; i < 400; ++i, ++cases) {
+      geometry::Footprint footprint = random_footprint(rng);
+      std::visit([&](auto& shape) { shape.height = kBandTop; }, footprint);
+      const geometry::Pose2 pose = random_pose(rng, world);
+      const Outline outline = outline_of(footprint, pose);
+      const double grid_exact = brute_clearance(grid_cells, outline);
+      const double octree_exact = brute_clearance(columns, outline);
+      double ptem_exact = 1e300;
+      for (const mapping::PtemCluster& cluster : snapshot.ptem->clusters()) {
+        for (const Eigen::Vector2d& p : cluster.extent_W) ptem_exact = std::min(ptem_exact, point_distance(outline, p));
+      }
+      const double exact = std::min({grid_exact, octree_exact, ptem_exact});
+      octree_nearest += octree_exact < grid_exact ? 1 : 0;
+      grid_nearest += grid_exact < octree_exact ? 1 : 0;
+      for (const std::vector<v1::Model>& models :
+           {std::vector<v1::Model>{v1::MODEL_GRID, v1::MODEL_OCTOMAP, v1::MODEL_PTEM},
+            std::vector<v1::Model>{v1::MODEL_OCTOMAP, v1::MODEL_GRID, v1::MODEL_PTEM}}) {
+        v1::ClearanceReply reply;
+        answer_clearance(snapshot, footprint, pose, kMaxDistance, models, reply);
+        if (exact < kMaxDistance - kCell) {
+          ASSERT_TRUE(reply.found()) << "case " << cases << " exact " << exact;
+        }
+        if (!reply.found()) {
+          EXPECT_GT(exact, kMaxDistance - kCell) << "case " << cases;
+          continue;
+        }
+        ++found;
+        EXPECT_GE(reply.clearance_m(), exact - 1e-9) << "case " << cases;
+        EXPECT_LE(reply.clearance_m(), exact + kCell + 1e-9)
+            << "case " << cases << ": grid " << grid_exact << " m, octree " << octree_exact << " m, ptem " << ptem_exact
+            << " m, answered by model " << reply.model() << ", model " << models[0] << " asked first";
+        const double model_exact = reply.model() == v1::MODEL_GRID      ? grid_exact
+                                   : reply.model() == v1::MODEL_OCTOMAP ? octree_exact
+                                                                        : ptem_exact;
+        EXPECT_GE(reply.clearance_m(), model_exact - 1e-9) << "case " << cases << ": not the answering model's";
+      }
+    }
+  }
+  EXPECT_GE(cases, 1200);
+  EXPECT_GT(found, cases);  // two orders per case
+  EXPECT_GT(octree_nearest, cases / 10);
+  EXPECT_GT(grid_nearest, cases / 10);
+}
+
 }  // namespace
 }  // namespace occgeo::service
