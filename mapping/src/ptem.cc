@@ -258,15 +258,10 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
                                std::vector<PtemCluster>& clusters, std::vector<bool>& grown) const {
   // The clusters' circles side by side, kept in step with `clusters` below: the search for a point's nearest cluster
   // reads 24 bytes per cluster rather than a whole cluster, and mostly without a square root.
-  struct Circle {
-    double x;
-    double y;
-    double radius;
-  };
-  std::vector<Circle> circles;
+  std::vector<PtemCircle> circles;
   circles.reserve(clusters.size() + points_W.size());
   for (const PtemCluster& cluster : clusters) {
-    circles.push_back({cluster.centre_W.x(), cluster.centre_W.y(), cluster.radius_m});
+    circles.push_back({cluster.centre_W, cluster.radius_m});
   }
   // A cluster is passed over when its boundary is certainly farther than the nearest so far, by more than rounding:
   // only a strictly nearer one takes the point, so the choice is the plain search's.
@@ -277,14 +272,12 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
     std::size_t nearest = clusters.size();
     double nearest_distance = std::numeric_limits<double>::infinity();
     const auto consider = [&](std::size_t i) {
-      const Circle& circle = circles[i];
-      const double dx = p_W.x() - circle.x;
-      const double dy = p_W.y() - circle.y;
-      const double squared = dx * dx + dy * dy;
+      const PtemCircle& circle = circles[i];
+      const double squared = (p_W - circle.centre_W).squaredNorm();
       // |p - c| - r < nearest_distance needs |p - c| < nearest_distance + r.
-      const double within = nearest_distance + circle.radius + kRoundingMargin;
+      const double within = nearest_distance + circle.radius_m + kRoundingMargin;
       if (within <= 0.0 || squared > within * within) return;
-      const double distance = std::sqrt(squared) - circle.radius;
+      const double distance = std::sqrt(squared) - circle.radius_m;
       if (distance < nearest_distance || (distance == nearest_distance && i < nearest)) {
         nearest_distance = distance;
         nearest = i;
@@ -299,7 +292,7 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
     bool start_new = nearest == clusters.size() || nearest_distance > params_.cluster_distance_m;
     if (!start_new && nearest_distance > 0.0) {
       PtemCluster& cluster = clusters[nearest];
-      const PtemCircle enclosing = enclose_circle_and_point(PtemCircle{cluster.centre_W, cluster.radius_m}, p_W);
+      const PtemCircle enclosing = enclose_circle_and_point(circles[nearest], p_W);
       const bool bounded = params_.max_cluster_radius_m > 0.0;
       if (bounded && enclosing.radius_m > params_.max_cluster_radius_m) {
         // Growing on would let one circle span a wall and its disc cover the floor in front of it: the wall goes on
@@ -308,7 +301,7 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
       } else {
         cluster.centre_W = enclosing.centre_W;
         cluster.radius_m = enclosing.radius_m;
-        circles[nearest] = {cluster.centre_W.x(), cluster.centre_W.y(), cluster.radius_m};
+        circles[nearest] = enclosing;
         grown[nearest] = true;
       }
     }
@@ -319,7 +312,7 @@ void PtemModel::cluster_points(std::span<const Eigen::Vector2d> points_W, double
       cluster.first_seen_scan = scan_count_;
       cluster.first_seen_stamp_s = stamp_s;
       clusters.push_back(cluster);
-      circles.push_back({p_W.x(), p_W.y(), cluster.radius_m});
+      circles.push_back({p_W, cluster.radius_m});
       grown.push_back(true);
       nearest = clusters.size() - 1;
     }
@@ -347,10 +340,10 @@ void PtemModel::insert_scan(const PtemScan& scan) {
     cluster_points(scan.points_W, scan.stamp_s, fresh, fresh_grown);
     // How far from the sensor a kept cluster can reach a fresh one or the sector: clusters beyond it are kept as they
     // are without the per-fresh-cluster test, so the cost of this loop follows what the scan saw, not the map's size
-    // (each kept cluster is still moved into the new list).
+    // (each kept cluster is still moved into the new list: moved, not copied with its extent, as clusters_ is replaced
+    // below).
     double reach_m = scan.max_range_m;
     for (const PtemCluster& f : fresh) reach_m = std::max(reach_m, (f.centre_W - scan.p_WS).norm() + f.radius_m);
-    // The kept clusters are moved out of clusters_ (replaced below) rather than copied with their extents.
     for (PtemCluster& cluster : clusters_) {
       if ((cluster.centre_W - scan.p_WS).norm() - cluster.radius_m > reach_m) {
         clusters.push_back(std::move(cluster));
