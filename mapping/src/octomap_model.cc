@@ -342,8 +342,9 @@ struct OctoMapModel::Impl {
   // inner nodes are brought up to date once, by refresh_inner(), before anything reads them. Each key gets the same
   // single update as in the plain path, so every leaf ends up with the same log-odds.
   //
-  // The keys are deduplicated without hash sets: every ray's keys are appended to one flat buffer, then marked in a
-  // bitmap over their bounding box (or, when that box is too sparse, Morton-coded, sorted and uniqued). Either way the
+  // The keys are deduplicated without hash sets: each ray's keys, as they are walked, are marked in a bitmap over the
+  // batch's bounding box (or, when that box is too sparse, appended to one flat buffer, Morton-coded, sorted and
+  // uniqued). Either way the
   // updates run in an order where consecutive keys share most of their tree path, which update() exploits. The order
   // of the updates does not matter: each key gets exactly one, and a lazy update never changes another key's leaf.
   // see_through: the batch is one laser scan, whose seen-through voxels are capped (OctoMapParams::
@@ -351,8 +352,9 @@ struct OctoMapModel::Impl {
   void apply(const octomap::point3d& origin, const std::vector<Ray>& batch, bool see_through = false) {
     ray_keys.clear();
     hit_keys.clear();
-    // A ray's keys step monotonically along each axis (computeRayKeys is a 3D DDA), so its first and last key bound
-    // them all.
+    // A ray's keys step monotonically along each axis (a 3D DDA) from the origin's key towards the end's, so those two
+    // bound them all (but for one key past the end's, below); their difference, summed over the axes, is how many the
+    // ray has (about: the walk may stop short).
     std::array<unsigned, 3> lo{0xFFFFU, 0xFFFFU, 0xFFFFU}, hi{0U, 0U, 0U};
     const auto extend = [&lo, &hi](const octomap::OcTreeKey& key) {
       for (int i = 0; i < 3; ++i) {
@@ -360,21 +362,31 @@ struct OctoMapModel::Impl {
         hi[i] = std::max<unsigned>(hi[i], key[i]);
       }
     };
+    octomap::OcTreeKey origin_key;
+    const bool origin_on_tree = tree->coordToKeyChecked(origin, origin_key);
+    std::uint64_t n_keys = 0;
     for (const Ray& ray : batch) {
-      if (ray.carve && tree->computeRayKeys(origin, ray.end, key_ray) && key_ray.size() != 0) {
-        ray_keys.insert(ray_keys.end(), key_ray.begin(), key_ray.end());
-        extend(*key_ray.begin());
-        extend(*(key_ray.end() - 1));
-      }
-      if (ray.hit) {
-        octomap::OcTreeKey key;
-        if (tree->coordToKeyChecked(ray.end, key)) {
-          hit_keys.push_back(key);
-          extend(key);
+      octomap::OcTreeKey end_key;
+      const bool end_on_tree = tree->coordToKeyChecked(ray.end, end_key);
+      if (ray.carve && origin_on_tree && end_on_tree && origin_key != end_key) {
+        extend(origin_key);
+        // Rounding can take the walk one key past the end's along any axis the ray moves on.
+        octomap::OcTreeKey past_end = end_key;
+        for (unsigned i = 0; i < 3; ++i) {
+          n_keys += static_cast<std::uint64_t>(std::abs(int{origin_key[i]} - int{end_key[i]}));
+          const float along = ray.end(i) - origin(i);
+          if (along > 0.0F && past_end[i] < 0xFFFFU) ++past_end[i];
+          if (along < 0.0F && past_end[i] > 0U) --past_end[i];
         }
+        extend(past_end);
+      }
+      if (ray.hit && end_on_tree) {
+        hit_keys.push_back(end_key);
+        extend(end_key);
       }
     }
-    if (ray_keys.empty() && hit_keys.empty()) return;
+    n_keys += hit_keys.size();
+    if (n_keys == 0) return;
     inner_stale = true;
     path_depth = -1;
 
@@ -383,18 +395,73 @@ struct OctoMapModel::Impl {
     lo[1] &= ~7U;
     const std::uint64_t nx = ((hi[0] - lo[0]) | 7U) + 1, ny = ((hi[1] - lo[1]) | 7U) + 1, nz = hi[2] - lo[2] + 1;
     const std::uint64_t volume = nx * ny * nz;
-    const std::uint64_t n_keys = ray_keys.size() + hit_keys.size();
     if (volume <= kMaxBitmapCells && volume <= 256 * n_keys) {
-      apply_by_bitmap(lo, nx, ny, nz, volume, see_through);
+      apply_by_bitmap(origin, batch, lo, nx, ny, nz, volume, see_through);
     } else {
+      for (const Ray& ray : batch) {
+        if (ray.carve) {
+          for_each_ray_key(origin, ray.end, [this](const octomap::OcTreeKey& key) { ray_keys.push_back(key); });
+        }
+      }
       apply_by_sorting();
+    }
+  }
+
+  // Hands visit the free keys of the ray from origin to end, those OcTreeBaseImpl::computeRayKeys lists: the same 3D
+  // DDA with the same arithmetic, so the same keys, without a KeyRay to fill and copy. Nothing for a ray with an end
+  // off the tree or within the origin's voxel.
+  template <typename Visit>
+  void for_each_ray_key(const octomap::point3d& origin, const octomap::point3d& end, Visit&& visit) const {
+    octomap::OcTreeKey key_origin, key_end;
+    if (!tree->coordToKeyChecked(origin, key_origin) || !tree->coordToKeyChecked(end, key_end)) return;
+    if (key_origin == key_end) return;
+    visit(key_origin);
+    octomap::point3d direction = end - origin;
+    const auto length = static_cast<float>(direction.norm());
+    direction /= length;
+    const double resolution = tree->getResolution();
+    std::array<int, 3> step{};
+    std::array<double, 3> t_max{}, t_delta{};
+    octomap::OcTreeKey key = key_origin;
+    for (unsigned i = 0; i < 3; ++i) {
+      const auto along = static_cast<double>(direction(i));
+      step[i] = along > 0.0 ? 1 : (along < 0.0 ? -1 : 0);
+      if (step[i] != 0) {
+        double voxel_border = tree->keyToCoord(key[i]);
+        voxel_border += static_cast<double>(static_cast<float>(step[i] * resolution * 0.5));
+        t_max[i] = (voxel_border - static_cast<double>(origin(i))) / along;
+        t_delta[i] = resolution / std::fabs(along);
+      } else {
+        t_max[i] = std::numeric_limits<double>::max();
+        t_delta[i] = std::numeric_limits<double>::max();
+      }
+    }
+    if (step[2] == 0) {
+      // A level ray (every ray of a planar laser): the z axis is never chosen, as its t_max stays the largest double.
+      while (true) {
+        const unsigned dim = t_max[0] < t_max[1] ? 0U : 1U;
+        key[dim] = static_cast<octomap::key_type>(key[dim] + step[dim]);
+        t_max[dim] += t_delta[dim];
+        if (key[0] == key_end[0] && key[1] == key_end[1]) return;
+        if (std::min(t_max[0], t_max[1]) > static_cast<double>(length)) return;
+        visit(key);
+      }
+    }
+    while (true) {
+      const unsigned dim = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0U : 2U) : (t_max[1] < t_max[2] ? 1U : 2U);
+      key[dim] = static_cast<octomap::key_type>(key[dim] + step[dim]);
+      t_max[dim] += t_delta[dim];
+      if (key == key_end) return;
+      // Past the end's distance without reaching its voxel (rounding): computeRayKeys stops there too.
+      if (std::min(std::min(t_max[0], t_max[1]), t_max[2]) > static_cast<double>(length)) return;
+      visit(key);
     }
   }
 
   // apply's deduplication for a compact batch (a planar scan): one free and one hit bit per cell of the keys' bounding
   // box, x fastest. The bitmaps are all zero between calls (each word is cleared as it is read).
-  void apply_by_bitmap(const std::array<unsigned, 3>& lo, std::uint64_t nx, std::uint64_t ny, std::uint64_t nz,
-                       std::uint64_t volume, bool see_through) {
+  void apply_by_bitmap(const octomap::point3d& origin, const std::vector<Ray>& batch, const std::array<unsigned, 3>& lo,
+                       std::uint64_t nx, std::uint64_t ny, std::uint64_t nz, std::uint64_t volume, bool see_through) {
     const std::size_t n_words = static_cast<std::size_t>((volume + 63) / 64);
     if (free_bits.size() < n_words) {
       free_bits.resize(n_words, 0);
@@ -434,9 +501,12 @@ struct OctoMapModel::Impl {
       }
     }
     const float cap = tree->getOccupancyThresLog() - tree->getProbMissLog() / 2.0F;
-    for (const octomap::OcTreeKey& key : ray_keys) {
-      const std::uint64_t i = index(key);
-      free_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+    for (const Ray& ray : batch) {
+      if (!ray.carve) continue;
+      for_each_ray_key(origin, ray.end, [&](const octomap::OcTreeKey& key) {
+        const std::uint64_t i = index(key);
+        free_bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+      });
     }
     for (const octomap::OcTreeKey& key : hit_keys) {
       const std::uint64_t i = index(key);
@@ -985,7 +1055,6 @@ struct OctoMapModel::Impl {
   static constexpr std::uint64_t kMaxBitmapCells = std::uint64_t{1} << 27;  // 16 MiB per bitmap
   // The see-through rule spares voxels this close to a hit of the same scan (metres, in x and y).
   static constexpr double kSeeThroughSpare_m = 0.2;
-  octomap::KeyRay key_ray;
   std::vector<octomap::OcTreeKey> ray_keys;  // the free keys of every ray of the batch, repeats included
   std::vector<octomap::OcTreeKey> hit_keys;  // the end keys of the hits, repeats included
   std::vector<std::uint64_t> free_bits, hit_bits;
