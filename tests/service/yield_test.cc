@@ -396,5 +396,34 @@ TEST(Yield, StepsAsideFromAPersonWalkingHeadOn) {
   EXPECT_LT(drive(world, standing, robot, {0.0, 0.0, 0.0}, 16.0).closest_gap_m, 0.0);
 }
 
+TEST(Yield, GetsOutOfTheWayOfSomethingComingAlongAWallThatNoTrackFollows) {
+  World world;
+  // A wall 0.9 m to the robot's left and a person walking along it, 0.15 m from it, head-on at 0.45 m/s: a cluster
+  // that close to a wall is taken for part of it, so the tracker never calls it moving. The robot stands in the way.
+  world.walls = {{{-3.0, 0.9}, {10.0, 0.9}}};
+  world.discs = {{{6.0, 0.5}, {-0.45, 0.0}, 0.25}};
+  const RobotShape robot = bearcat_shape();
+  {
+    mapping::PtemModel model(mapping::PtemParams{});
+    ClusterTracker tracker;
+    std::vector<Eigen::Vector2d> points;
+    std::vector<float> ranges;
+    for (int k = 0; k <= 40; ++k) {
+      const double t = k * kScanPeriod_s;
+      insert(model, world, {robot.laser_x_m, 0.0}, 0.0, t, points, ranges);
+      tracker.update(*model.snapshot(), {robot.laser_x_m, 0.0}, kMaxRange_m);
+      ASSERT_TRUE(tracker.moving().empty()) << "the tracker follows the walker at " << t << " s";
+    }
+  }
+  auto behaviour = make_yield(std::make_unique<Straight>(0.0), robot, GuardParams{});
+  const DriveRun run = drive(world, *behaviour, robot, {0.0, 0.0, 0.0}, 16.0);
+  EXPECT_GT(run.closest_gap_m, 0.0) << "the person walked into the robot";
+  EXPECT_TRUE(run.states.contains("yield_aside"));
+
+  // Standing where it was gets it hit.
+  Straight standing(0.0);
+  EXPECT_LT(drive(world, standing, robot, {0.0, 0.0, 0.0}, 16.0).closest_gap_m, 0.0);
+}
+
 }  // namespace
 }  // namespace occgeo::service::control

@@ -829,6 +829,13 @@ class YieldWrapper final : public Behaviour {
       if (away_W.norm() > 1e-6 && track.velocity_W.dot(away_W.normalized()) > kReceding_mps) continue;
       moving_.push_back(track);
     }
+    if (const std::optional<TrackedObstacle> approaching = approaching_returns(input, X_WB)) {
+      // What the tracker already follows is not counted twice.
+      const bool tracked = std::any_of(moving_.begin(), moving_.end(), [&](const TrackedObstacle& track) {
+        return (track.centre_W - approaching->centre_W).norm() < track.radius_m + approaching->radius_m;
+      });
+      if (!tracked) moving_.push_back(*approaching);
+    }
     const std::vector<TrackedObstacle>& moving = moving_;
     if (moving.empty() || command.state == BehaviourState::kReached) {
       aside_ = std::nullopt;
@@ -864,7 +871,131 @@ class YieldWrapper final : public Behaviour {
   static constexpr double kSameVelocity_mps = 0.2;
   static constexpr double kReceding_mps = 0.1;
   static constexpr double kAsideTurn_radps = 0.7;
-  static constexpr double kAsideHysteresis_m = 0.05;  // keep the previous arc unless another is clearly better
+  static constexpr double kAsideHysteresis_m = 0.05;    // keep the previous arc unless another is clearly better
+  static constexpr double kApproachingWithin_m = 1.5;   // returns this near the footprint are watched for approach
+  static constexpr double kApproachingMoved_m = 0.03;   // a return this far from every return of the previous scan ...
+  static constexpr double kApproachingCloser_m = 0.02;  // ... and this much closer to the footprint came at the robot
+  static constexpr std::size_t kApproachingMinReturns = 3;
+  // Their mean displacement at least this fast: a wall's returns sampled at other points shift every which way.
+  static constexpr double kApproachingMinSpeed_mps = 0.15;
+  static constexpr double kApproachingMinRadius_m = 0.2;
+  static constexpr double kApproachingGroup_m = 0.5;       // one thing's returns lie this near the nearest of them
+  static constexpr double kApproachingMovedShare = 0.5;    // ... and this share of the returns there moved
+  static constexpr double kApproachingConsistent_m = 0.3;  // from one scan to the next, where its velocity led
+  static constexpr double kApproachingKeep_s = 0.5;
+
+  // Returns near the robot that came closer to it since the previous scan, world frame (the robot's own motion drops
+  // out), as one obstacle moving at their mean displacement: what the tracker misses, when a cart's cluster merges
+  // with a door frame or splits in two, or a walker's merges with a shelf. A wall is sampled at other points from scan
+  // to scan, and some of its returns seem to move: only a group round the return nearest the robot counts, when most
+  // of the returns there moved, and only when the previous scan found it too, where its velocity led. The last one
+  // found coasts for kApproachingKeep_s.
+  std::optional<TrackedObstacle> approaching_returns(const BehaviourInput& input, const geometry::Pose2& X_WB) {
+    if (input.scan.ranges_m.empty() || !(input.scan.angle_increment_rad > 0.0)) return coasting_approach(input);
+    if (scan_stamp_s_ && input.stamp_s - *scan_stamp_s_ < 1e-6) return coasting_approach(input);
+    const Eigen::Vector2d p_WS =
+        X_WB.position() + robot_.laser_x_m * Eigen::Vector2d(std::cos(X_WB.theta), std::sin(X_WB.theta));
+    std::vector<Eigen::Vector2d> near_W;
+    for (std::size_t i = 0; i < input.scan.ranges_m.size(); ++i) {
+      const double range = static_cast<double>(input.scan.ranges_m[i]);
+      if (!std::isfinite(range) || range <= 0.0 || range >= input.scan.range_max_m) continue;
+      const double bearing =
+          X_WB.theta + input.scan.angle_min_rad + input.scan.angle_increment_rad * static_cast<double>(i);
+      const Eigen::Vector2d p_W = p_WS + range * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+      if (distance_to_footprint(robot_.footprint, X_WB, p_W) < kApproachingWithin_m) near_W.push_back(p_W);
+    }
+    std::optional<TrackedObstacle> found;
+    const double dt_s = scan_stamp_s_ ? input.stamp_s - *scan_stamp_s_ : 0.0;
+    std::optional<TrackedObstacle> candidate;
+    if (dt_s > 1e-3 && dt_s < 0.5 && !previous_near_W_.empty()) {
+      // Each return that moved towards the footprint, with its displacement since the previous scan.
+      std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> moved;
+      const Eigen::Vector2d* nearest_moved = nullptr;
+      double nearest_moved_m = std::numeric_limits<double>::infinity();
+      for (const Eigen::Vector2d& p_W : near_W) {
+        const Eigen::Vector2d* nearest = nullptr;
+        double nearest_m = std::numeric_limits<double>::infinity();
+        for (const Eigen::Vector2d& q_W : previous_near_W_) {
+          const double d = (q_W - p_W).norm();
+          if (d < nearest_m) {
+            nearest_m = d;
+            nearest = &q_W;
+          }
+        }
+        if (nearest == nullptr || nearest_m < kApproachingMoved_m) continue;
+        // Judged against the footprint where it stands now, so that only the return's own motion counts.
+        const double now_m = distance_to_footprint(robot_.footprint, X_WB, p_W);
+        if (distance_to_footprint(robot_.footprint, X_WB, *nearest) - now_m < kApproachingCloser_m) continue;
+        moved.emplace_back(p_W, p_W - *nearest);
+        if (now_m < nearest_moved_m) {
+          nearest_moved_m = now_m;
+          nearest_moved = &p_W;
+        }
+      }
+      if (nearest_moved != nullptr) {
+        // One thing: the moved returns round the one nearest the robot. A thing on the move moved all of its returns
+        // there; a wall sampled at other points than before, only some.
+        const Eigen::Vector2d seed_W = *nearest_moved;
+        Eigen::Vector2d sum_W = Eigen::Vector2d::Zero(), moved_W = Eigen::Vector2d::Zero();
+        std::size_t count = 0;
+        for (const auto& [p_W, d_W] : moved) {
+          if ((p_W - seed_W).norm() > kApproachingGroup_m) continue;
+          sum_W += p_W;
+          moved_W += d_W;
+          ++count;
+        }
+        const auto around =
+            static_cast<std::size_t>(std::count_if(near_W.begin(), near_W.end(), [&](const Eigen::Vector2d& p_W) {
+              return (p_W - seed_W).norm() <= kApproachingGroup_m;
+            }));
+        const double n = static_cast<double>(count);
+        if (count >= kApproachingMinReturns && n >= kApproachingMovedShare * static_cast<double>(around) &&
+            moved_W.norm() / n / dt_s >= kApproachingMinSpeed_mps) {
+          TrackedObstacle obstacle;
+          obstacle.centre_W = sum_W / n;
+          obstacle.velocity_W = moved_W / n / dt_s;
+          double radius_m = kApproachingMinRadius_m;
+          for (const auto& [p_W, d_W] : moved) {
+            if ((p_W - seed_W).norm() <= kApproachingGroup_m) {
+              radius_m = std::max(radius_m, (p_W - obstacle.centre_W).norm());
+            }
+          }
+          obstacle.radius_m = radius_m;
+          obstacle.stamp_s = input.stamp_s;
+          obstacle.moving = true;
+          candidate = obstacle;
+        }
+      }
+    }
+    // Taken when the previous scan found it too, where it then was headed.
+    if (candidate && approach_candidate_ &&
+        (approach_candidate_->predicted_W(input.stamp_s - approach_candidate_->stamp_s) - candidate->centre_W).norm() <
+            kApproachingConsistent_m) {
+      found = candidate;
+    }
+    approach_candidate_ = candidate;
+    previous_near_W_ = std::move(near_W);
+    scan_stamp_s_ = input.stamp_s;
+    if (found) {
+      approaching_ = found;
+      return found;
+    }
+    return coasting_approach(input);
+  }
+
+  // The approaching returns found last, predicted to now, while they are recent enough.
+  std::optional<TrackedObstacle> coasting_approach(const BehaviourInput& input) {
+    if (!approaching_) return std::nullopt;
+    const double age_s = input.stamp_s - approaching_->stamp_s;
+    if (age_s > kApproachingKeep_s || age_s < 0.0) {
+      approaching_ = std::nullopt;
+      return std::nullopt;
+    }
+    TrackedObstacle now = *approaching_;
+    now.centre_W = approaching_->predicted_W(age_s);
+    now.stamp_s = input.stamp_s;
+    return now;
+  }
 
   static BehaviourCommand standing(BehaviourCommand command, BehaviourState state) {
     command.linear_mps = 0.0;
@@ -930,7 +1061,11 @@ class YieldWrapper final : public Behaviour {
   std::optional<std::size_t> aside_;  // the arc stepped aside along in the previous cycle
   std::optional<Eigen::Vector2d> last_position_W_;
   double last_stamp_s_ = 0.0;
-  std::vector<TrackedObstacle> moving_;  // as of the latest decision, for the guard
+  std::vector<TrackedObstacle> moving_;                // as of the latest decision, for the guard
+  std::vector<Eigen::Vector2d> previous_near_W_;       // the previous scan's returns near the robot, world frame
+  std::optional<double> scan_stamp_s_;                 // that scan's stamp
+  std::optional<TrackedObstacle> approach_candidate_;  // the previous scan's approaching returns
+  std::optional<TrackedObstacle> approaching_;         // the approaching returns found last
 };
 
 }  // namespace
