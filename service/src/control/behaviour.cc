@@ -913,16 +913,17 @@ class YieldWrapper final : public Behaviour {
       const Eigen::Vector2d* nearest_moved = nullptr;
       double nearest_moved_m = std::numeric_limits<double>::infinity();
       for (const Eigen::Vector2d& p_W : near_W) {
+        // Squared distances: a few hundred returns on each side in a narrow aisle, every scan.
         const Eigen::Vector2d* nearest = nullptr;
-        double nearest_m = std::numeric_limits<double>::infinity();
+        double nearest_squared = std::numeric_limits<double>::infinity();
         for (const Eigen::Vector2d& q_W : previous_near_W_) {
-          const double d = (q_W - p_W).norm();
-          if (d < nearest_m) {
-            nearest_m = d;
+          const double d_squared = (q_W - p_W).squaredNorm();
+          if (d_squared < nearest_squared) {
+            nearest_squared = d_squared;
             nearest = &q_W;
           }
         }
-        if (nearest == nullptr || nearest_m < kApproachingMoved_m) continue;
+        if (nearest == nullptr || nearest_squared < kApproachingMoved_m * kApproachingMoved_m) continue;
         // Judged against the footprint where it stands now, so that only the return's own motion counts.
         const double now_m = distance_to_footprint(robot_.footprint, X_WB, p_W);
         if (distance_to_footprint(robot_.footprint, X_WB, *nearest) - now_m < kApproachingCloser_m) continue;
