@@ -913,16 +913,8 @@ class YieldWrapper final : public Behaviour {
       const Eigen::Vector2d* nearest_moved = nullptr;
       double nearest_moved_m = std::numeric_limits<double>::infinity();
       for (const Eigen::Vector2d& p_W : near_W) {
-        // Squared distances: a few hundred returns on each side in a narrow aisle, every scan.
         const Eigen::Vector2d* nearest = nullptr;
-        double nearest_squared = std::numeric_limits<double>::infinity();
-        for (const Eigen::Vector2d& q_W : previous_near_W_) {
-          const double d_squared = (q_W - p_W).squaredNorm();
-          if (d_squared < nearest_squared) {
-            nearest_squared = d_squared;
-            nearest = &q_W;
-          }
-        }
+        const double nearest_squared = nearest_previous(p_W, nearest);
         if (nearest == nullptr || nearest_squared < kApproachingMoved_m * kApproachingMoved_m) continue;
         // Judged against the footprint where it stands now, so that only the return's own motion counts.
         const double now_m = distance_to_footprint(robot_.footprint, X_WB, p_W);
@@ -975,6 +967,9 @@ class YieldWrapper final : public Behaviour {
       found = candidate;
     }
     approach_candidate_ = candidate;
+    // By x, for nearest_previous.
+    std::sort(near_W.begin(), near_W.end(),
+              [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() < b.x(); });
     previous_near_W_ = std::move(near_W);
     scan_stamp_s_ = input.stamp_s;
     if (found) {
@@ -982,6 +977,32 @@ class YieldWrapper final : public Behaviour {
       return found;
     }
     return coasting_approach(input);
+  }
+
+  // The squared distance from p_W to the nearest of the previous scan's near returns (sorted by x), which nearest is
+  // set to; infinity and nullptr when there are none. Outwards from p_W's x, until the x gap alone is farther: a few
+  // hundred returns on each side in a narrow aisle, every scan.
+  double nearest_previous(const Eigen::Vector2d& p_W, const Eigen::Vector2d*& nearest) const {
+    double nearest_squared = std::numeric_limits<double>::infinity();
+    const auto consider = [&](const Eigen::Vector2d& q_W) {
+      const double dx = q_W.x() - p_W.x();
+      if (dx * dx >= nearest_squared) return false;
+      const double d_squared = (q_W - p_W).squaredNorm();
+      if (d_squared < nearest_squared) {
+        nearest_squared = d_squared;
+        nearest = &q_W;
+      }
+      return true;
+    };
+    const auto from = std::lower_bound(previous_near_W_.begin(), previous_near_W_.end(), p_W.x(),
+                                       [](const Eigen::Vector2d& q_W, double x) { return q_W.x() < x; });
+    for (auto right = from; right != previous_near_W_.end(); ++right) {
+      if (!consider(*right)) break;
+    }
+    for (auto left = from; left != previous_near_W_.begin(); --left) {
+      if (!consider(*(left - 1))) break;
+    }
+    return nearest_squared;
   }
 
   // The approaching returns found last, predicted to now, while they are recent enough.
@@ -1063,7 +1084,7 @@ class YieldWrapper final : public Behaviour {
   std::optional<Eigen::Vector2d> last_position_W_;
   double last_stamp_s_ = 0.0;
   std::vector<TrackedObstacle> moving_;                // as of the latest decision, for the guard
-  std::vector<Eigen::Vector2d> previous_near_W_;       // the previous scan's returns near the robot, world frame
+  std::vector<Eigen::Vector2d> previous_near_W_;       // the previous scan's returns near the robot, world frame, by x
   std::optional<double> scan_stamp_s_;                 // that scan's stamp
   std::optional<TrackedObstacle> approach_candidate_;  // the previous scan's approaching returns
   std::optional<TrackedObstacle> approaching_;         // the approaching returns found last
