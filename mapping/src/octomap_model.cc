@@ -344,9 +344,9 @@ struct OctoMapModel::Impl {
   //
   // The keys are deduplicated without hash sets: each ray's keys, as they are walked, are marked in a bitmap over the
   // batch's bounding box (or, when that box is too sparse, appended to one flat buffer, Morton-coded, sorted and
-  // uniqued). Either way the
-  // updates run in an order where consecutive keys share most of their tree path, which update() exploits. The order
-  // of the updates does not matter: each key gets exactly one, and a lazy update never changes another key's leaf.
+  // uniqued). Either way the updates run in an order where consecutive keys share most of their tree path, which
+  // update() exploits. The order of the updates does not matter: each key gets exactly one, and a lazy update never
+  // changes another key's leaf.
   // see_through: the batch is one laser scan, whose seen-through voxels are capped (OctoMapParams::
   // laser_see_through_clears); only in the bitmap path, which every planar scan takes.
   void apply(const octomap::point3d& origin, const std::vector<Ray>& batch, bool see_through = false) {

@@ -147,10 +147,10 @@ std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behavio
 // backward, the one that keeps it farthest from the obstacles' predicted discs without touching the map
 // ("yield_aside"). Otherwise, when the inner behaviour's command runs into a moving obstacle's predicted position,
 // the robot slows down while the contact is far ("yield_slow") and stops short of it when it is near ("yield_wait"),
-// going on once the obstacle has passed. Returns near the robot that came at it between two scans, all those round
-// the nearest of them and in two scans running, count as one more moving obstacle, at their mean displacement: a cart
-// whose cluster merges with a door frame, or a walker's with a shelf, which the tracker cannot follow. With
-// predict_horizon_s 0 the inner behaviour runs unchanged.
+// going on once the obstacle has passed. Returns near the robot that came at it between two scans count as one more
+// moving obstacle, at their mean displacement, when they are most of the returns round the nearest of them and the
+// previous scan found them where they now are: a cart whose cluster merges with a door frame, or a walker's with a
+// shelf, which the tracker cannot follow. With predict_horizon_s 0 the inner behaviour runs unchanged.
 std::unique_ptr<Behaviour> make_yield(std::unique_ptr<Behaviour> inner, const RobotShape& robot,
                                       const GuardParams& guard);
 
