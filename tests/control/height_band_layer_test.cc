@@ -154,7 +154,8 @@ TEST(HeightBandLayer, GotoEscapeDrivesRoundWhatOnlyTheOctreeHolds) {
   bearcat.laser_x_m = 0.45;
   bearcat.max_linear_mps = 1.2;
   const Eigen::Vector2d goal(6.0, 0.0);
-  auto go = make_escape([&] { return make_goto(pointbug_params_for(bearcat), goal.x(), goal.y(), 0.1, 0.3); }, bearcat);
+  auto go = make_escape([&] { return make_goto(pointbug_params_for(bearcat), goal.x(), goal.y(), 0.1, 0.3); }, bearcat,
+                        GuardParams{});
   const std::vector<float> open(181, 8.0F);
   const ScanView scan{-std::numbers::pi / 2, std::numbers::pi / 180, open, 8.0};
   const auto grid = unknown_grid();

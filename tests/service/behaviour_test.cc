@@ -107,7 +107,7 @@ TEST(WanderBehaviour, IsDeterministicAndTurnsAwayFromAFrontalObstacle) {
 
 TEST(EscapeBehaviour, PassesAGoalBehavioursCommandsThroughWhileItProgresses) {
   const auto rebuild = [] { return make_goto(pointbug_params_for(bearcat_shape()), 3.0, 0.0, 0.1, 0.5); };
-  auto escape = make_escape(rebuild, bearcat_shape());
+  auto escape = make_escape(rebuild, bearcat_shape(), GuardParams{});
   auto plain = rebuild();
   EXPECT_EQ(escape->name(), "goto");
   const OpenScan scan;
@@ -167,7 +167,7 @@ TEST(PlannedPath, WaypointsPlanTheWaypointsStillAhead) {
 
 TEST(PlannedPath, EscapeReportsTheInnerBehavioursPathUntilItEscapes) {
   const auto rebuild = [] { return make_goto(pointbug_params_for(bearcat_shape()), 3.0, 0.0, 0.1, 0.5); };
-  auto escape = make_escape(rebuild, bearcat_shape());
+  auto escape = make_escape(rebuild, bearcat_shape(), GuardParams{});
   const OpenScan scan;
   static_cast<void>(escape->decide({scan.view(), geometry::Pose2{}, 0.0}));
   const std::vector<Eigen::Vector2d> path = escape->planned_path();

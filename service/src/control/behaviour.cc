@@ -392,12 +392,71 @@ class WaypointsAdapter final : public Behaviour {
   bool reached_ = false;
 };
 
+// While an escape runs: its command, or when the guard would stop it (a corner of the footprint swinging into what
+// stands beside the robot, its nose into a pillar, a turn on the spot into a door frame the robot backed up to) a
+// motion the guard lets through, kept up for kHold_s unless the guard would stop it too: the same turn on the spot,
+// the same turn on an arc forward (which moves the corner that would swing into something along instead), backing,
+// the turn the other way round, creeping forward. Without it the robot stands for good where every way out starts with
+// a motion the guard stops; going back to the escape's own command as soon as it passes again swings the robot to and
+// fro at the edge of what the guard allows.
+class Unwedger {
+ public:
+  Unwedger(const geometry::Footprint& footprint, const GuardParams& guard) : footprint_(footprint), guard_(guard) {}
+
+  [[nodiscard]] BehaviourCommand apply(const BehaviourInput& input, const Pose2& pose, BehaviourCommand command) {
+    if (!guard_.enabled || input.grid == nullptr) return command;
+    const GuardModels models{input.grid, input.octomap, guard_.check_ptem ? input.ptem : nullptr, input.ptem,
+                             input.moving_tracks};
+    const auto passes = [&](double linear_mps, double angular_radps) {
+      return guard_command(models, footprint_, pose, linear_mps, angular_radps, guard_).action != GuardAction::kStop;
+    };
+    const auto apply_motion = [&command](const Motion& motion) {
+      command.linear_mps = motion.linear_mps;
+      command.angular_radps = motion.angular_radps;
+      command.wheels.reset();
+      if (motion.linear_mps < 0.0) command.state = BehaviourState::kEscapeBackOff;
+      return command;
+    };
+    if (input.stamp_s < until_s_ && passes(motion_.linear_mps, motion_.angular_radps)) return apply_motion(motion_);
+    if (passes(command.linear_mps, command.angular_radps)) return command;
+    const double turn = command.angular_radps < 0.0 ? -1.0 : 1.0;
+    const std::array<Motion, 5> motions{{{0.0, turn * kTurn_radps},
+                                         {kArc_mps, turn * kTurn_radps},
+                                         {-kCreep_mps, 0.0},
+                                         {0.0, -turn * kTurn_radps},
+                                         {kCreep_mps, 0.0}}};
+    for (const Motion& motion : motions) {
+      if (!passes(motion.linear_mps, motion.angular_radps)) continue;
+      motion_ = motion;
+      until_s_ = input.stamp_s + kHold_s;
+      return apply_motion(motion);
+    }
+    return command;
+  }
+
+ private:
+  static constexpr double kTurn_radps = 0.6;
+  static constexpr double kCreep_mps = 0.1;
+  static constexpr double kArc_mps = 0.2;
+  static constexpr double kHold_s = 1.5;
+  struct Motion {
+    double linear_mps = 0.0;
+    double angular_radps = 0.0;
+  };
+
+  geometry::Footprint footprint_;
+  GuardParams guard_;
+  Motion motion_;  // what the robot does while the guard stops the escape's own command
+  double until_s_ = -std::numeric_limits<double>::infinity();
+};
+
 class EscapeWrapper final : public Behaviour {
  public:
-  EscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot)
+  EscapeWrapper(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot, const GuardParams& guard)
       : rebuild_(std::move(rebuild)),
         inner_(rebuild_()),
         detector_(detector_params()),
+        unwedger_(robot.footprint, guard),
         height_m_(geometry::footprint_height(robot.footprint)) {
     // Hard limit at the inscribed radius, so a gap the body fits through aligned stays open; a cost gradient out to
     // the circumscribed radius keeps the path off walls where there is room (the guard checks the real footprint).
@@ -502,14 +561,15 @@ class EscapeWrapper final : public Behaviour {
       // PointBug's no_path is final, so goto starts afresh (at the goal it reports reached at once); the waypoint
       // guidance keeps its target, which waits at the waypoint the escape led to.
       if (inner_->name() == "goto") inner_ = rebuild_();
-      command = inner_->decide(input);
+      return inner_->decide(input);
     }
-    return command;
+    return unwedger_.apply(input, pose, command);
   }
 
   std::function<std::unique_ptr<Behaviour>()> rebuild_;
   std::unique_ptr<Behaviour> inner_;
   LoopDetector detector_;
+  Unwedger unwedger_;
   GlobalPathParams planner_;
   PurePursuitParams follower_;
   std::vector<Eigen::Vector2d> path_;
@@ -532,8 +592,7 @@ class MapEscapeWrapper final : public Behaviour {
                    const GuardParams& guard)
       : rebuild_(std::move(rebuild)),
         inner_(rebuild_()),
-        footprint_(robot.footprint),
-        guard_(guard),
+        unwedger_(robot.footprint, guard),
         height_m_(geometry::footprint_height(robot.footprint)) {
     // No goal to squeeze through to: the way out keeps the whole turning circle clear, and more where there is room.
     planner_.footprint_radius_m = geometry::bounding_radius(robot.footprint);
@@ -559,7 +618,7 @@ class MapEscapeWrapper final : public Behaviour {
     position_W_ = Eigen::Vector2d(pose.x, pose.y);
     if (!path_.empty()) {
       BehaviourCommand command = follow(input, pose);
-      if (command.state != BehaviourState::kNone) return unwedged(input, pose, command);
+      if (command.state != BehaviourState::kNone) return unwedger_.apply(input, pose, command);
     }
     BehaviourCommand command = inner_->decide(input);
     // Headway: the robot left a disc round where it last made some; turning on the spot is not headway.
@@ -575,7 +634,7 @@ class MapEscapeWrapper final : public Behaviour {
     }
     const bool stuck = command.stop || input.stamp_s - anchor_s_ > kStallTime_s;
     if (!stuck) return command;
-    if (input.stamp_s < next_plan_s_) return unwedged(input, pose, command);
+    if (input.stamp_s < next_plan_s_) return unwedger_.apply(input, pose, command);
     if (held_up_ && !input.ring && clear_behind(input, pose)) {
       // The last way out was held up where it started (a wall the guard sees close ahead): back off first.
       held_up_ = false;
@@ -592,7 +651,7 @@ class MapEscapeWrapper final : public Behaviour {
                                                                                : BehaviourState::kEscapeStalled;
     if (plan_out(input, pose)) {
       BehaviourCommand escape = follow(input, pose);
-      if (escape.state != BehaviourState::kNone) return unwedged(input, pose, escape);
+      if (escape.state != BehaviourState::kNone) return unwedger_.apply(input, pose, escape);
     }
     // A search cut short by its per-cycle budget goes on at the next cycle; one that found nothing waits a second.
     next_plan_s_ = next_candidate_ != 0 ? input.stamp_s : input.stamp_s + 1.0;
@@ -604,7 +663,7 @@ class MapEscapeWrapper final : public Behaviour {
     }
     // Whatever it does meanwhile, not what the guard stops: a wander into a wall the ring no longer hears would stand
     // there for good.
-    return unwedged(input, pose, command);
+    return unwedger_.apply(input, pose, command);
   }
 
  private:
@@ -615,49 +674,7 @@ class MapEscapeWrapper final : public Behaviour {
   static constexpr double kBackOffSpeed_mps = 0.15;
   static constexpr double kRingAheadClearance_m = 0.5;  // ring readings this far beyond the body block an escape
   static constexpr double kBackOffTime_s = 2.0;
-  static constexpr double kUnwedgeTurn_radps = 0.6;
-  static constexpr double kUnwedgeCreep_mps = 0.1;
   static constexpr double kHeadway_rad = 0.5;  // turning this far towards the way out is headway too
-  static constexpr double kUnwedge_s = 1.5;
-  struct UnwedgeMotion {
-    double linear_mps = 0.0;
-    double angular_radps = 0.0;
-  };
-
-  // The escape's command, or when the guard would stop it (a corner of the footprint swinging into what stands beside
-  // the robot, its nose into a pillar) a motion the guard lets through, kept up for kUnwedge_s unless the guard would
-  // stop it too: the same turn on the spot, backing, the turn the other way round, creeping forward. Without it the
-  // robot stands for good where every way out starts with a motion the guard stops; going back to the escape's own
-  // command as soon as it passes again swings the robot to and fro at the edge of what the guard allows.
-  [[nodiscard]] BehaviourCommand unwedged(const BehaviourInput& input, const Pose2& pose, BehaviourCommand command) {
-    if (!guard_.enabled || input.grid == nullptr) return command;
-    const GuardModels models{input.grid, input.octomap, guard_.check_ptem ? input.ptem : nullptr, input.ptem,
-                             input.moving_tracks};
-    const auto passes = [&](double linear_mps, double angular_radps) {
-      return guard_command(models, footprint_, pose, linear_mps, angular_radps, guard_).action != GuardAction::kStop;
-    };
-    const auto apply = [&command](const UnwedgeMotion& motion) {
-      command.linear_mps = motion.linear_mps;
-      command.angular_radps = motion.angular_radps;
-      command.wheels.reset();
-      if (motion.linear_mps < 0.0) command.state = BehaviourState::kEscapeBackOff;
-      return command;
-    };
-    if (input.stamp_s < unwedge_until_s_ && passes(unwedge_.linear_mps, unwedge_.angular_radps)) return apply(unwedge_);
-    if (passes(command.linear_mps, command.angular_radps)) return command;
-    const double turn = command.angular_radps < 0.0 ? -1.0 : 1.0;
-    const std::array<UnwedgeMotion, 4> motions{{{0.0, turn * kUnwedgeTurn_radps},
-                                                {-kUnwedgeCreep_mps, 0.0},
-                                                {0.0, -turn * kUnwedgeTurn_radps},
-                                                {kUnwedgeCreep_mps, 0.0}}};
-    for (const UnwedgeMotion& motion : motions) {
-      if (!passes(motion.linear_mps, motion.angular_radps)) continue;
-      unwedge_ = motion;
-      unwedge_until_s_ = input.stamp_s + kUnwedge_s;
-      return apply(motion);
-    }
-    return command;
-  }
 
   // Whether reversing kBackOffSpeed_mps for kBackOffTime_s stays clear of what the ring hears behind (when the robot
   // has one) and of what the map remembers there.
@@ -757,10 +774,7 @@ class MapEscapeWrapper final : public Behaviour {
 
   std::function<std::unique_ptr<Behaviour>()> rebuild_;
   std::unique_ptr<Behaviour> inner_;
-  geometry::Footprint footprint_;
-  GuardParams guard_;
-  UnwedgeMotion unwedge_;  // what the robot does while the guard stops the escape's own command
-  double unwedge_until_s_ = -std::numeric_limits<double>::infinity();
+  Unwedger unwedger_;
   GlobalPathParams planner_;
   PurePursuitParams follower_;
   double clearance_m_ = 0.0;
@@ -857,8 +871,9 @@ class YieldWrapper final : public Behaviour {
       // Far yet: arrive later, when the obstacle may have passed.
       command.linear_mps *= kYieldSlowRatio;
       command.angular_radps *= kYieldSlowRatio;
-      if (command.wheels)
+      if (command.wheels) {
         command.wheels = {command.wheels->left_mps * kYieldSlowRatio, command.wheels->right_mps * kYieldSlowRatio};
+      }
       command.leg_m.reset();
       command.state = BehaviourState::kYieldSlow;
       return command;
@@ -1148,8 +1163,9 @@ std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<E
   return std::make_unique<WaypointsAdapter>(params, std::move(waypoints_W));
 }
 
-std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot) {
-  return std::make_unique<EscapeWrapper>(std::move(rebuild), robot);
+std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
+                                       const GuardParams& guard) {
+  return std::make_unique<EscapeWrapper>(std::move(rebuild), robot, guard);
 }
 
 std::unique_ptr<Behaviour> make_yield(std::unique_ptr<Behaviour> inner, const RobotShape& robot,

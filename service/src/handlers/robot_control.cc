@@ -173,7 +173,8 @@ std::unique_ptr<control::Behaviour> make_plain_behaviour(v1::Behaviour name, con
     v1::DriveRequest plain = request;
     plain.set_escape(false);
     return control::make_escape(
-        [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); }, shape);
+        [plain, name, &model, &config] { return make_plain_behaviour(name, plain, model, config); }, shape,
+        config.guard);
   }
   if (name == v1::BEHAVIOUR_WAYPOINTS) {
     std::vector<Eigen::Vector2d> waypoints_W;

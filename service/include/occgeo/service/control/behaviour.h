@@ -127,9 +127,11 @@ std::unique_ptr<Behaviour> make_waypoints(const RobotShape& robot, std::vector<E
 // behaviour's current goal and follows it by pure pursuit (state "escape_<trigger>"), then resumes a fresh inner
 // behaviour from `rebuild`. For goto it also looks ahead: when the straight way to the goal runs into an occupied cell
 // of the remembered grid, it follows the global path at once (state "escape_blocked"). The global path's hard limit is
-// the footprint's inscribed radius, with a cost gradient out to its circumscribed radius. An inner behaviour without a
-// goal runs unchanged.
-std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot);
+// the footprint's inscribed radius, with a cost gradient out to its circumscribed radius. While it follows the path, a
+// command the safety guard (`guard`, as the server runs it) would stop is replaced for 1.5 s by the first motion the
+// guard lets through, as make_map_escape does. An inner behaviour without a goal runs unchanged.
+std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
+                                       const GuardParams& guard);
 
 // Beyond the seeds, for behaviours without a goal (Bearcat, wander): when the inner behaviour stops (the Bearcat's
 // deadlock) or makes no headway (0.5 m) for 6 s, plans a way out over the remembered HIMM grid to the first reachable
@@ -137,7 +139,7 @@ std::unique_ptr<Behaviour> make_escape(std::function<std::unique_ptr<Behaviour>(
 // "escape_<trigger>"), then resumes a fresh inner behaviour from `rebuild`. With no way out on the map yet it turns on
 // the spot ("escape_look_round") instead of stopping. While it escapes or is stalled, a command the safety guard
 // (`guard`, as the server runs it) would stop is replaced for 1.5 s by the first motion the guard lets through: the
-// same turn on the spot, backing, the other turn, creeping forward.
+// same turn on the spot, the same turn on an arc forward, backing, the other turn, creeping forward.
 std::unique_ptr<Behaviour> make_map_escape(std::function<std::unique_ptr<Behaviour>()> rebuild, const RobotShape& robot,
                                            const GuardParams& guard);
 
