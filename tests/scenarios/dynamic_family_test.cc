@@ -10,8 +10,11 @@
 // and the run's rates are printed either way; OCCGEO_DYNAMIC_FIRST=N starts the family at seed N. OCCGEO_DYNAMIC_CONFIG
 // is YAML added to the server's configuration, e.g. "guard: {predict_horizon_s: 0}" for the same worlds without the
 // prediction of moving obstacles. OCCGEO_DYNAMIC_WORLD_DIR=DIR keeps each world's file there, to drive it by hand.
+// OCCGEO_DYNAMIC_DRIVE_AFTER_S=S sets each run's goal S seconds after the simulator started (held at sim time 0 until
+// then) instead of before it connected; the rows must not change (the second test checks that on a few worlds).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -66,6 +69,7 @@ Scenario family_scenario(const std::string& name, const std::string& world_file,
   s.duration_s = 120.0;
   s.max_wall_s = 120.0;
   if (const char* extra = std::getenv("OCCGEO_DYNAMIC_CONFIG")) s.extra_config = std::string(extra) + "\n";
+  if (const char* after = std::getenv("OCCGEO_DYNAMIC_DRIVE_AFTER_S")) s.drive_after_start_s = std::atof(after);
   return s;
 }
 
@@ -140,6 +144,44 @@ TEST(DynamicFamily, PeopleAndCartsInGeneratedWorlds) {
             << 100.0 * runs_hit / std::max(runs, 1)
             << " %); goals reached within 2x the reference time: " << reached_in_time << " ("
             << 100.0 * reached_in_time / std::max(runs, 1) << " %)\n";
+}
+
+// Deterministic lockstep over generated worlds too: a goal set a while after the simulator started (held at sim time 0
+// until then, as a user typing `occgeo goto` after starting `occgeo-sim --hold`) gives the same run, row for row and
+// trace for trace, as the goal set before the simulator connected. The first OCCGEO_DYNAMIC_SAME_WORLDS worlds of the
+// family (default 2), both robots, with people and carts.
+TEST(DynamicFamily, AGoalSetAfterTheSimulatorStartedGivesTheSameRunInGeneratedWorlds) {
+  int worlds = 2;
+  if (const char* text = std::getenv("OCCGEO_DYNAMIC_SAME_WORLDS")) worlds = std::clamp(std::atoi(text), 1, 1000);
+  TempDir dir;
+  for (int seed = first_seed(); seed < first_seed() + worlds; ++seed) {
+    const DynamicWorld world = make_dynamic_world(static_cast<std::uint32_t>(seed));
+    const auto file = dir.path() / (world.name + ".yaml");
+    std::ofstream(file) << world.yaml;
+    for (const std::string preset : {"ugv", "bearcat"}) {
+      SCOPED_TRACE(world.name + " " + preset);
+      Scenario scenario = family_scenario(world.name + "-" + preset, file.string(), preset, world.goal_W);
+      scenario.drive_after_start_s.reset();
+      const ScenarioResult goal_first = run_scenario(scenario, std::nullopt);
+      scenario.drive_after_start_s = 0.5;
+      const ScenarioResult goal_later = run_scenario(scenario, std::nullopt);
+      ASSERT_TRUE(goal_first.ran) << goal_first.failure;
+      ASSERT_TRUE(goal_later.ran) << goal_later.failure;
+      EXPECT_GT(goal_first.path_m, 1.0) << "the robot must drive for the comparison to mean anything";
+      EXPECT_EQ(goal_later.collisions_moving, goal_first.collisions_moving);
+      EXPECT_EQ(goal_later.collisions_at_rest, goal_first.collisions_at_rest);
+      EXPECT_EQ(goal_later.collisions_hit_moving, goal_first.collisions_hit_moving);
+      EXPECT_EQ(goal_later.reached, goal_first.reached);
+      EXPECT_EQ(goal_later.last_state, goal_first.last_state);
+      EXPECT_EQ(goal_later.sim_s, goal_first.sim_s);
+      ASSERT_EQ(goal_later.trace.size(), goal_first.trace.size());
+      for (std::size_t row = 0; row < goal_first.trace.size(); ++row) {
+        ASSERT_EQ(goal_later.trace[row], goal_first.trace[row]) << "the trajectories part at trace row " << row;
+      }
+      std::cout << world.name << " " << preset << ": the same run with the goal first and 0.5 s after the start ("
+                << goal_first.trace.size() << " trace rows, " << goal_first.sim_s << " s)\n";
+    }
+  }
 }
 
 }  // namespace
