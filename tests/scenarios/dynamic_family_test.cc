@@ -174,10 +174,8 @@ TEST(DynamicFamily, AGoalSetAfterTheSimulatorStartedGivesTheSameRunInGeneratedWo
       EXPECT_EQ(goal_later.reached, goal_first.reached);
       EXPECT_EQ(goal_later.last_state, goal_first.last_state);
       EXPECT_EQ(goal_later.sim_s, goal_first.sim_s);
-      ASSERT_EQ(goal_later.trace.size(), goal_first.trace.size());
-      for (std::size_t row = 0; row < goal_first.trace.size(); ++row) {
-        ASSERT_EQ(goal_later.trace[row], goal_first.trace[row]) << "the trajectories part at trace row " << row;
-      }
+      const std::optional<std::size_t> parted_at = first_trace_difference(goal_first, goal_later);
+      ASSERT_EQ(parted_at, std::nullopt) << "the trajectories part at trace row " << *parted_at;
       std::cout << world.name << " " << preset << ": the same run with the goal first and 0.5 s after the start ("
                 << goal_first.trace.size() << " trace rows, " << goal_first.sim_s << " s)\n";
     }

@@ -80,16 +80,6 @@ std::string describe(const ScenarioResult& r) {
   return line;
 }
 
-// The first trace row where the two runs differ (or where one ends), if any.
-std::optional<std::size_t> first_difference(const ScenarioResult& a, const ScenarioResult& b) {
-  const std::size_t common = std::min(a.trace.size(), b.trace.size());
-  for (std::size_t i = 0; i < common; ++i) {
-    if (a.trace[i] != b.trace[i]) return i;
-  }
-  if (a.trace.size() != b.trace.size()) return common;
-  return std::nullopt;
-}
-
 TEST(Repeatability, MovingObstacleLockstepRunsRepeatExactly) {
   const Scenario scenario = approaching_obstacle();
   std::vector<ScenarioResult> results;
@@ -120,7 +110,7 @@ TEST(Repeatability, MovingObstacleLockstepRunsRepeatExactly) {
     EXPECT_EQ(r.reached, first.reached);
     EXPECT_EQ(r.last_state, first.last_state);
     EXPECT_NEAR((r.final_pose - first.final_pose).norm(), 0.0, 1e-9);
-    if (const auto row = first_difference(first, r)) {
+    if (const auto row = first_trace_difference(first, r)) {
       const auto show = [](const ScenarioResult& run, std::size_t at) {
         if (at >= run.trace.size()) return std::string("(ended)");
         const Eigen::Vector4d& p = run.trace[at];
@@ -152,7 +142,7 @@ TEST(Repeatability, AGoalSetAfterTheSimulatorStartedGivesTheSameRun) {
     std::cout << "goal later: " << describe(r) << '\n';
     EXPECT_NEAR(r.path_m, goal_first.path_m, 1e-9);
     EXPECT_EQ(r.collisions, goal_first.collisions);
-    EXPECT_EQ(first_difference(goal_first, r), std::nullopt) << "the trajectories part";
+    EXPECT_EQ(first_trace_difference(goal_first, r), std::nullopt) << "the trajectories part";
   }
 }
 

@@ -297,6 +297,15 @@ std::optional<OptimalPath> optimal_path_length(const std::string& world_file, co
   return out;
 }
 
+std::optional<std::size_t> first_trace_difference(const ScenarioResult& a, const ScenarioResult& b) {
+  const std::size_t common = std::min(a.trace.size(), b.trace.size());
+  for (std::size_t i = 0; i < common; ++i) {
+    if (a.trace[i] != b.trace[i]) return i;
+  }
+  if (a.trace.size() != b.trace.size()) return common;
+  return std::nullopt;
+}
+
 ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir) {
   ScenarioResult result;
   result.name = scenario.name;

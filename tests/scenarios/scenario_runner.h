@@ -72,6 +72,9 @@ std::filesystem::path world_path(const std::string& world);
 // Runs the scenario; every wait is bounded. picture_dir, when set, receives NAME.png of the true trajectory.
 ScenarioResult run_scenario(const Scenario& scenario, const std::optional<std::string>& picture_dir);
 
+// The first trace row where the two runs differ (or where one ends), if any.
+std::optional<std::size_t> first_trace_difference(const ScenarioResult& a, const ScenarioResult& b);
+
 // One table of every result: scenario, reached, collisions, path, optimal, ratio, sim time, wall time, last state.
 std::string results_table(const std::vector<Scenario>& scenarios, const std::vector<ScenarioResult>& results);
 
