@@ -929,8 +929,11 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
   const std::int32_t last_gx = near.max.ix >> kLineShift;
   const std::int32_t last_gy = near.max.iy >> kLineShift;
   thread_local std::vector<EdgeLine> edge_lines;
-  edge_lines.resize(static_cast<std::size_t>(last_gx - first_gx + 1) *
-                    static_cast<std::size_t>(last_gy - first_gy + 1));
+  // Grown only: lookups of fields of different cell sizes alternate (an all-model query), and a resize back up
+  // would value-initialise the lines again on every lookup.
+  const std::size_t box_lines =
+      static_cast<std::size_t>(last_gx - first_gx + 1) * static_cast<std::size_t>(last_gy - first_gy + 1);
+  if (edge_lines.size() < box_lines) edge_lines.resize(box_lines);
   std::size_t edge_line_count = 0;
   std::size_t nearest_line = 0;
   const double line_reach = line_half_diagonal + half_diagonal;
@@ -1021,12 +1024,13 @@ DistanceFieldSnapshot::Answer DistanceFieldSnapshot::answer(const geometry::Clea
     const double squared_line_shell_in = line_shell_in > 0.0 ? line_shell_in * line_shell_in : -1.0;
     for (std::int32_t gy = shell_ys.first >> kLineShift; gy <= shell_ys.second >> kLineShift; ++gy) {
       for (std::int32_t gx = shell_xs.first >> kLineShift; gx <= shell_xs.second >> kLineShift; ++gx) {
+        // Most lines hold no occupied cell: one read settles them, before the footprint test.
+        const Line line = line_at(gx, gy);
+        if (line.min_squared != 0) continue;
         const Eigen::Vector2d line_center_W((gx * kLineCells + 0.5 * kLineCells) * cell_size,
                                             (gy * kLineCells + 0.5 * kLineCells) * cell_size);
         const double squared = placed.place(line_center_W, 0.0).squared_distance;
         if (squared > line_shell_out * line_shell_out || squared < squared_line_shell_in) continue;
-        const Line line = line_at(gx, gy);
-        if (line.min_squared != 0) continue;
         // Any occupied cell's distance is an upper bound; those in the shell can improve on `upper`.
         for (std::int32_t cy = 0; cy < kLineCells; ++cy) {
           for (std::int32_t cx = 0; cx < kLineCells; ++cx) {

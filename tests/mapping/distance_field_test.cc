@@ -437,6 +437,47 @@ TEST(DistanceFieldClearanceTest, AgreesWithExactAndFclOnOpenField) {
   EXPECT_LT(field.snapshot()->exact_fallback_count(), 600U);
 }
 
+// A reach shorter than the obstacles' distances, down to less than a cell, as an all-model query asks a later model
+// (within the answer so far): what the field finds is never below the exact clearance and at most a cell above it,
+// and when it finds nothing within the reach, the exact clearance is at least the reach less a cell.
+TEST(DistanceFieldClearanceTest, AShortReachMissesNoObstacleMoreThanACellWithinIt) {
+  std::mt19937 rng(31);
+  DistanceField field(DistanceFieldParams{});
+  static_cast<void>(field.update(random_world(rng, 200, 200, 60, 300).snapshot()));
+  const DistanceFieldSnapshot& snapshot = *field.snapshot();
+  std::uniform_real_distribution<double> coordinate(1.0, 19.0), angle(-std::numbers::pi, std::numbers::pi);
+  std::uniform_real_distribution<double> size(0.2, 1.5), offset(-0.3, 0.3), reach(0.0, 0.6);
+  int found = 0, missed_within_a_cell = 0;
+  for (int i = 0; i < 2000; ++i) {
+    geometry::ClearanceRequest request;
+    request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
+    request.max_distance_m = reach(rng);
+    if (i % 4 == 3) {
+      request.footprint = geometry::CylinderFootprint{.radius = size(rng) / 2.0};
+    } else {
+      request.footprint = geometry::BoxFootprint{.length = size(rng), .width = size(rng), .center_x = offset(rng)};
+    }
+    const geometry::ClearanceResult fast = snapshot.compute_clearance(request);
+    // The exact clearance without the cut, so that an obstacle just beyond the reach still shows its distance.
+    geometry::ClearanceRequest unlimited = request;
+    unlimited.max_distance_m = 2.0;
+    const geometry::ClearanceResult exact = geometry::compute_clearance(unlimited, snapshot.grid());
+    const double exact_m = exact.found ? exact.clearance_m : unlimited.max_distance_m;
+    if (fast.found) {
+      ++found;
+      EXPECT_GE(fast.clearance_m, exact_m - 1e-9) << "pose " << i;
+      EXPECT_LE(fast.clearance_m, exact_m + kCell + 1e-9) << "pose " << i;
+      EXPECT_LE(fast.clearance_m, request.max_distance_m) << "pose " << i;
+    } else {
+      EXPECT_EQ(fast.clearance_m, request.max_distance_m) << "pose " << i;
+      EXPECT_GE(exact_m, request.max_distance_m - kCell - 1e-9) << "pose " << i << ": an obstacle within the reach";
+      missed_within_a_cell += exact_m <= request.max_distance_m ? 1 : 0;
+    }
+  }
+  EXPECT_GT(found, 400);
+  RecordProperty("not_found_within_a_cell_of_the_reach", std::to_string(missed_within_a_cell));
+}
+
 // Convex polygon footprints (3 to 10 vertices on a tilted ellipse, base_link possibly outside): the field's clearance
 // is never below the exact search's and at most a cell above it, and contact is contact.
 TEST(DistanceFieldClearanceTest, PolygonAgreesWithExactOnRandomWorld) {

@@ -157,9 +157,18 @@ void answer_clearance(const WorldSnapshot& snapshot, const geometry::Footprint& 
     out.set_keep_out(restricted.found && restricted.clearance_m <= 0.0);
   }
   Eigen::Vector2d best_point_W = Eigen::Vector2d::Zero();
-  // Keeps the nearest answer over the models; ties go to the model asked first.
+  // Keeps the nearest answer over the models; ties go to the model asked first. A later model is asked only within
+  // the answer so far: an obstacle of its own beyond that cannot change the reply, and its field then settles most of
+  // the footprint's edge from the per-line distances alone. Its guarantee holds within that distance as within any
+  // (never below its exact clearance, at most a cell above), so when it finds nothing nearer its exact clearance is
+  // at least the answer so far less its cell, and the reply stays within a cell of the nearest obstacle of any model.
+  geometry::ClearanceRequest narrowed = request;
   for (const v1::Model model : models) {
-    const ModelClearance r = model_clearance(snapshot, model, request);
+    if (out.found()) {
+      if (out.clearance_m() <= 0.0) break;  // contact: nothing is nearer, and ties go to the model asked first
+      narrowed.max_distance_m = out.clearance_m();
+    }
+    const ModelClearance r = model_clearance(snapshot, model, narrowed);
     if (!r.found || (out.found() && r.clearance_m >= out.clearance_m())) continue;
     out.set_found(true);
     out.set_clearance_m(r.clearance_m);
