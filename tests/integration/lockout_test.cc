@@ -3,12 +3,14 @@
 // the CLI's status still answers.
 #include <gtest/gtest.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <fstream>
+#include <thread>
 #include <vector>
 
 #include "../support/process.h"
@@ -84,6 +86,42 @@ TEST(Lockout, ConnectionThatNeverSaysHelloIsClosedAfterTheHelloTimeout) {
   status.mutable_status();
   status.set_request_id(1);
   EXPECT_TRUE(query.call(status, 1).has_status());
+}
+
+// True when the connection is still open after `wait`: nothing to read and no end of stream.
+bool still_open_after(int fd, std::chrono::milliseconds wait) {
+  pollfd watched{fd, POLLIN, 0};
+  return poll(&watched, 1, static_cast<int>(wait.count())) == 0;
+}
+
+TEST(Lockout, SilentConnectionsBeyondThePerAddressCapGiveWayOldestFirstAndSessionsPastHelloStay) {
+  TempDir dir;
+  const auto config = dir.path() / "occgeod.yaml";
+  std::ofstream(config) << "limits:\n  hello_timeout_s: 60\n  max_silent_per_address: 4\n";
+  ServerProcess server(dir.path(), {"--config", config.string()});
+  auto query = open_query_session(server.address());
+  std::vector<int> silent;
+  for (int i = 0; i < 10; ++i) {
+    silent.push_back(silent_connection(server.port()));
+    ASSERT_GE(silent.back(), 0);
+    // One at a time, so that the server has taken each before the next: the order of eviction is the order here.
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_TRUE(closed_by_server(silent[static_cast<std::size_t>(i)], std::chrono::seconds(5)))
+        << "silent connection " << i << " of 10 is still open beyond the cap of 4";
+  }
+  for (int i = 6; i < 10; ++i) {
+    EXPECT_TRUE(still_open_after(silent[static_cast<std::size_t>(i)], std::chrono::milliseconds(200)))
+        << "silent connection " << i << " of 10, within the cap of 4, was closed";
+  }
+  for (const int fd : silent) close(fd);
+  // The session past its hello counts against no cap and still answers.
+  v1::ClientMessage status;
+  status.mutable_status();
+  status.set_request_id(1);
+  EXPECT_TRUE(query.call(status, 1).has_status());
+  EXPECT_NE(server.log().find("session_evicted"), std::string::npos);
 }
 
 TEST(Lockout, TwoThousandIdleConnectionsDoNotKeepADriverOrTheCliOut) {
