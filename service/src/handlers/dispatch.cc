@@ -83,6 +83,7 @@ const std::vector<std::pair<std::string_view, int>>& body_field_numbers() {
   static const std::vector<std::pair<std::string_view, int>> numbers = [] {
     std::vector<std::pair<std::string_view, int>> all;
     const auto* descriptor = v1::ClientMessage::descriptor();
+    all.reserve(static_cast<std::size_t>(descriptor->field_count()));
     for (int i = 0; i < descriptor->field_count(); ++i) {
       all.emplace_back(descriptor->field(i)->name(), descriptor->field(i)->number());
     }
@@ -239,12 +240,14 @@ void dispatch_message(const SessionPtr& session, v1::ClientMessage& message) {
       handle_octree_request(session, message.request_id(), message.octree());
       return;
     case v1::ClientMessage::kLease:
-      if (require_controller(session, "lease", message.request_id()))
+      if (require_controller(session, "lease", message.request_id())) {
         handle_lease_request(session, message.request_id(), message.lease());
+      }
       return;
     case v1::ClientMessage::kDrive:
-      if (require_controller(session, "drive", message.request_id()))
+      if (require_controller(session, "drive", message.request_id())) {
         handle_drive_request(session, message.request_id(), message.drive());
+      }
       return;
     case v1::ClientMessage::kEstop:
       if (session->info().role == v1::ROLE_QUERY) {
