@@ -375,23 +375,30 @@ struct Agreement {
   double worst_vs_fcl = 0.0;
 };
 
-// Field clearance against the exact search on random poses and footprints inside [lo, hi]^2, and against FCL for
-// boxes; the field may exceed the exact value by one cell at most and never be below it.
-Agreement check_clearances(const DistanceFieldSnapshot& field, std::mt19937& rng, double lo, double hi, int poses) {
+// A clearance request at a random pose inside [lo, hi]^2 with a reach of max_distance_m: a cylinder every fourth
+// request (i % 4 == 3), else a box, 0.2 to 1.5 m across, its centre up to 0.3 m off base_link.
+geometry::ClearanceRequest random_request(std::mt19937& rng, int i, double lo, double hi, double max_distance_m) {
   std::uniform_real_distribution<double> coordinate(lo, hi);
   std::uniform_real_distribution<double> angle(-std::numbers::pi, std::numbers::pi);
   std::uniform_real_distribution<double> size(0.2, 1.5);
   std::uniform_real_distribution<double> offset(-0.3, 0.3);
+  geometry::ClearanceRequest request;
+  request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
+  request.max_distance_m = max_distance_m;
+  if (i % 4 == 3) {
+    request.footprint = geometry::CylinderFootprint{.radius = size(rng) / 2.0};
+  } else {
+    request.footprint = geometry::BoxFootprint{.length = size(rng), .width = size(rng), .center_x = offset(rng)};
+  }
+  return request;
+}
+
+// Field clearance against the exact search on random poses and footprints inside [lo, hi]^2, and against FCL for
+// boxes; the field may exceed the exact value by one cell at most and never be below it.
+Agreement check_clearances(const DistanceFieldSnapshot& field, std::mt19937& rng, double lo, double hi, int poses) {
   Agreement agreement;
   for (int i = 0; i < poses; ++i) {
-    geometry::ClearanceRequest request;
-    request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
-    request.max_distance_m = 2.0;
-    if (i % 4 == 3) {
-      request.footprint = geometry::CylinderFootprint{.radius = size(rng) / 2.0};
-    } else {
-      request.footprint = geometry::BoxFootprint{.length = size(rng), .width = size(rng), .center_x = offset(rng)};
-    }
+    const geometry::ClearanceRequest request = random_request(rng, i, lo, hi, 2.0);
     const geometry::ClearanceResult fast = field.compute_clearance(request);
     const geometry::ClearanceResult exact = geometry::compute_clearance(request, field.grid());
     ++agreement.queries;
@@ -445,18 +452,10 @@ TEST(DistanceFieldClearanceTest, AShortReachMissesNoObstacleMoreThanACellWithinI
   DistanceField field(DistanceFieldParams{});
   static_cast<void>(field.update(random_world(rng, 200, 200, 60, 300).snapshot()));
   const DistanceFieldSnapshot& snapshot = *field.snapshot();
-  std::uniform_real_distribution<double> coordinate(1.0, 19.0), angle(-std::numbers::pi, std::numbers::pi);
-  std::uniform_real_distribution<double> size(0.2, 1.5), offset(-0.3, 0.3), reach(0.0, 0.6);
+  std::uniform_real_distribution<double> reach(0.0, 0.6);
   int found = 0, missed_within_a_cell = 0;
   for (int i = 0; i < 2000; ++i) {
-    geometry::ClearanceRequest request;
-    request.pose = {coordinate(rng), coordinate(rng), angle(rng)};
-    request.max_distance_m = reach(rng);
-    if (i % 4 == 3) {
-      request.footprint = geometry::CylinderFootprint{.radius = size(rng) / 2.0};
-    } else {
-      request.footprint = geometry::BoxFootprint{.length = size(rng), .width = size(rng), .center_x = offset(rng)};
-    }
+    const geometry::ClearanceRequest request = random_request(rng, i, 1.0, 19.0, reach(rng));
     const geometry::ClearanceResult fast = snapshot.compute_clearance(request);
     // The exact clearance without the cut, so that an obstacle just beyond the reach still shows its distance.
     geometry::ClearanceRequest unlimited = request;

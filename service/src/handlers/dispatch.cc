@@ -96,8 +96,7 @@ const std::vector<std::pair<std::string_view, int>>& body_field_numbers() {
 // occgeo_query_duration_seconds of one kind, named as the ClientMessage body's field.
 metrics::Histogram& query_histogram(ServerCore& core, std::string_view what) {
   const auto& numbers = body_field_numbers();
-  const auto found = std::lower_bound(numbers.begin(), numbers.end(), what,
-                                      [](const auto& entry, std::string_view name) { return entry.first < name; });
+  const auto found = std::ranges::lower_bound(numbers, what, {}, &std::pair<std::string_view, int>::first);
   const bool known = found != numbers.end() && found->first == what;
   return core.query_durations().at(known ? static_cast<std::size_t>(found->second) : ServerCore::kBodyFieldCount, what);
 }

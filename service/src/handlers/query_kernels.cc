@@ -149,7 +149,7 @@ void answer_collision(const WorldSnapshot& snapshot, const geometry::Footprint& 
 
 void answer_clearance(const WorldSnapshot& snapshot, const geometry::Footprint& footprint, const geometry::Pose2& X_WB,
                       double max_distance_m, std::span<const v1::Model> models, v1::ClearanceReply& out) {
-  const geometry::ClearanceRequest request{footprint, X_WB, max_distance_m};
+  geometry::ClearanceRequest request{footprint, X_WB, max_distance_m};
   out.set_clearance_m(max_distance_m);
   if (std::find(models.begin(), models.end(), v1::MODEL_PTEM) != models.end()) {
     const PtemClearance restricted = ptem_clearance(*snapshot.ptem, footprint, X_WB, max_distance_m);
@@ -162,13 +162,12 @@ void answer_clearance(const WorldSnapshot& snapshot, const geometry::Footprint& 
   // the footprint's edge from the per-line distances alone. Its guarantee holds within that distance as within any
   // (never below its exact clearance, at most a cell above), so when it finds nothing nearer its exact clearance is
   // at least the answer so far less its cell, and the reply stays within a cell of the nearest obstacle of any model.
-  geometry::ClearanceRequest narrowed = request;
   for (const v1::Model model : models) {
     if (out.found()) {
       if (out.clearance_m() <= 0.0) break;  // contact: nothing is nearer, and ties go to the model asked first
-      narrowed.max_distance_m = out.clearance_m();
+      request.max_distance_m = out.clearance_m();
     }
-    const ModelClearance r = model_clearance(snapshot, model, narrowed);
+    const ModelClearance r = model_clearance(snapshot, model, request);
     if (!r.found || (out.found() && r.clearance_m >= out.clearance_m())) continue;
     out.set_found(true);
     out.set_clearance_m(r.clearance_m);
